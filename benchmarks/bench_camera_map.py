@@ -36,7 +36,11 @@ def main() -> None:
 
     rows = [
         ("camera_map", lambda: camera_map(X1, RHO), lambda: camera_map(X, RHO)),
-        ("camera_map_inverse", lambda: camera_map_inverse(y1, RHO), lambda: camera_map_inverse(y, RHO)),
+        (
+            "camera_map_inverse",
+            lambda: camera_map_inverse(y1, RHO),
+            lambda: camera_map_inverse(y, RHO),
+        ),
         ("image_jacobian", lambda: image_jacobian(y1, RHO), lambda: image_jacobian(y, RHO)),
     ]
     print("cost per pose, as a ratio to numpy's 4x4 inverse of the same batch size")
@@ -45,7 +49,10 @@ def main() -> None:
         t1 = per_call(single, number=500)
         tN = per_call(batch, number=3) / len(X)
         print(f"{name:<20} {t1 / base_single:>16.1f} {tN / base_batch:>18.1f} {t1 / tN:>12.0f}")
-    print(f"(context only: baseline {base_single * 1e6:.2f} us single, {base_batch * 1e9:.1f} ns/pose batched)")
+    print(
+        f"(context only: baseline {base_single * 1e6:.2f} us single, "
+        f"{base_batch * 1e9:.1f} ns/pose batched)"
+    )
 
 
 if __name__ == "__main__":
