@@ -14,6 +14,16 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.symbolic import Expression, Variable
 
 
+def sqrt(x: object) -> object:
+    """Square root for arrays of any scalar type and for jets."""
+    from geovs_drake._jet import Jet
+    from geovs_drake._jet import sqrt as jet_sqrt
+
+    if isinstance(x, Jet):
+        return jet_sqrt(x)
+    return np.sqrt(x)
+
+
 class _Unevaluable(Exception):
     """Raised internally when a symbolic entry has free variables."""
 

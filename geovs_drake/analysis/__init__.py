@@ -1,0 +1,1 @@
+"""Analysis: navigation-function studies, linearisation, Monte-Carlo."""

@@ -1,0 +1,147 @@
+"""The safe domain D of Sec. 4.2, with the corrections of ERRATA.md.
+
+D is the set of images y = (Q, lambda, s) with
+
+* field of view: the whole silhouette inside the cone of half-angle theta
+  about the optical axis e3. With ``cos(alpha) = s.e3`` and the silhouette's
+  angular radius ``gamma = arcsin(lambda)``, this is ``alpha + gamma <= theta``
+  (ERRATA, Sec. 4.2: ``f(y) = cos(alpha + gamma) >= cos(theta)``);
+* distance: ``lam_min <= lambda <= lam_max``;
+* occlusion: the marked point strictly inside the silhouette with a margin
+  relative to the visible cap's cosine width (ERRATA, design note)::
+
+      q1.s >= sqrt(1 - lambda^2) + kappa (1 - sqrt(1 - lambda^2)),  0 < kappa < 1.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from geovs_drake._scalar import cross, dot, sqrt, values_or_none
+from geovs_drake.camera import ImageFeatures, as_features
+
+__all__ = ["DEFAULT_DOMAIN", "DomainMargins", "SafeDomain"]
+
+
+class DomainMargins(NamedTuple):
+    """Signed margin of each constraint of D: >= 0 inside, 0 on the face.
+
+    * ``fov = s.e3 - cos(theta - arcsin(lambda))``: the same sign as the
+      errata's ``f(y) - cos(theta)`` (cosines of angles in [0, pi/2)), and
+      smooth at s = e3, where ``f`` is not.
+    * ``lam_min = lambda - lam_min``, ``lam_max = lam_max - lambda``.
+    * ``occlusion = q1.s - sqrt(1 - lambda^2) - kappa (1 - sqrt(1 - lambda^2))``.
+    """
+
+    fov: np.ndarray
+    lam_min: np.ndarray
+    lam_max: np.ndarray
+    occlusion: np.ndarray
+
+    def minimum(self) -> np.ndarray:
+        """The smallest margin (float inputs)."""
+        return np.min(np.stack([np.asarray(m, dtype=float) for m in self]), axis=0)
+
+
+@dataclass(frozen=True)
+class SafeDomain:
+    """The compact safe domain D inside the image space I.
+
+    Args:
+        fov_half_angle: theta, the FOV cone's half-angle [rad], in
+            ``(arcsin(lam_max), pi/2)`` so the nearest allowed sphere fits.
+        lam_min, lam_max: bounds on lambda = rho / |d|, ``0 < lam_min < lam_max < 1``.
+        occlusion_margin: kappa in (0, 1), the fraction of the visible cap's
+            cosine width kept between the marked point and the limb.
+    """
+
+    fov_half_angle: float = math.radians(35.0)
+    lam_min: float = 0.05
+    lam_max: float = 0.4
+    occlusion_margin: float = 0.1
+
+    def __post_init__(self) -> None:
+        th, lo, hi, k = self.fov_half_angle, self.lam_min, self.lam_max, self.occlusion_margin
+        for name, value in (
+            ("fov_half_angle", th),
+            ("lam_min", lo),
+            ("lam_max", hi),
+            ("occlusion_margin", k),
+        ):
+            if not math.isfinite(value):
+                raise ValueError(f"infeasible domain: {name} = {value} is not finite")
+        if not 0 < lo < hi < 1:
+            raise ValueError(
+                f"infeasible domain: need 0 < lam_min < lam_max < 1, got "
+                f"lam_min = {lo}, lam_max = {hi}"
+            )
+        if not math.asin(hi) < th < math.pi / 2:
+            raise ValueError(
+                f"infeasible domain: need arcsin(lam_max) < fov_half_angle < pi/2, got "
+                f"arcsin({hi}) = {math.asin(hi):.6g} and fov_half_angle = {th:.6g}"
+            )
+        if not 0 < k < 1:
+            raise ValueError(f"infeasible domain: need 0 < occlusion_margin < 1, got {k}")
+
+    # Smooth, scalar-generic pieces shared with the navigation function. Each
+    # takes lambda (any scalar type or array) and uses only + - * / sqrt, so it
+    # also runs on jets.
+    def fov_cap(self, lam: object) -> tuple[object, object]:
+        """(cos, sin) of the largest angle ``theta - arcsin(lambda)`` between s and e3."""
+        c_lam = sqrt(1 - lam * lam)
+        ct, st = math.cos(self.fov_half_angle), math.sin(self.fov_half_angle)
+        return ct * c_lam + st * lam, st * c_lam - ct * lam
+
+    def occlusion_cap(self, lam: object) -> tuple[object, object]:
+        """(cos, sin^2) of the largest angle between q1 and s.
+
+        ``1 - cos = (1 - kappa)(1 - sqrt(1 - lambda^2))`` with
+        ``1 - sqrt(1 - lambda^2) = lambda^2 / (1 + sqrt(1 - lambda^2))`` formed
+        without cancellation.
+        """
+        lam2 = lam * lam
+        c_lam = sqrt(1 - lam2)
+        one_minus_cos = (1 - self.occlusion_margin) * lam2 / (1 + c_lam)
+        cos = 1 - one_minus_cos
+        return cos, one_minus_cos * (1 + cos)
+
+    def margins(self, y: ImageFeatures | np.ndarray) -> DomainMargins:
+        """Each constraint's signed margin (see :class:`DomainMargins`)."""
+        y = as_features(y)
+        lam, s, q1 = y.lam, y.s, y.q1
+        cos_fov, _ = self.fov_cap(lam)
+        lam2 = lam * lam
+        c_lam = np.sqrt(1 - lam2)
+        # q1.s - sqrt(1 - lambda^2) = (lambda^2 - |s x q1|^2) / (q1.s + sqrt(1 - lambda^2))
+        # for unit vectors with q1.s > 0 (as in I): no cancellation at small lambda.
+        w = cross(s, q1)
+        to_limb = (lam2 - dot(w, w)) / (dot(q1, s) + c_lam)
+        occlusion = to_limb - self.occlusion_margin * lam2 / (1 + c_lam)
+        return DomainMargins(
+            fov=np.asarray(s[..., 2] - cos_fov),
+            lam_min=np.asarray(lam - self.lam_min),
+            lam_max=np.asarray(self.lam_max - lam),
+            occlusion=np.asarray(occlusion),
+        )
+
+    def contains(self, y: ImageFeatures | np.ndarray) -> np.ndarray:
+        """True where every margin is >= 0 (float or evaluable inputs)."""
+        m = self.margins(y)
+        values = [values_or_none(x) for x in m]
+        if any(v is None for v in values):
+            raise ValueError("contains() needs numeric (evaluable) features")
+        inside = np.ones(np.shape(values[0]), dtype=bool)
+        for v in values:
+            inside &= v >= 0
+        # A point on the wrong side of the limb (q1.s <= 0) is outside whatever
+        # the stable formula says.
+        q1s = values_or_none(dot(as_features(y).q1, as_features(y).s))
+        return inside & (q1s > 0)
+
+
+#: The default scenario's domain: theta = 35 deg, lambda in [0.05, 0.4], kappa = 0.1.
+DEFAULT_DOMAIN = SafeDomain()
