@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from geovs_drake._scalar import cross as _scalar_cross
+
 
 def _expand(d: np.ndarray, v_ndim: int, ndim: int) -> np.ndarray:
     """Insert axes after the tangent axis so ``d`` broadcasts like a value of ``ndim``."""
@@ -102,18 +104,31 @@ def jsum(x: Jet) -> Jet:
 def stack(items: list[Jet], axis: int = -1) -> Jet:
     if axis >= 0:
         raise ValueError("use a negative axis")
-    nd = max(i.v.ndim for i in items)
-    vs = [np.broadcast_to(i.v, np.broadcast_shapes(*[j.v.shape for j in items])) for i in items]
-    shape = vs[0].shape
-    ds = [np.broadcast_to(_expand(i.d, i.v.ndim, nd), (i.n,) + shape) for i in items]
-    return Jet(np.stack(vs, axis=axis), np.stack(ds, axis=axis))
+    shapes = {i.v.shape for i in items}
+    if len(shapes) != 1:  # broadcast first (rare: a constant beside a batch)
+        shape = np.broadcast_shapes(*shapes)
+        items = [
+            Jet(
+                np.broadcast_to(i.v, shape),
+                np.broadcast_to(_expand(i.d, i.v.ndim, len(shape)), (i.n,) + shape),
+            )
+            for i in items
+        ]
+    return Jet(np.stack([i.v for i in items], axis=axis), np.stack([i.d for i in items], axis=axis))
 
 
 def dot(a: Jet, b: Jet) -> Jet:
     return jsum(a * b)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return _scalar_cross(a, b)
+
+
 def cross(a: Jet, b: Jet) -> Jet:
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+    """a x b over the last axis; the product rule on whole arrays, not components."""
+    nd = max(a.v.ndim, b.v.ndim)
+    return Jet(
+        _cross(a.v, b.v),
+        _cross(_expand(a.d, a.v.ndim, nd), b.v) + _cross(a.v, _expand(b.d, b.v.ndim, nd)),
+    )

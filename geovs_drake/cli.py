@@ -1,34 +1,123 @@
-"""Command line: ``geovs-drake demo`` and ``geovs-drake simulate``."""
+"""Command line: ``geovs-drake simulate`` and ``geovs-drake demo``.
+
+Examples::
+
+    geovs-drake simulate --json
+    geovs-drake simulate --controller kinematic --initial=-0.1,0.05,-0.7,0.1,0,1.2
+    geovs-drake demo --out results
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import sys
 
-import numpy as np
-from pydrake.math import RigidTransform
+from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
+from geovs_drake.simulation import SimulationResult, StartOutsideDomain, simulate
 
-from geovs_drake.camera import camera_map, camera_map_inverse, visibility
+__all__ = ["main", "one_line"]
+
+
+def _pose_arg(text: str) -> PoseConfig:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(
+            f"expected 6 numbers x,y,z,roll,pitch,yaw: {text!r}"
+        ) from e
+    if len(values) != 6 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(
+            f"expected 6 finite numbers x,y,z,roll,pitch,yaw, got {text!r}"
+        )
+    return PoseConfig(xyz=values[:3], rpy=values[3:])
+
+
+def _config_from_args(args: argparse.Namespace) -> ScenarioConfig:
+    config = load_scenario(args.config) if args.config else ScenarioConfig()
+    if args.controller:
+        config.controller = args.controller
+    if args.initial is not None:
+        config.initial = args.initial
+    if args.goal is not None:
+        config.goal = args.goal
+    if args.duration is not None:
+        config.duration = args.duration
+    return config
+
+
+def one_line(result: SimulationResult) -> str:
+    s = result.summary()
+    return (
+        f"{s['controller']}: {s['status']} | position error {s['final_position_error_m']:.2e} m, "
+        f"rotation error {s['final_rotation_error_rad']:.2e} rad | min margins: "
+        f"fov {s['min_fov_margin']:.3g}, occlusion {s['min_occlusion_margin']:.3g}, "
+        f"nu {s['min_visibility']:.3g} | Lyapunov monotone: {s['lyapunov_monotone']} | "
+        f"{s['sim_time_s']:.1f} s simulated in {s['wall_time_s']:.1f} s, {s['steps']} steps"
+    )
+
+
+def _add_scenario_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--config", help="scenario YAML (fields of ScenarioConfig)")
+    p.add_argument("--controller", choices=["kinematic", "dynamic"])
+    p.add_argument(
+        "--initial",
+        type=_pose_arg,
+        metavar="x,y,z,roll,pitch,yaw",
+        help="initial camera pose X_BC in the target frame [m, rad]; "
+        "write negative first values as --initial=-0.2,...",
+    )
+    p.add_argument(
+        "--goal",
+        type=_pose_arg,
+        metavar="x,y,z,roll,pitch,yaw",
+        help="goal camera pose X_BC* (default 0,0,-0.5,0,0,0)",
+    )
+    p.add_argument("--duration", type=float, help="simulated seconds")
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    config = _config_from_args(args)
+    try:
+        result = simulate(config)
+    except StartOutsideDomain as e:
+        print(f"geovs-drake: {e}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(result.summary()))
+    else:
+        print(one_line(result))
+    return 0 if result.status in ("converged", "not_converged") else 1
 
 
 def _demo(args: argparse.Namespace) -> int:
-    X_CB = RigidTransform([0.0, 0.0, 0.5])
-    y = camera_map(X_CB, 0.1)
-    np.set_printoptions(precision=6, suppress=True)
-    print("default goal X_CB* = translation (0, 0, 0.5), identity rotation")
-    print(f"visibility nu(H*) = {float(visibility(X_CB, 0.1)):.6f}")
-    print(f"y* = c(H*) = [q1, q2, q3, lambda, s] = {y.to_vector()}")
-    print(f"c^-1(y*) =\n{camera_map_inverse(y, 0.1).GetAsMatrix4()}")
-    return 0
+    from geovs_drake.demo import run_demo
+
+    return run_demo(args.out, args.duration, meshcat=not args.no_meshcat)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="geovs-drake", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="geovs-drake",
+        description="Geometric visual servoing (Cowan & Chang) on Drake.",
+    )
     sub = parser.add_subparsers(dest="command", required=True)
-    demo = sub.add_parser("demo", help="run the default scenario")
+    sim = sub.add_parser("simulate", help="simulate a scenario and print a one-line result")
+    _add_scenario_args(sim)
+    sim.add_argument("--json", action="store_true", help="print one JSON object")
+    sim.set_defaults(func=_simulate)
+    demo = sub.add_parser("demo", help="the default dynamic scenario from a hard start, with plots")
+    demo.add_argument("--out", default="results", help="output folder (default: results)")
+    demo.add_argument("--duration", type=float, default=None)
+    demo.add_argument("--no-meshcat", action="store_true", help="skip the Meshcat recording")
     demo.set_defaults(func=_demo)
     args = parser.parse_args(argv)
-    return args.func(args)
+    try:
+        return args.func(args)
+    except ValueError as e:  # bad configuration: one clear line, no traceback
+        print(f"geovs-drake: {e}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

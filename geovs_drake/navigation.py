@@ -66,6 +66,7 @@ phi (:mod:`geovs_drake._jet`), for any scalar type.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -228,6 +229,17 @@ def model_coordinates(y: ImageFeatures | np.ndarray, domain: SafeDomain) -> Mode
 
 
 def _goal_coordinates(goal: ImageFeatures, domain: SafeDomain) -> ModelCoordinates:
+    v = goal.to_vector()
+    if v.dtype != object and v.shape == (13,):
+        # The servo loop asks for the same goal at every derivative evaluation.
+        return _cached_goal_coordinates(v.tobytes(), domain)
+    Q, lam, s = _seed(goal, False)
+    return _model_jets(Q, lam, s, domain)
+
+
+@functools.lru_cache(maxsize=64)
+def _cached_goal_coordinates(goal_bytes: bytes, domain: SafeDomain) -> ModelCoordinates:
+    goal = ImageFeatures.from_vector(np.frombuffer(goal_bytes, dtype=float).copy())
     Q, lam, s = _seed(goal, False)
     return _model_jets(Q, lam, s, domain)
 

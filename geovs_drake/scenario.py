@@ -1,0 +1,186 @@
+"""Scenario configuration: dataclasses loadable with Drake's ``yaml_load_typed``.
+
+Defaults are the project's default scenario: rho = 0.1 m, theta = 35 deg,
+lambda in [0.05, 0.4], kappa = 0.1, goal X_BC* = translation (0, 0, -0.5) with
+identity rotation (so y* has q1 = s = e3, q2 = e2, lambda* = 0.2), a 1 kg
+camera rig, gravity off (the paper's Appendix C assumes it cancelled).
+
+Poses of the camera are given in the *target* frame B, as X_BC (metres,
+radians, Drake's RollPitchYaw), the natural way to say where the camera is.
+"""
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from pydrake.common.yaml import yaml_load_typed
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.systems.analysis import SimulatorConfig
+
+from geovs_drake.camera import ImageFeatures, camera_map
+from geovs_drake.domain import SafeDomain
+from geovs_drake.navigation import NavigationGains
+
+__all__ = [
+    "ControlConfig",
+    "DomainConfig",
+    "NavigationGainsConfig",
+    "PoseConfig",
+    "RigConfig",
+    "ScenarioConfig",
+    "load_scenario",
+]
+
+
+@dataclass
+class PoseConfig:
+    """A pose as translation [m] and Drake RollPitchYaw [rad]."""
+
+    xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    rpy: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+    def to_rigid_transform(self) -> RigidTransform:
+        if len(self.xyz) != 3 or len(self.rpy) != 3:
+            raise ValueError(f"a pose needs 3 xyz and 3 rpy numbers, got {self.xyz}, {self.rpy}")
+        values = list(self.xyz) + list(self.rpy)
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError(f"pose has a non-finite entry: xyz = {self.xyz}, rpy = {self.rpy}")
+        return RigidTransform(RollPitchYaw(self.rpy), np.asarray(self.xyz, dtype=float))
+
+    @staticmethod
+    def from_rigid_transform(X: RigidTransform) -> "PoseConfig":
+        return PoseConfig(
+            xyz=[float(v) for v in X.translation()],
+            rpy=[float(v) for v in RollPitchYaw(X.rotation()).vector()],
+        )
+
+
+@dataclass
+class DomainConfig:
+    fov_half_angle_deg: float = 35.0
+    lam_min: float = 0.05
+    lam_max: float = 0.4
+    occlusion_margin: float = 0.1
+
+    def to_domain(self) -> SafeDomain:
+        return SafeDomain(
+            math.radians(self.fov_half_angle_deg), self.lam_min, self.lam_max, self.occlusion_margin
+        )
+
+
+@dataclass
+class NavigationGainsConfig:
+    k_lam: float = 4.0
+    k_fov: float = 2.0
+    k_occ: float = 8.0
+    circle_weight: float = 0.9
+
+    def to_gains(self) -> NavigationGains:
+        return NavigationGains(self.k_lam, self.k_fov, self.k_occ, self.circle_weight)
+
+
+@dataclass
+class RigConfig:
+    """The free camera rig: mass [kg], principal inertia about its CoM [kg m^2], and
+    X_RC, the camera frame's pose in the rig's body frame (origin at the CoM)."""
+
+    mass: float = 1.0
+    inertia_diagonal: list[float] = field(default_factory=lambda: [0.02, 0.02, 0.02])
+    camera_offset: PoseConfig = field(default_factory=PoseConfig)
+
+
+@dataclass
+class ControlConfig:
+    """Gains. The dynamic loop's potential is ``potential_gain * phi`` [J]; the
+    damping B is diagonal on (Omega, V) (rotational first); the kinematic loop is
+    ``ydot = -kinematic_gain * grad phi``."""
+
+    potential_gain: float = 4.0
+    damping: list[float] = field(default_factory=lambda: [0.3, 0.3, 0.3, 4.0, 4.0, 4.0])
+    kinematic_gain: float = 2.0
+
+
+def _default_simulator() -> SimulatorConfig:
+    return SimulatorConfig(
+        integration_scheme="runge_kutta3",
+        accuracy=1e-6,
+        max_step_size=0.05,
+        use_error_control=True,
+        target_realtime_rate=0.0,
+        publish_every_time_step=False,
+    )
+
+
+@dataclass
+class ScenarioConfig:
+    radius: float = 0.1
+    #: X_WB, the target sphere in the world.
+    target: PoseConfig = field(default_factory=PoseConfig)
+    #: X_BC*, the goal camera pose in the target frame.
+    goal: PoseConfig = field(default_factory=lambda: PoseConfig(xyz=[0.0, 0.0, -0.5]))
+    #: X_BC(0), the initial camera pose in the target frame.
+    initial: PoseConfig = field(
+        default_factory=lambda: PoseConfig(xyz=[0.12, -0.08, -0.8], rpy=[0.15, -0.1, 2.0])
+    )
+    domain: DomainConfig = field(default_factory=DomainConfig)
+    navigation: NavigationGainsConfig = field(default_factory=NavigationGainsConfig)
+    rig: RigConfig = field(default_factory=RigConfig)
+    control: ControlConfig = field(default_factory=ControlConfig)
+    controller: str = "dynamic"
+    duration: float = 30.0
+    #: Samples per second of the logged signals.
+    log_rate: float = 50.0
+    simulator: SimulatorConfig = field(default_factory=_default_simulator)
+
+    def validate(self) -> None:
+        if self.controller not in ("dynamic", "kinematic"):
+            raise ValueError(
+                f"controller must be 'dynamic' or 'kinematic', got {self.controller!r}"
+            )
+        if not (math.isfinite(self.radius) and self.radius > 0):
+            raise ValueError(f"radius must be finite and > 0: radius = {self.radius}")
+        if not (math.isfinite(self.duration) and self.duration > 0):
+            raise ValueError(f"duration must be > 0: duration = {self.duration}")
+        if not (self.rig.mass > 0 and all(v > 0 for v in self.rig.inertia_diagonal)):
+            raise ValueError(
+                f"rig mass and inertia must be > 0: mass = {self.rig.mass}, "
+                f"inertia = {self.rig.inertia_diagonal}"
+            )
+        if self.control.potential_gain <= 0 or self.control.kinematic_gain <= 0:
+            raise ValueError("potential_gain and kinematic_gain must be > 0")
+        self.domain.to_domain()
+        self.navigation.to_gains()
+
+    # Derived quantities, in the names the code uses.
+    @property
+    def X_WB(self) -> RigidTransform:
+        return self.target.to_rigid_transform()
+
+    @property
+    def X_BC_goal(self) -> RigidTransform:
+        return self.goal.to_rigid_transform()
+
+    @property
+    def X_BC_initial(self) -> RigidTransform:
+        return self.initial.to_rigid_transform()
+
+    @property
+    def X_RC(self) -> RigidTransform:
+        return self.rig.camera_offset.to_rigid_transform()
+
+    def goal_features(self) -> ImageFeatures:
+        """y* = c(X_CB*) = c((X_BC*)^-1)."""
+        return camera_map(self.X_BC_goal.inverse(), self.radius)
+
+    def initial_features(self) -> ImageFeatures:
+        return camera_map(self.X_BC_initial.inverse(), self.radius)
+
+
+def load_scenario(path: str | Path | None = None, data: str | None = None) -> ScenarioConfig:
+    """A ScenarioConfig from a YAML file or string; unspecified fields keep defaults."""
+    if path is None and data is None:
+        return ScenarioConfig()
+    if path is not None:
+        return yaml_load_typed(schema=ScenarioConfig, filename=str(path), defaults=ScenarioConfig())
+    return yaml_load_typed(schema=ScenarioConfig, data=data, defaults=ScenarioConfig())

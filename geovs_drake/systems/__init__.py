@@ -1,0 +1,23 @@
+"""The servo's Drake systems, one LeafSystem per module, all TemplateSystems."""
+
+from geovs_drake.systems.image_jacobian_force import ImageJacobianForce, ImageJacobianForce_
+from geovs_drake.systems.kinematic_controller import KinematicController, KinematicController_
+from geovs_drake.systems.kinematic_rigid_body import KinematicRigidBody, KinematicRigidBody_
+from geovs_drake.systems.navigation_controller import (
+    NavigationController,
+    NavigationController_,
+)
+from geovs_drake.systems.spherical_camera import SphericalCamera, SphericalCamera_
+
+__all__ = [
+    "ImageJacobianForce",
+    "ImageJacobianForce_",
+    "KinematicController",
+    "KinematicController_",
+    "KinematicRigidBody",
+    "KinematicRigidBody_",
+    "NavigationController",
+    "NavigationController_",
+    "SphericalCamera",
+    "SphericalCamera_",
+]

@@ -1,0 +1,241 @@
+"""Closed loops: Drake's Linearize against the closed form, monitors, the CLI, Monte-Carlo."""
+
+import copy
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from pydrake.common.yaml import yaml_dump_typed
+from pydrake.math import RigidTransform
+
+from geovs_drake.analysis.linearization import linearize_at_goal, navigation_hessian
+from geovs_drake.analysis.monte_carlo import (
+    drake_monte_carlo,
+    random_initial_poses,
+    run_scenarios,
+    scenarios_from_starts,
+)
+from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
+from geovs_drake.navigation import NavigationFunction
+from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
+from geovs_drake.simulation import StartOutsideDomain, pose_error, simulate
+
+OFFSET = PoseConfig(xyz=[0.03, -0.02, 0.05], rpy=[0.1, 0.2, -0.3])
+
+
+def _with_offset() -> ScenarioConfig:
+    c = ScenarioConfig()
+    c.rig.camera_offset = copy.deepcopy(OFFSET)
+    c.rig.inertia_diagonal = [0.02, 0.03, 0.025]
+    return c
+
+
+# ---------------------------------------------------------------- Linearize
+@pytest.mark.parametrize(
+    "controller,config",
+    [
+        ("dynamic", ScenarioConfig()),
+        ("dynamic", _with_offset()),
+        ("kinematic", ScenarioConfig()),
+    ],
+    ids=["dynamic", "dynamic-camera-off-com", "kinematic"],
+)
+def test_linearize_matches_closed_form_and_is_stable(controller, config):
+    lin = linearize_at_goal(config, controller)
+    n = 12 if controller == "dynamic" else 6
+    assert lin.A.shape == (n, n)
+    # The quaternion norm is Drake's extra state: an eigenvector with eigenvalue 0,
+    # and the minimal coordinates span an invariant subspace.
+    assert abs(lin.quaternion_eigenvalue) < 1e-12
+    assert lin.invariance_residual < 1e-12
+    ev_full = np.linalg.eigvals(lin.A_drake)
+    assert np.sum(np.abs(ev_full) < 1e-9) == 1
+    # Same matrix as the closed form, entry by entry.
+    np.testing.assert_allclose(lin.A, lin.A_closed, rtol=0, atol=1e-8 * np.max(np.abs(lin.A)))
+    assert lin.max_real_part < -0.1, lin.eigenvalues
+
+
+def test_kinematic_eigenvalues_are_minus_gain_times_nf_hessian():
+    config = ScenarioConfig()
+    lin = linearize_at_goal(config, "kinematic")
+    nf = NavigationFunction(config.domain.to_domain(), config.goal_features())
+    H = navigation_hessian(nf, config.goal_features())
+    expected = np.sort(-config.control.kinematic_gain * np.linalg.eigvalsh(H))
+    np.testing.assert_allclose(np.sort(lin.eigenvalues.real), expected, rtol=1e-9)
+    np.testing.assert_allclose(lin.eigenvalues.imag, 0, atol=1e-9)
+
+
+def test_diagrams_are_named_and_convert_to_autodiff():
+    d = make_dynamic_servo_diagram(log=False)
+    k = make_kinematic_servo_diagram(log=False)
+    assert d.get_name() == "dynamic_visual_servo" and k.get_name() == "kinematic_visual_servo"
+    for name in ("plant", "spherical_camera", "navigation_controller", "image_jacobian_force"):
+        d.GetSubsystemByName(name)
+    d.ToAutoDiffXd()
+    k.ToAutoDiffXd()
+    assert "spherical_camera" in d.GetGraphvizString()
+
+
+# ------------------------------------------------------------- simulations
+@pytest.fixture(scope="module")
+def default_dynamic_run():
+    return simulate(ScenarioConfig(duration=15.0))
+
+
+def test_default_dynamic_run_converges_with_decreasing_energy(default_dynamic_run):
+    r = default_dynamic_run
+    assert r.status == "converged", r.message
+    assert r.converged
+    assert np.all(r.margins >= 0) and np.all(r.visibility > 0)
+    # Energy: E = 1/2 nu^T M nu + k_p phi from Drake's kinetic energy; it starts at
+    # k_p phi(0) (at rest) and never rises beyond the integrator's tolerance.
+    assert r.energy[0] == pytest.approx(r.config.control.potential_gain * r.phi[0])
+    assert np.max(np.diff(r.energy)) <= r.lyapunov_tolerance
+    assert r.lyapunov_monotone
+    # The logged final pose agrees with the run's final state.
+    dp, dr = pose_error(RigidTransform(r.X_BC[-1]), r.config.X_BC_goal)
+    assert dp < 1e-3 and dr < 1e-3
+
+
+def test_kinematic_run_decreases_phi_and_converges():
+    r = simulate(ScenarioConfig(controller="kinematic", duration=15.0))
+    assert r.status == "converged", r.message
+    assert r.energy is None
+    assert np.max(np.diff(r.phi)) <= r.lyapunov_tolerance
+
+
+def test_camera_off_center_of_mass_converges():
+    c = _with_offset()
+    c.duration = 15.0
+    r = simulate(c)
+    assert r.status == "converged", r.message
+    assert r.lyapunov_monotone
+
+
+def test_bad_integrator_configuration_stops_at_the_boundary_not_in_nan():
+    c = ScenarioConfig(duration=10.0)
+    c.control.potential_gain = 200.0
+    c.control.damping = [0.0] * 6
+    c.simulator.integration_scheme = "explicit_euler"
+    c.simulator.use_error_control = False
+    c.simulator.max_step_size = 0.05
+    r = simulate(c)
+    assert r.status in ("left_domain", "lost_visibility"), r.message
+    assert r.left_domain and not r.converged
+    assert "left D" in r.message or "lost visibility" in r.message
+    assert r.sim_time_s < c.duration
+    assert np.all(np.isfinite(r.image_features)) and np.all(np.isfinite(r.phi))
+
+
+def test_start_outside_domain_raises_with_the_constraint():
+    c = ScenarioConfig(initial=PoseConfig(xyz=[0.0, 0.0, -3.0]))
+    with pytest.raises(StartOutsideDomain, match=r"lam_min margin = -0.01\d* < 0"):
+        simulate(c)
+    # Behind the target, looking at it: the marked point faces away.
+    c = ScenarioConfig(initial=PoseConfig(xyz=[0.0, 0.0, 0.5], rpy=[np.pi, 0, 0]))
+    with pytest.raises(StartOutsideDomain, match="pose not visible"):
+        simulate(c)
+
+
+def test_scenario_yaml_round_trip_and_partial_files(tmp_path):
+    c = _with_offset()
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml_dump_typed(c))
+    c2 = load_scenario(path)
+    assert yaml_dump_typed(c2) == yaml_dump_typed(c)
+    c3 = load_scenario(data="controller: kinematic\nduration: 7.5\n")
+    assert c3.controller == "kinematic" and c3.duration == 7.5
+    assert c3.goal == ScenarioConfig().goal
+    with pytest.raises(ValueError, match="controller must be"):
+        load_scenario(data="controller: pid\n").validate()
+
+
+# ---------------------------------------------------------------------- CLI
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "geovs_drake.cli", *args], capture_output=True, text=True
+    )
+
+
+JSON_FIELDS = {
+    "converged",
+    "final_position_error_m",
+    "final_rotation_error_rad",
+    "min_fov_margin",
+    "min_occlusion_margin",
+    "min_visibility",
+    "left_domain",
+    "status",
+    "sim_time_s",
+    "wall_time_s",
+    "steps",
+    "lyapunov_monotone",
+    "max_energy",
+}
+
+
+def test_cli_json_has_every_field_and_is_true_to_the_run():
+    initial = "-0.1,0.05,-0.7,0.1,-0.05,1.2"
+    out = _cli("simulate", "--json", f"--initial={initial}", "--duration", "12")
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.strip().splitlines()
+    assert len(lines) == 1
+    s = json.loads(lines[0])
+    assert JSON_FIELDS <= set(s)
+    # The same run through the Python API is deterministic: same numbers.
+    values = [float(v) for v in initial.split(",")]
+    r = simulate(
+        ScenarioConfig(duration=12.0, initial=PoseConfig(xyz=values[:3], rpy=values[3:]))
+    ).summary()
+    for key in JSON_FIELDS - {"wall_time_s"}:
+        if isinstance(r[key], bool | str | int):
+            assert s[key] == r[key], key
+        else:
+            assert s[key] == pytest.approx(r[key], rel=1e-9, abs=1e-15), key
+    assert s["converged"] is True and s["left_domain"] is False
+    assert s["sim_time_s"] == 12.0
+
+
+def test_cli_one_line_and_kinematic():
+    out = _cli("simulate", "--controller", "kinematic", "--duration", "12")
+    assert out.returncode == 0, out.stderr
+    assert len(out.stdout.strip().splitlines()) == 1
+    assert out.stdout.startswith("kinematic: converged")
+
+
+def test_cli_start_outside_domain_exits_2_with_one_line():
+    out = _cli("simulate", "--initial=0,0,-3,0,0,0")
+    assert out.returncode == 2
+    assert out.stdout == ""
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "lam_min margin" in lines[0]
+    bad = _cli("simulate", "--initial=0,0,-0.5,0,0")
+    assert bad.returncode == 2 and "expected 6" in bad.stderr
+
+
+# ------------------------------------------------------------- Monte-Carlo
+@pytest.mark.parametrize("controller", ["dynamic", "kinematic"])
+def test_monte_carlo_random_starts_converge_inside_domain(controller):
+    """>= 50 seeded random starts in D: all converge, none leaves D, Lyapunov monotone."""
+    config = ScenarioConfig(controller=controller, duration=12.0)
+    config.simulator.accuracy = 1e-5
+    starts = random_initial_poses(np.random.default_rng(2026), 50, config, shrink=0.97)
+    results = run_scenarios(scenarios_from_starts(config, starts), processes=2)
+    statuses = [r["status"] for r in results]
+    print(f"\n{controller}: {statuses.count('converged')}/50 converged")
+    assert statuses == ["converged"] * 50
+    assert not any(r["left_domain"] for r in results)
+    assert min(r["min_fov_margin"] for r in results) > 0
+    assert min(r["min_occlusion_margin"] for r in results) > 0
+    assert all(r["lyapunov_monotone"] for r in results)
+
+
+def test_drake_monte_carlo_simulation_runs():
+    config = ScenarioConfig(controller="kinematic", duration=12.0)
+    config.simulator.accuracy = 1e-5
+    out = drake_monte_carlo(config, num_samples=3, seed=5)
+    assert len(out) == 3
+    assert all(o["position_error_m"] < 1e-3 and o["min_margin"] > 0 for o in out)
+    assert all(o["output"] == o["position_error_m"] for o in out)

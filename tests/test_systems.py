@@ -1,0 +1,219 @@
+"""The LeafSystems against the pure functions and against Drake's own multibody tools."""
+
+import numpy as np
+import pytest
+from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, ExtractValue, InitializeAutoDiff
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import FixedOffsetFrame, RotationalInertia, SpatialInertia
+
+from geovs_drake import camera_map, image_jacobian, so3_exp, visibility
+from geovs_drake.domain import DEFAULT_DOMAIN
+from geovs_drake.navigation import NavigationFunction, navigation_differential
+from geovs_drake.systems import (
+    ImageJacobianForce,
+    KinematicController,
+    KinematicRigidBody,
+    NavigationController,
+    SphericalCamera,
+)
+from geovs_drake.systems.kinematic_rigid_body import pose_state
+
+RHO = 0.1
+X_WB = RigidTransform(RollPitchYaw(0.2, -0.1, 0.4), [0.3, -0.2, 1.0])
+X_RC = RigidTransform(RollPitchYaw(0.1, 0.3, -0.2), [0.02, -0.03, 0.05])
+GOAL = camera_map(RigidTransform([0, 0, 0.5]), RHO)
+
+
+def _rig_pose_looking_at_target(rng: np.random.Generator) -> RigidTransform:
+    """A rig pose X_WR whose camera sees the target inside D."""
+    X_BC = RigidTransform(
+        RollPitchYaw(rng.uniform(-0.1, 0.1, 2).tolist() + [rng.uniform(-3, 3)]),
+        [rng.uniform(-0.05, 0.05), rng.uniform(-0.05, 0.05), -rng.uniform(0.4, 1.0)],
+    )
+    return X_WB @ X_BC @ X_RC.inverse()
+
+
+def _values(a) -> np.ndarray:
+    return ExtractValue(np.asarray(a)).reshape(np.shape(a))
+
+
+@pytest.fixture(scope="module")
+def camera() -> SphericalCamera:
+    return SphericalCamera(radius=RHO, X_WB=X_WB, X_RC=X_RC)
+
+
+def test_spherical_camera_matches_geometry(camera):
+    rng = np.random.default_rng(0)
+    ctx = camera.CreateDefaultContext()
+    for _ in range(20):
+        X_WR = _rig_pose_looking_at_target(rng)
+        camera.body_pose_input.FixValue(ctx, pose_state(X_WR))
+        # Independent: Drake's RigidTransform algebra for H = X_CB.
+        X_CB = (X_WR @ X_RC).inverse() @ X_WB
+        y = camera_map(X_CB, RHO)
+        np.testing.assert_allclose(
+            camera.image_features_output.Eval(ctx), y.to_vector(), atol=1e-12
+        )
+        assert camera.visibility_output.Eval(ctx)[0] == pytest.approx(
+            float(visibility(X_CB, RHO)), abs=1e-12
+        )
+        np.testing.assert_allclose(
+            camera.domain_margins_output.Eval(ctx),
+            [float(m) for m in DEFAULT_DOMAIN.margins(y)],
+            atol=1e-12,
+        )
+
+
+def test_spherical_camera_autodiff_matches_central_differences(camera):
+    cam_ad = camera.ToAutoDiffXd()
+    ctx = cam_ad.CreateDefaultContext()
+    x0 = pose_state(_rig_pose_looking_at_target(np.random.default_rng(1)))
+    cam_ad.body_pose_input.FixValue(ctx, InitializeAutoDiff(x0).ravel())
+    y_ad = cam_ad.image_features_output.Eval(ctx)
+    J_ad = ExtractGradient(y_ad)
+    ctx_f = camera.CreateDefaultContext()
+
+    def y_of(x):
+        camera.body_pose_input.FixValue(ctx_f, x)
+        return camera.image_features_output.Eval(ctx_f).copy()
+
+    np.testing.assert_allclose(ExtractValue(y_ad).ravel(), y_of(x0), atol=1e-14)
+    h = 1e-6
+    J_fd = np.stack([(y_of(x0 + h * e) - y_of(x0 - h * e)) / (2 * h) for e in np.eye(7)], -1)
+    np.testing.assert_allclose(J_ad, J_fd, atol=1e-7 * np.max(np.abs(J_ad)))
+
+
+def test_camera_outside_visibility_reports_violated_margins(camera):
+    ctx = camera.CreateDefaultContext()
+    # The camera behind the target's far side: the marked point faces away.
+    X_WR = X_WB @ RigidTransform(RollPitchYaw(np.pi, 0, 0), [0, 0, 0.6]) @ X_RC.inverse()
+    camera.body_pose_input.FixValue(ctx, pose_state(X_WR))
+    nu = camera.visibility_output.Eval(ctx)[0]
+    assert nu < 0
+    np.testing.assert_array_equal(camera.domain_margins_output.Eval(ctx), np.full(4, nu))
+    with pytest.raises(ValueError, match="pose not visible"):
+        camera.image_features_output.Eval(ctx)
+
+
+def test_navigation_controller_matches_pure_function_and_goal_is_a_parameter():
+    nav = NavigationController(goal=GOAL)
+    ctx = nav.CreateDefaultContext()
+    y = camera_map(RigidTransform(RollPitchYaw(0.1, 0.05, 1.0), [0.04, -0.02, 0.7]), RHO)
+    nav.image_features_input.FixValue(ctx, y.to_vector())
+    phi, dphi = navigation_differential(y, GOAL, DEFAULT_DOMAIN)
+    np.testing.assert_array_equal(nav.dphi_output.Eval(ctx), dphi)
+    assert nav.phi_output.Eval(ctx)[0] == phi
+    # Change the goal in the context, not the system.
+    nav.set_goal(ctx, y)
+    assert abs(nav.phi_output.Eval(ctx)[0]) < 1e-15
+    with pytest.raises(ValueError, match="goal not in the interior of D"):
+        nav.set_goal(ctx, camera_map(RigidTransform([0, 0, 3.0]), RHO))
+    # AutoDiffXd: the same values, derivatives that match the pure function's.
+    nav_ad = nav.ToAutoDiffXd()
+    ctx_ad = nav_ad.CreateDefaultContext()
+    v = InitializeAutoDiff(y.to_vector()).ravel()
+    nav_ad.image_features_input.FixValue(ctx_ad, v)
+    dphi_ad = nav_ad.dphi_output.Eval(ctx_ad)
+    _, dphi_pure = navigation_differential(v, GOAL, DEFAULT_DOMAIN)
+    np.testing.assert_allclose(ExtractValue(dphi_ad).ravel(), dphi, rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(ExtractGradient(dphi_ad), ExtractGradient(dphi_pure), atol=1e-12)
+
+
+def _drake_camera_velocity(x: np.ndarray) -> np.ndarray:
+    """(Omega, V) of frame C by MultibodyPlant: the independent truth for the frames."""
+    plant = MultibodyPlant(0.0)
+    body = plant.AddRigidBody(
+        "rig", SpatialInertia.MakeFromCentralInertia(1.0, np.zeros(3), RotationalInertia(1, 1, 1))
+    )
+    frame_C = plant.AddFrame(FixedOffsetFrame("C", body.body_frame(), X_RC))
+    plant.Finalize()
+    ctx = plant.CreateDefaultContext()
+    plant.SetPositionsAndVelocities(ctx, x)
+    V_WC_C = frame_C.CalcSpatialVelocity(ctx, plant.world_frame(), frame_C)
+    return np.concatenate([V_WC_C.rotational(), V_WC_C.translational()])
+
+
+def test_image_jacobian_force_wrench_and_power():
+    rng = np.random.default_rng(3)
+    damping = np.array([0.3, 0.4, 0.5, 4.0, 5.0, 6.0])
+    force = ImageJacobianForce(radius=RHO, potential_gain=2.5, damping=damping, X_RC=X_RC)
+    ctx = force.CreateDefaultContext()
+    for _ in range(10):
+        X_WR = _rig_pose_looking_at_target(rng)
+        q = pose_state(X_WR)
+        x = np.concatenate([q, rng.normal(size=6)])
+        y = camera_map((X_WR @ X_RC).inverse() @ X_WB, RHO)
+        _, dphi = navigation_differential(y, GOAL, DEFAULT_DOMAIN)
+        force.image_features_input.FixValue(ctx, y.to_vector())
+        force.dphi_input.FixValue(ctx, dphi)
+        force.body_state_input.FixValue(ctx, x)
+        V_C = _drake_camera_velocity(x)
+        expected = 2.5 * image_jacobian(y, RHO).T @ dphi - damping * V_C
+        F_C = force.wrench_C_output.Eval(ctx)
+        np.testing.assert_allclose(F_C, expected, atol=1e-12)
+        # The generalized force is the same wrench for the plant: its power on any
+        # generalized velocity v equals F_C . V_C(v). Six v's determine it.
+        tau = force.generalized_force_output.Eval(ctx)
+        for v in np.eye(6):
+            V = _drake_camera_velocity(np.concatenate([q, v]))
+            assert tau @ v == pytest.approx(F_C @ V, abs=1e-12)
+    assert force.ToAutoDiffXd() is not None
+
+
+def test_kinematic_controller_descends_phi_exactly():
+    ctrl = KinematicController(radius=RHO, gain=1.7)
+    ctx = ctrl.CreateDefaultContext()
+    y = camera_map(RigidTransform(RollPitchYaw(0.1, 0.05, 1.0), [0.04, -0.02, 0.7]), RHO)
+    _, dphi = navigation_differential(y, GOAL, DEFAULT_DOMAIN)
+    ctrl.image_features_input.FixValue(ctx, y.to_vector())
+    ctrl.dphi_input.FixValue(ctx, dphi)
+    V_C = ctrl.camera_velocity_output.Eval(ctx)
+    # Eq. (16): (omega, v) = -(Omega, V); then ydot = C (omega, v) must be -k grad phi.
+    ydot = image_jacobian(y, RHO) @ (-V_C)
+    np.testing.assert_allclose(ydot, -1.7 * dphi, atol=1e-12)
+    ctrl_ad = ctrl.ToAutoDiffXd()
+    ctx_ad = ctrl_ad.CreateDefaultContext()
+    ctrl_ad.image_features_input.FixValue(ctx_ad, InitializeAutoDiff(y.to_vector()).ravel())
+    ctrl_ad.dphi_input.FixValue(ctx_ad, dphi.astype(object) * AutoDiffXd(1.0))
+    np.testing.assert_allclose(
+        _values(ctrl_ad.camera_velocity_output.Eval(ctx_ad)), V_C, atol=1e-12
+    )
+
+
+def test_kinematic_rigid_body_integrates_body_velocity():
+    X0 = RigidTransform(RollPitchYaw(0.3, -0.4, 1.2), [0.1, 0.2, -0.5])
+    body = KinematicRigidBody(X_WC0=X0)
+    ctx = body.CreateDefaultContext()
+    u = np.array([0.3, -0.2, 0.5, 0.1, 0.4, -0.3])
+    body.camera_velocity_input.FixValue(ctx, u)
+    xdot = body.EvalTimeDerivatives(ctx).CopyToVector()
+    # Independent: G(t) = G exp(t hat(Omega, V)) to first order, by central differences.
+    h = 1e-6
+
+    def pose_after(t):
+        R = X0.rotation().matrix() @ so3_exp(t * u[:3])
+        p = X0.translation() + X0.rotation().matrix() @ (t * u[3:])
+        return pose_state(RigidTransform(RotationMatrix(R), p))
+
+    np.testing.assert_allclose(xdot, (pose_after(h) - pose_after(-h)) / (2 * h), atol=1e-8)
+    np.testing.assert_allclose(body.body_pose_output.Eval(ctx), pose_state(X0))
+    assert body.ToAutoDiffXd() is not None
+
+
+@pytest.mark.parametrize("system", [SphericalCamera, NavigationController, ImageJacobianForce])
+def test_docstrings_list_ports(system):
+    s = system(goal=GOAL) if system is NavigationController else system()
+    doc = type(s).__doc__
+    assert ".. pydrake_system::" in doc
+    for i in range(s.num_input_ports()):
+        assert f"- {s.get_input_port(i).get_name()}" in doc
+    for i in range(s.num_output_ports()):
+        assert f"- {s.get_output_port(i).get_name()}" in doc
+
+
+def test_navigation_function_in_system_equals_class():
+    nav = NavigationController(goal=GOAL)
+    nf = nav.navigation_function(nav.CreateDefaultContext())
+    assert isinstance(nf, NavigationFunction)
+    np.testing.assert_array_equal(nf.goal.to_vector(), GOAL.to_vector())
