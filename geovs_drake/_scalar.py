@@ -24,6 +24,13 @@ def sqrt(x: object) -> object:
     return np.sqrt(x)
 
 
+class OutOfDomainError(ValueError):
+    """A value outside the set a map is defined on: an invisible pose, an image
+    outside I, a non-finite entry. Distinct from malformed input (shapes,
+    parameters), so that Drake systems can turn it into NaN outputs for an
+    integrator's rejected trial stage while every other error still raises."""
+
+
 class _Unevaluable(Exception):
     """Raised internally when a symbolic entry has free variables."""
 
@@ -105,7 +112,7 @@ def check_finite(name: str, x: object) -> None:
     v = values_or_none(x)
     if v is not None and not np.all(np.isfinite(v)):
         bad = np.argwhere(~np.isfinite(v))[0]
-        raise ValueError(
+        raise OutOfDomainError(
             f"{name} has a non-finite entry: {name}[{', '.join(map(str, bad))}] = {v[tuple(bad)]}"
         )
 

@@ -28,6 +28,7 @@ from pydrake.math import RigidTransform_, RotationMatrix_
 from pydrake.symbolic import Expression
 
 from geovs_drake._scalar import (
+    OutOfDomainError,
     as_array,
     check_finite,
     col,
@@ -44,6 +45,7 @@ from geovs_drake.so3 import hat
 
 __all__ = [
     "ImageFeatures",
+    "OutOfDomainError",
     "camera_map",
     "camera_map_inverse",
     "image_jacobian",
@@ -182,7 +184,7 @@ def camera_map(X_CB: object, radius: object) -> ImageFeatures:
     nu_v = values_or_none(_nu(X, radius))
     if nu_v is not None and np.any(nu_v <= 0):
         val, idx = worst(nu_v, nu_v <= 0)
-        raise ValueError(f"pose not visible: nu(H) = {val:.6g} <= 0{index_note(idx)}")
+        raise OutOfDomainError(f"pose not visible: nu(H) = {val:.6g} <= 0{index_note(idx)}")
     r2 = X[..., :3, 1]
     r3 = X[..., :3, 2]
     d = X[..., :3, 3]
@@ -236,7 +238,7 @@ def validate_features(y: ImageFeatures | np.ndarray) -> ImageFeatures:
         bad = (lamv <= 0) | (lamv >= 1)
         if np.any(bad):
             val, idx = worst(lamv, bad)
-            raise ValueError(f"lambda outside (0, 1): lambda = {val:.6g}{index_note(idx)}")
+            raise OutOfDomainError(f"lambda outside (0, 1): lambda = {val:.6g}{index_note(idx)}")
     if Qv is not None:
         err = np.max(np.abs(np.swapaxes(Qv, -1, -2) @ Qv - np.eye(3)), axis=(-2, -1))
         det = np.linalg.det(Qv)
@@ -258,7 +260,7 @@ def validate_features(y: ImageFeatures | np.ndarray) -> ImageFeatures:
         bad = margin <= 0
         if np.any(bad):
             val, idx = worst(margin, bad)
-            raise ValueError(
+            raise OutOfDomainError(
                 f"y not in I: q1.s - sqrt(1 - lambda^2) = {val:.6g} <= 0{index_note(idx)}"
             )
     return y

@@ -11,12 +11,13 @@ Subsystem names (for ``diagram.GetSubsystemByName``): ``plant``,
 from __future__ import annotations
 
 import numpy as np
-from pydrake.geometry import Box, Cylinder, Meshcat, Sphere
-from pydrake.math import RigidTransform, RollPitchYaw
-from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
-from pydrake.multibody.tree import RigidBody, RotationalInertia, SpatialInertia
+from pydrake.geometry import Meshcat, MeshcatVisualizer
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.multibody.tree import RotationalInertia, SpatialInertia
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, LogVectorOutput
+from pydrake.visualization import AddFrameTriadIllustration
 
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems import (
@@ -26,6 +27,7 @@ from geovs_drake.systems import (
     NavigationController,
     SphericalCamera,
 )
+from geovs_drake.visualization import add_camera_geometry, add_goal_ghost, add_target_geometry
 
 __all__ = [
     "RIG_BODY_NAME",
@@ -40,36 +42,6 @@ RIG_BODY_NAME = "camera_rig"
 def initial_rig_pose(config: ScenarioConfig) -> RigidTransform:
     """X_WR(0) = X_WB X_BC(0) X_RC^-1."""
     return config.X_WB @ config.X_BC_initial @ config.X_RC.inverse()
-
-
-def _add_target_geometry(plant: MultibodyPlant, config: ScenarioConfig) -> None:
-    """The target sphere, its marked point b and its arrow a, fixed in the world."""
-    world = plant.world_body()
-    rho = config.radius
-    X_WB = config.X_WB
-    plant.RegisterVisualGeometry(
-        world, X_WB, Sphere(rho), "target_sphere", np.array([0.85, 0.85, 0.9, 0.9])
-    )
-    X_Bb = RigidTransform([0.0, 0.0, -rho])
-    plant.RegisterVisualGeometry(
-        world, X_WB @ X_Bb, Sphere(0.12 * rho), "marked_point", np.array([0.9, 0.1, 0.1, 1.0])
-    )
-    length = 0.6 * rho
-    # A cylinder's axis is its z; Rx(-pi/2) turns it onto the arrow a_B = e2.
-    X_Ba = RigidTransform(RollPitchYaw(-np.pi / 2, 0, 0), [0.0, 0.5 * length, -1.02 * rho])
-    plant.RegisterVisualGeometry(
-        world, X_WB @ X_Ba, Cylinder(0.05 * rho, length), "arrow", np.array([0.1, 0.6, 0.1, 1.0])
-    )
-
-
-def _add_camera_geometry(plant: MultibodyPlant, body: RigidBody, X_RC: RigidTransform) -> None:
-    plant.RegisterVisualGeometry(
-        body, X_RC, Box(0.06, 0.04, 0.04), "camera_box", np.array([0.2, 0.2, 0.25, 1.0])
-    )
-    X_CL = RigidTransform([0.0, 0.0, 0.025])
-    plant.RegisterVisualGeometry(
-        body, X_RC @ X_CL, Cylinder(0.012, 0.02), "camera_lens", np.array([0.1, 0.1, 0.1, 1.0])
-    )
 
 
 def _add_loggers(builder: DiagramBuilder, camera, nav, rate: float) -> None:
@@ -107,8 +79,9 @@ def make_dynamic_servo_diagram(
     Gravity is off: the paper assumes it is cancelled by the controller, and a
     gravity-compensation term would add nothing to the servo's analysis. The
     camera frame may sit off the rig's centre of mass (``rig.camera_offset``,
-    Appendix C.0.6). Pass ``meshcat`` to add a MeshcatVisualizer (double only:
-    leave it out of diagrams you will convert to AutoDiffXd).
+    Appendix C.0.6). Pass ``meshcat`` to add a MeshcatVisualizer and the camera
+    frame's axes (double only: leave it out of diagrams you will convert to
+    AutoDiffXd).
     """
     config = config or ScenarioConfig()
     config.validate()
@@ -122,9 +95,11 @@ def make_dynamic_servo_diagram(
         ),
     )
     plant.mutable_gravity_field().set_gravity_vector(np.zeros(3))
-    _add_target_geometry(plant, config)
     X_RC = config.X_RC
-    _add_camera_geometry(plant, rig, X_RC)
+    theta = config.domain.to_domain().fov_half_angle
+    add_target_geometry(plant, config)
+    add_camera_geometry(plant, rig, X_RC, theta)
+    add_goal_ghost(plant, config)
     plant.Finalize()
     plant.SetDefaultFloatingBaseBodyPose(rig, initial_rig_pose(config))
 
@@ -153,9 +128,10 @@ def make_dynamic_servo_diagram(
             plant.get_state_output_port(), builder, publish_period=1.0 / config.log_rate
         ).set_name("log_body_state")
     if meshcat is not None:
-        from pydrake.visualization import AddDefaultVisualization
-
-        AddDefaultVisualization(builder, meshcat=meshcat)
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+        AddFrameTriadIllustration(
+            scene_graph=scene_graph, body=rig, X_FT=X_RC, length=0.08, radius=0.003, name="C"
+        )
     diagram = builder.Build()
     diagram.set_name("dynamic_visual_servo")
     return diagram

@@ -18,7 +18,7 @@ from geovs_drake.navigation import (
     model_coordinates,
 )
 
-__all__ = ["plot_navigation_slices"]
+__all__ = ["plot_image_view", "plot_navigation_slices", "plot_run", "write_block_diagram"]
 
 
 def _pyplot():
@@ -127,3 +127,117 @@ def plot_navigation_slices(nf: NavigationFunction, path: str | Path | None = Non
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(path, dpi=110)
     return fig
+
+
+def _gnomonic(u: np.ndarray) -> np.ndarray:
+    """Image-plane coordinates (u_x / u_z, u_y / u_z) of unit directions (N, 3)."""
+    return u[..., :2] / u[..., 2:3]
+
+
+def _silhouette(s: np.ndarray, lam: float, n: int = 200) -> np.ndarray:
+    """Directions on the silhouette circle: angle arcsin(lambda) about s."""
+    a = np.cross(s, [1.0, 0, 0] if abs(s[0]) < 0.9 else [0, 1.0, 0])
+    m1 = a / np.linalg.norm(a)
+    m2 = np.cross(s, m1)
+    t = np.linspace(0, 2 * np.pi, n)
+    g = np.arcsin(lam)
+    return np.cos(g) * s + np.sin(g) * (np.cos(t)[:, None] * m1 + np.sin(t)[:, None] * m2)
+
+
+def plot_image_view(result, path: str | Path | None = None, snapshots: int = 8):
+    """What the camera sees: silhouettes, q1 and the q2 arrow over time (gnomonic view)."""
+    plt = _pyplot()
+    from geovs_drake.camera import ImageFeatures
+
+    y = ImageFeatures.from_vector(result.image_features)
+    goal = result.config.goal_features()
+    theta = np.radians(result.config.domain.fov_half_angle_deg)
+    fig, ax = plt.subplots(figsize=(7, 7))
+    a = np.linspace(0, 2 * np.pi, 400)
+    ax.plot(
+        np.tan(theta) * np.cos(a), np.tan(theta) * np.sin(a), "k-", lw=1.5, label="FOV boundary"
+    )
+    cmap = plt.get_cmap("viridis")
+    idx = np.unique(np.geomspace(1, len(y.lam), snapshots).astype(int) - 1)
+    for k, i in enumerate(idx):
+        c = cmap(k / max(1, len(idx) - 1))
+        sil = _gnomonic(_silhouette(y.s[i], float(y.lam[i])))
+        ax.plot(sil[:, 0], sil[:, 1], color=c, lw=1.2, label=f"t = {result.times[i]:.1f} s")
+        q1 = _gnomonic(y.q1[i][None])[0]
+        tip = _gnomonic((y.q1[i] + 0.04 * y.q2[i])[None])[0]
+        ax.annotate("", tip, q1, arrowprops=dict(arrowstyle="->", color=c, lw=1.5))
+        ax.plot(*q1, "o", color=c, ms=4)
+    q1_path = _gnomonic(y.q1)
+    ax.plot(q1_path[:, 0], q1_path[:, 1], ":", color="tab:red", lw=1, label="q1 path")
+    sil = _gnomonic(_silhouette(goal.s, float(goal.lam)))
+    ax.plot(sil[:, 0], sil[:, 1], "r--", lw=1.5, label="goal silhouette")
+    ax.set_aspect("equal")
+    lim = 1.1 * np.tan(theta)
+    ax.set(xlim=(-lim, lim), ylim=(-lim, lim), xlabel="u_x / u_z", ylabel="u_y / u_z")
+    ax.set_title("Image (gnomonic projection): silhouette, q1 and the q2 arrow")
+    ax.legend(loc="upper right", fontsize=7)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=110)
+    return fig
+
+
+def plot_run(result, path: str | Path | None = None):
+    """phi and the energy, every domain margin, and the pose error over time."""
+    plt = _pyplot()
+    from pydrake.math import RigidTransform
+
+    from geovs_drake.domain import DomainMargins
+    from geovs_drake.simulation import pose_error
+
+    t = result.times
+    fig, axes = plt.subplots(3, 1, figsize=(9, 10), sharex=True)
+    ax = axes[0]
+    ax.plot(t, result.phi, label="phi")
+    if result.energy is not None:
+        ax.plot(t, result.energy, label="E = 1/2 nu^T M nu + k_p phi")
+    ax.set(
+        ylabel="Lyapunov", yscale="log", title=f"{result.config.controller} loop: {result.message}"
+    )
+    ax.legend()
+    ax = axes[1]
+    for k, name in enumerate(DomainMargins._fields):
+        ax.plot(t, result.margins[:, k], label=f"{name} margin")
+    ax.axhline(0, color="k", lw=0.8)
+    ax.set(ylabel="margin (>= 0 in D)", yscale="symlog", title="safe-domain margins")
+    ax.legend(fontsize=8)
+    ax = axes[2]
+    goal = result.config.X_BC_goal
+    err = np.array([pose_error(RigidTransform(X), goal) for X in result.X_BC])
+    ax.semilogy(t, err[:, 0], label="position error [m]")
+    ax.semilogy(t, err[:, 1], label="rotation error [rad]")
+    ax.axhline(1e-3, color="k", ls=":", lw=0.8, label="1 mm / 1 mrad")
+    ax.set(xlabel="t [s]", ylabel="pose error", title="pose error")
+    ax.legend()
+    for a in axes:
+        a.grid(alpha=0.3)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=110)
+    return fig
+
+
+def write_block_diagram(diagram, path_stem: str | Path, max_depth: int = 1) -> list[Path]:
+    """Graphviz SVG and PNG of a Diagram via ``dot``; [] with a message if dot is missing."""
+    import shutil
+    import subprocess
+
+    dot = shutil.which("dot")
+    if dot is None:
+        print(
+            "geovs-drake: skipping the block diagram: Graphviz's 'dot' is not installed "
+            "(Debian: apt-get install graphviz)"
+        )
+        return []
+    source = diagram.GetGraphvizString(max_depth=max_depth)
+    out = []
+    for fmt in ("svg", "png"):
+        target = Path(f"{path_stem}.{fmt}")
+        subprocess.run([dot, f"-T{fmt}", "-o", str(target)], input=source, text=True, check=True)
+        out.append(target)
+    return out

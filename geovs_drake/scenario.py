@@ -98,7 +98,7 @@ class ControlConfig:
 
     potential_gain: float = 4.0
     damping: list[float] = field(default_factory=lambda: [0.3, 0.3, 0.3, 4.0, 4.0, 4.0])
-    kinematic_gain: float = 2.0
+    kinematic_gain: float = 4.0
 
 
 def _default_simulator() -> SimulatorConfig:
@@ -115,8 +115,12 @@ def _default_simulator() -> SimulatorConfig:
 @dataclass
 class ScenarioConfig:
     radius: float = 0.1
-    #: X_WB, the target sphere in the world.
-    target: PoseConfig = field(default_factory=PoseConfig)
+    #: X_WB, the target sphere in the world: 1 m up, its z axis (towards the
+    #: camera's goal, from the marked point's side) along -x of the world and its
+    #: arrow a = e2 pointing up, so the camera approaches horizontally.
+    target: PoseConfig = field(
+        default_factory=lambda: PoseConfig(xyz=[0.0, 0.0, 1.0], rpy=[math.pi / 2, 0.0, math.pi / 2])
+    )
     #: X_BC*, the goal camera pose in the target frame.
     goal: PoseConfig = field(default_factory=lambda: PoseConfig(xyz=[0.0, 0.0, -0.5]))
     #: X_BC(0), the initial camera pose in the target frame.

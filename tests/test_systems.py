@@ -92,8 +92,11 @@ def test_camera_outside_visibility_reports_violated_margins(camera):
     nu = camera.visibility_output.Eval(ctx)[0]
     assert nu < 0
     np.testing.assert_array_equal(camera.domain_margins_output.Eval(ctx), np.full(4, nu))
+    # The pure map raises; the system outputs NaN so that an integrator rejects
+    # the trial step (the simulate() monitor stops any accepted invisible state).
+    assert np.all(np.isnan(camera.image_features_output.Eval(ctx)))
     with pytest.raises(ValueError, match="pose not visible"):
-        camera.image_features_output.Eval(ctx)
+        camera_map(camera.X_CB(ctx), RHO)
 
 
 def test_navigation_controller_matches_pure_function_and_goal_is_a_parameter():

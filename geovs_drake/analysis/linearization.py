@@ -41,6 +41,7 @@ from geovs_drake.so3 import hat, so3_exp
 __all__ = [
     "LinearizationResult",
     "closed_form_A",
+    "config_at_goal",
     "linearize_at_goal",
     "navigation_hessian",
 ]
@@ -120,7 +121,8 @@ def closed_form_A(config: ScenarioConfig, controller: str | None = None) -> np.n
     return A
 
 
-def _at_goal(config: ScenarioConfig) -> ScenarioConfig:
+def config_at_goal(config: ScenarioConfig) -> ScenarioConfig:
+    """A copy of ``config`` that starts at rest at the goal pose."""
     c = copy.deepcopy(config)
     c.initial = PoseConfig(list(config.goal.xyz), list(config.goal.rpy))
     return c
@@ -130,7 +132,7 @@ def linearize_at_goal(
     config: ScenarioConfig | None = None, controller: str | None = None
 ) -> LinearizationResult:
     """Drake's ``Linearize`` of the whole closed loop at the goal, reduced to minimal form."""
-    config = _at_goal(config or ScenarioConfig())
+    config = config_at_goal(config or ScenarioConfig())
     controller = controller or config.controller
     if controller == "dynamic":
         diagram = make_dynamic_servo_diagram(config, log=False)

@@ -14,10 +14,12 @@ of R in W expressed in W (angular first, at R's origin).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from pydrake.math import RigidTransform
 
-from geovs_drake._scalar import values_or_none
+from geovs_drake._scalar import OutOfDomainError, values_or_none
 from geovs_drake.domain import SafeDomain
 from geovs_drake.navigation import NavigationGains
 
@@ -122,3 +124,21 @@ def inputs_and_parameters(system) -> set:
     parameters symbolic values), and caches on exactly these dependencies.
     """
     return {system.all_input_ports_ticket(), system.all_parameters_ticket()}
+
+
+def set_output_or_nan(output, compute: Callable[[], np.ndarray]) -> None:
+    """``output <- compute()``, or all NaN if its input lies outside the map's domain.
+
+    Why: an error-controlled integrator evaluates trial stages that may step
+    past the visible set V or out of the image space I, where the camera map
+    and phi are undefined. Raising there would end the simulation although
+    the step is about to be rejected; a NaN derivative makes Drake's integrator
+    reject the step and retry a smaller one. Any *accepted* state outside D is
+    caught by the safe-domain monitor of :func:`geovs_drake.simulation.simulate`,
+    which stops the run with a status. Malformed input still raises.
+    """
+    try:
+        value = compute()
+    except OutOfDomainError:
+        value = np.full(output.size(), np.nan)
+    output.SetFromVector(value)

@@ -15,6 +15,7 @@ from geovs_drake.systems._common import (
     param_to_pose,
     pose_from_state,
     pose_to_param,
+    set_output_or_nan,
 )
 
 __all__ = ["ImageJacobianForce", "ImageJacobianForce_", "servo_wrench"]
@@ -127,15 +128,17 @@ def ImageJacobianForce_(T):
         def CalcWrenchC(self, context, output) -> None:
             x = self.body_state_input.Eval(context)
             X_RC = self._param(context, self._X_RC_index)
-            F_C = servo_wrench(
-                self.image_features_input.Eval(context),
-                self.dphi_input.Eval(context),
-                camera_velocity(x, X_RC),
-                self._param(context, self._radius_index)[0],
-                self._param(context, self._gain_index)[0],
-                self._param(context, self._damping_index),
+            set_output_or_nan(
+                output,
+                lambda: servo_wrench(
+                    self.image_features_input.Eval(context),
+                    self.dphi_input.Eval(context),
+                    camera_velocity(x, X_RC),
+                    self._param(context, self._radius_index)[0],
+                    self._param(context, self._gain_index)[0],
+                    self._param(context, self._damping_index),
+                ),
             )
-            output.SetFromVector(F_C)
 
         def CalcGeneralizedForce(self, context, output) -> None:
             F_C = self.wrench_C_output.Eval(context)

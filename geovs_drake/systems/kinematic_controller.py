@@ -7,7 +7,7 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.camera import image_jacobian_inverse
-from geovs_drake.systems._common import inputs_and_parameters
+from geovs_drake.systems._common import inputs_and_parameters, set_output_or_nan
 
 __all__ = ["KinematicController", "KinematicController_", "kinematic_velocity"]
 
@@ -63,13 +63,14 @@ def KinematicController_(T):
             Impl._construct(self, *other._defaults, converter=converter)
 
         def CalcCameraVelocity(self, context, output) -> None:
-            output.SetFromVector(
-                kinematic_velocity(
+            set_output_or_nan(
+                output,
+                lambda: kinematic_velocity(
                     self.image_features_input.Eval(context),
                     self.dphi_input.Eval(context),
                     context.get_numeric_parameter(self._radius_index).GetAtIndex(0),
                     context.get_numeric_parameter(self._gain_index).GetAtIndex(0),
-                )
+                ),
             )
 
     return Impl

@@ -21,6 +21,7 @@ from geovs_drake.systems._common import (
     inputs_and_parameters,
     param_to_domain,
     param_to_gains,
+    set_output_or_nan,
 )
 
 __all__ = ["NavigationController", "NavigationController_"]
@@ -115,17 +116,21 @@ def NavigationController_(T):
                 gains_to_param(gains)
             )
 
-        def CalcDifferential(self, context, output) -> None:
-            y = self.image_features_input.Eval(context)
-            _, dphi = navigation_differential(
-                y, self.goal(context), self.domain(context), self.gains(context)
+        def _args(self, context) -> tuple:
+            return (
+                self.image_features_input.Eval(context),
+                self.goal(context),
+                self.domain(context),
+                self.gains(context),
             )
-            output.SetFromVector(dphi)
+
+        def CalcDifferential(self, context, output) -> None:
+            args = self._args(context)
+            set_output_or_nan(output, lambda: navigation_differential(*args)[1])
 
         def CalcValue(self, context, output) -> None:
-            y = self.image_features_input.Eval(context)
-            phi = navigation_value(y, self.goal(context), self.domain(context), self.gains(context))
-            output.SetAtIndex(0, phi.item())
+            args = self._args(context)
+            set_output_or_nan(output, lambda: np.atleast_1d(navigation_value(*args)))
 
     return Impl
 

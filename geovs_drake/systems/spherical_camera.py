@@ -19,6 +19,7 @@ from geovs_drake.systems._common import (
     param_to_domain,
     param_to_pose,
     pose_to_param,
+    set_output_or_nan,
 )
 
 __all__ = ["SphericalCamera", "SphericalCamera_"]
@@ -47,8 +48,11 @@ def SphericalCamera_(T):
         lambda, s]``; ``visibility`` is nu(X_CB) of Eq. (5);
         ``domain_margins`` is the signed margins ``[fov, lam_min, lam_max,
         occlusion]`` of :class:`~geovs_drake.domain.SafeDomain` (all >= 0 in D).
-        When the pose is not visible, y is undefined: computing it raises
-        ``ValueError: pose not visible ...``, and every margin reads nu <= 0.
+        When the pose is not visible y is undefined: ``image_features`` is all
+        NaN (so an integrator rejects such a trial stage, see
+        :func:`~geovs_drake.systems._common.set_output_or_nan`) and every
+        margin reads nu <= 0. The pure :func:`~geovs_drake.camera.camera_map`
+        raises ``ValueError: pose not visible ...`` instead.
 
         Numeric parameters (settable per context, e.g. for sweeps): the radius
         rho, the target pose X_WB, the camera offset X_RC and the domain.
@@ -134,8 +138,9 @@ def SphericalCamera_(T):
 
         # ---------------------------------------------------------- outputs
         def CalcImageFeatures(self, context, output) -> None:
-            y = camera_map(self.X_CB(context), self.radius(context))
-            output.SetFromVector(y.to_vector())
+            set_output_or_nan(
+                output, lambda: camera_map(self.X_CB(context), self.radius(context)).to_vector()
+            )
 
         def CalcVisibility(self, context, output) -> None:
             output.SetAtIndex(0, visibility(self.X_CB(context), self.radius(context)).item())
