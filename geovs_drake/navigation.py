@@ -220,12 +220,14 @@ def _clearance_jet(
     return (1 - phi_lam) * (1 - phi_fov) * (1 - phi_occ) * (1 - phi_circle)
 
 
+def _model_of(y: ImageFeatures, domain: SafeDomain) -> ModelCoordinates:
+    """Psi(y) as jets without tangents."""
+    return _model_jets(*_seed(y, False), domain)
+
+
 def model_coordinates(y: ImageFeatures | np.ndarray, domain: SafeDomain) -> ModelCoordinates:
     """Psi(y), as arrays of y's scalar type."""
-    y = as_features(y)
-    Q, lam, s = _seed(y, False)
-    m = _model_jets(Q, lam, s, domain)
-    return ModelCoordinates(*(x.v for x in m))
+    return ModelCoordinates(*(x.v for x in _model_of(as_features(y), domain)))
 
 
 def _goal_coordinates(goal: ImageFeatures, domain: SafeDomain) -> ModelCoordinates:
@@ -233,15 +235,27 @@ def _goal_coordinates(goal: ImageFeatures, domain: SafeDomain) -> ModelCoordinat
     if v.dtype != object and v.shape == (13,):
         # The servo loop asks for the same goal at every derivative evaluation.
         return _cached_goal_coordinates(v.tobytes(), domain)
-    Q, lam, s = _seed(goal, False)
-    return _model_jets(Q, lam, s, domain)
+    return _model_of(goal, domain)
 
 
 @functools.lru_cache(maxsize=64)
 def _cached_goal_coordinates(goal_bytes: bytes, domain: SafeDomain) -> ModelCoordinates:
     goal = ImageFeatures.from_vector(np.frombuffer(goal_bytes, dtype=float).copy())
-    Q, lam, s = _seed(goal, False)
-    return _model_jets(Q, lam, s, domain)
+    return _model_of(goal, domain)
+
+
+def _evaluate(
+    y: ImageFeatures | np.ndarray,
+    goal: ImageFeatures | np.ndarray,
+    domain: SafeDomain,
+    gains: NavigationGains | None,
+    tangents: bool,
+) -> Jet:
+    """The clearance 1 - phi at y (validated), with its 7 tangents if asked for."""
+    goal_m = _goal_coordinates(as_features(goal), domain)
+    return _clearance_jet(
+        validate_features(y), goal_m, domain, gains or NavigationGains(), tangents
+    )
 
 
 def navigation_value(
@@ -251,10 +265,7 @@ def navigation_value(
     gains: NavigationGains | None = None,
 ) -> np.ndarray:
     """phi(y) in [0, 1] (see the module docstring for the construction)."""
-    gains = gains or NavigationGains()
-    y = validate_features(y)
-    g = _goal_coordinates(as_features(goal), domain)
-    return 1 - _clearance_jet(y, g, domain, gains, False).v
+    return 1 - _evaluate(y, goal, domain, gains, False).v
 
 
 def navigation_differential(
@@ -268,10 +279,7 @@ def navigation_differential(
     ``d/dt phi(y(t)) = dphi . (xi, lambda_dot, s_dot)``; dphi is also the
     gradient of phi for the embedded Euclidean metric.
     """
-    gains = gains or NavigationGains()
-    y = validate_features(y)
-    g = _goal_coordinates(as_features(goal), domain)
-    clearance = _clearance_jet(y, g, domain, gains, True)
+    clearance = _evaluate(y, goal, domain, gains, True)
     return 1 - clearance.v, -np.moveaxis(clearance.d, 0, -1)
 
 
@@ -282,10 +290,7 @@ def navigation_clearance(
     gains: NavigationGains | None = None,
 ) -> np.ndarray:
     """1 - phi(y), without the cancellation of forming it from phi near the boundary."""
-    gains = gains or NavigationGains()
-    y = validate_features(y)
-    g = _goal_coordinates(as_features(goal), domain)
-    return _clearance_jet(y, g, domain, gains, False).v
+    return _evaluate(y, goal, domain, gains, False).v
 
 
 def features_from_model(m: ModelCoordinates, domain: SafeDomain) -> ImageFeatures:
