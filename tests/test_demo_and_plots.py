@@ -1,0 +1,56 @@
+"""The demo's outputs and the block diagram's skip path."""
+
+import json
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from geovs_drake.diagrams import make_kinematic_servo_diagram
+from geovs_drake.plotting import write_block_diagram
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def test_demo_writes_every_result(tmp_path):
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "geovs_drake.cli",
+            "demo",
+            "--out",
+            str(tmp_path),
+            "--duration",
+            "8",
+        ],
+        capture_output=True,
+        text=True,
+    )
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.strip().splitlines()
+    assert lines[-1].startswith("dynamic: converged")
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["converged"] and not summary["left_domain"] and summary["lyapunov_monotone"]
+    for name in ("image_view.png", "run.png", "nf_slices.png"):
+        assert (tmp_path / name).read_bytes()[:8] == PNG_MAGIC, name
+    html = (tmp_path / "servo.html").read_text()
+    assert "<html" in html.lower() and len(html) > 100_000  # the recording is embedded
+    if shutil.which("dot"):
+        assert "spherical_camera" in (tmp_path / "block_diagram.svg").read_text()
+
+
+def test_block_diagram_is_skipped_with_a_message_without_dot(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    assert write_block_diagram(make_kinematic_servo_diagram(log=False), tmp_path / "d") == []
+    assert "skipping the block diagram" in capsys.readouterr().out
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.skipif(shutil.which("dot") is None, reason="Graphviz's dot is not installed")
+def test_block_diagram_svg_names_the_systems(tmp_path):
+    files = write_block_diagram(make_kinematic_servo_diagram(log=False), tmp_path / "k")
+    svg = files[0].read_text()
+    for name in ("kinematic_rigid_body", "spherical_camera", "kinematic_controller"):
+        assert name in svg
