@@ -237,20 +237,15 @@ def simulate(
     status, message = "completed", ""
     start = time.perf_counter()
     simulator.Initialize()
-    try:
-        if progress is None:
-            simulator.AdvanceTo(config.duration)
-        else:
-            chunk = config.duration / 100
-            while root.get_time() < config.duration - 1e-12:
-                sim_status = simulator.AdvanceTo(min(config.duration, root.get_time() + chunk))
-                progress(root.get_time())
-                if sim_status.reason() != sim_status.ReturnReason.kReachedBoundaryTime:
-                    break
-    except (RuntimeError, ValueError) as e:
-        if "pose not visible" not in str(e):
-            raise
-        status, message = "lost_visibility", f"lost visibility inside an integrator stage: {e}"
+    if progress is None:
+        simulator.AdvanceTo(config.duration)
+    else:
+        chunk = config.duration / 100
+        while root.get_time() < config.duration - 1e-12:
+            sim_status = simulator.AdvanceTo(min(config.duration, root.get_time() + chunk))
+            progress(root.get_time())
+            if sim_status.reason() != sim_status.ReturnReason.kReachedBoundaryTime:
+                break
     wall = time.perf_counter() - start
     term_status, term_message = termination()
     if term_status:

@@ -28,6 +28,7 @@ from pydrake.systems.analysis import MonteCarloSimulation
 
 from geovs_drake.analysis.nf_study import random_features_in_domain
 from geovs_drake.camera import camera_map_inverse
+from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import camera_pose_in_target, make_simulator, pose_error, simulate
 
@@ -66,7 +67,13 @@ def _run_yaml(text: str) -> dict:
 
 
 def run_scenarios(configs: list[ScenarioConfig], processes: int = 1) -> list[dict]:
-    """Simulate each config; return each run's summary dict (in order)."""
+    """Simulate each config; return each run's summary dict (in order).
+
+    With ``processes > 1`` the runs go to a pool of freshly *spawned* Python
+    processes (forking a process that may hold Meshcat's server thread is not
+    safe). A script that calls this must therefore guard its entry point with
+    ``if __name__ == "__main__":``; notebooks need nothing.
+    """
     if processes <= 1:
         return [simulate(c).summary() for c in configs]
     texts = [yaml_dump_typed(c) for c in configs]
@@ -82,8 +89,6 @@ def drake_monte_carlo(
     Each result has the start X_BC(0), the final position and rotation errors
     and the smallest domain margin seen at the end.
     """
-    from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
-
     starts: list[PoseConfig] = []
 
     def make(generator: RandomGenerator):
