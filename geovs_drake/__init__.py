@@ -9,10 +9,17 @@ from geovs_drake.camera import (
     validate_features,
     visibility,
 )
+from geovs_drake.domain import DEFAULT_DOMAIN, DomainMargins, SafeDomain
+from geovs_drake.navigation import NavigationFunction, NavigationGains
 from geovs_drake.so3 import hat, so3_exp, vee
 
 __all__ = [
+    "DEFAULT_DOMAIN",
+    "DomainMargins",
     "ImageFeatures",
+    "NavigationFunction",
+    "NavigationGains",
+    "SafeDomain",
     "camera_map",
     "camera_map_inverse",
     "hat",
