@@ -214,6 +214,9 @@ def test_phi_tends_to_one_uniformly_at_each_face(nf, face):
     tol = _boundary_tolerance(nf, face, delta)
     assert tol < 1e-2  # the bound is informative, not vacuous
     phi = nf.value(y)
+    print(
+        f"\n{face}: tol {tol:.2e}, min phi {phi.min():.8f}, uses {(1 - phi).max() / tol:.0%} of tol"
+    )
     assert np.all(phi >= 1 - tol), (np.min(phi), tol)
     assert np.all(phi < 1)
     # The same at 1e-9: 1 - phi shrinks in proportion to the margin.
@@ -253,6 +256,7 @@ def test_differential_matches_central_differences(nf, samples):
         dphi = nf.differential(y)
         assert abs(dphi[4:7] @ y.s) < 1e-13
         worst = max(worst, abs(fd - dphi @ t) / max(1.0, np.linalg.norm(dphi)))
+    print(f"\ndphi vs central differences: worst {worst:.2e}")
     assert worst < 1e-7, worst
 
 
