@@ -121,14 +121,11 @@ def dot(a: Jet, b: Jet) -> Jet:
     return jsum(a * b)
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return _scalar_cross(a, b)
-
-
 def cross(a: Jet, b: Jet) -> Jet:
     """a x b over the last axis; the product rule on whole arrays, not components."""
     nd = max(a.v.ndim, b.v.ndim)
     return Jet(
-        _cross(a.v, b.v),
-        _cross(_expand(a.d, a.v.ndim, nd), b.v) + _cross(a.v, _expand(b.d, b.v.ndim, nd)),
+        _scalar_cross(a.v, b.v),
+        _scalar_cross(_expand(a.d, a.v.ndim, nd), b.v)
+        + _scalar_cross(a.v, _expand(b.d, b.v.ndim, nd)),
     )
