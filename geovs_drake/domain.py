@@ -130,8 +130,8 @@ class SafeDomain:
 
     def contains(self, y: ImageFeatures | np.ndarray) -> np.ndarray:
         """True where every margin is >= 0 (float or evaluable inputs)."""
-        m = self.margins(y)
-        values = [values_or_none(x) for x in m]
+        y = as_features(y)
+        values = [values_or_none(x) for x in self.margins(y)]
         if any(v is None for v in values):
             raise ValueError("contains() needs numeric (evaluable) features")
         inside = np.ones(np.shape(values[0]), dtype=bool)
@@ -139,7 +139,7 @@ class SafeDomain:
             inside &= v >= 0
         # A point on the wrong side of the limb (q1.s <= 0) is outside whatever
         # the stable formula says.
-        q1s = values_or_none(dot(as_features(y).q1, as_features(y).s))
+        q1s = values_or_none(dot(y.q1, y.s))
         return inside & (q1s > 0)
 
 
