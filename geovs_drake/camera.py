@@ -51,6 +51,7 @@ __all__ = [
     "image_jacobian",
     "image_jacobian_inverse",
     "pose_matrix",
+    "limb_margin",
     "silhouette_margin",
     "validate_features",
     "visibility",
@@ -203,18 +204,24 @@ def camera_map(X_CB: object, radius: object) -> ImageFeatures:
     return ImageFeatures(Q=Q, lam=lam, s=s)
 
 
-def silhouette_margin(q1: np.ndarray, lam: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """``q1.s - sqrt(1 - lambda^2)`` of Eq. (9), without cancellation (float only).
+def limb_margin(q1: np.ndarray, lam: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``q1.s - sqrt(1 - lambda^2)`` of Eq. (9) for q1.s > 0, without cancellation.
 
     At small lambda both terms are near 1 and their difference, about
     lambda^2 / 2, loses its digits. For unit q1, s with q1.s > 0 it equals
     ``(lambda^2 - |s x q1|^2) / (q1.s + sqrt(1 - lambda^2))``, which keeps them.
+    Scalar-generic (the safe domain's occlusion margin uses it too).
     """
+    w = cross(s, q1)
+    return (lam * lam - dot(w, w)) / (dot(q1, s) + np.sqrt(1 - lam * lam))
+
+
+def silhouette_margin(q1: np.ndarray, lam: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """:func:`limb_margin` for any float q1, including q1.s <= 0 (far side of the limb)."""
     c = np.sum(q1 * s, axis=-1)
-    w = np.cross(s, q1)
-    root = np.sqrt(1 - lam**2)
-    stable = (lam**2 - np.sum(w * w, axis=-1)) / np.maximum(c + root, 1e-300)
-    return np.where(c > 0, stable, c - root)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        stable = limb_margin(q1, lam, s)
+    return np.where(c > 0, stable, c - np.sqrt(1 - lam**2))
 
 
 def validate_features(y: ImageFeatures | np.ndarray) -> ImageFeatures:

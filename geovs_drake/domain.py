@@ -21,8 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from geovs_drake._scalar import cross, dot, sqrt, values_or_none
-from geovs_drake.camera import ImageFeatures, as_features
+from geovs_drake._scalar import dot, sqrt, values_or_none
+from geovs_drake.camera import ImageFeatures, as_features, limb_margin
 
 __all__ = ["DEFAULT_DOMAIN", "DomainMargins", "SafeDomain"]
 
@@ -115,12 +115,9 @@ class SafeDomain:
         lam, s, q1 = y.lam, y.s, y.q1
         cos_fov, _ = self.fov_cap(lam)
         lam2 = lam * lam
-        c_lam = np.sqrt(1 - lam2)
-        # q1.s - sqrt(1 - lambda^2) = (lambda^2 - |s x q1|^2) / (q1.s + sqrt(1 - lambda^2))
-        # for unit vectors with q1.s > 0 (as in I): no cancellation at small lambda.
-        w = cross(s, q1)
-        to_limb = (lam2 - dot(w, w)) / (dot(q1, s) + c_lam)
-        occlusion = to_limb - self.occlusion_margin * lam2 / (1 + c_lam)
+        # kappa (1 - sqrt(1 - lambda^2)), with 1 - sqrt(1 - lambda^2) formed as
+        # lambda^2 / (1 + sqrt(1 - lambda^2)); limb_margin is cancellation-free too.
+        occlusion = limb_margin(q1, lam, s) - self.occlusion_margin * lam2 / (1 + np.sqrt(1 - lam2))
         return DomainMargins(
             fov=np.asarray(s[..., 2] - cos_fov),
             lam_min=np.asarray(lam - self.lam_min),

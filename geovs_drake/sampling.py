@@ -11,7 +11,6 @@ import numpy as np
 
 __all__ = [
     "random_features_in_image_space",
-    "random_rotations",
     "random_unit_vectors",
     "random_visible_poses",
 ]
@@ -27,21 +26,6 @@ def _random_orthogonal_unit(rng: np.random.Generator, a: np.ndarray) -> np.ndarr
     v = rng.normal(size=a.shape)
     v -= np.sum(v * a, axis=-1, keepdims=True) * a
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
-    """Uniformly distributed rotation matrices, shape (n, 3, 3)."""
-    q = rng.normal(size=(n, 4))
-    q /= np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        axis=-2,
-    )
 
 
 def _cap_direction(rng: np.random.Generator, axis: np.ndarray, cos_angle: np.ndarray) -> np.ndarray:

@@ -25,7 +25,6 @@ from geovs_drake.navigation import NavigationGains
 
 POSE_SIZE = 7
 STATE_SIZE = 13
-POSE_PARAM_SIZE = 12  # [R column-major (9), p (3)]
 
 
 def quaternion_to_rotation(q: np.ndarray) -> np.ndarray:
