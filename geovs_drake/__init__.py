@@ -1,7 +1,8 @@
 """geovs_drake: geometric visual servoing (Cowan & Chang) as Drake systems."""
 
-from geovs_drake.camera import (
+from geovs_drake.geometry.camera import (
     ImageFeatures,
+    OutOfDomainError,
     camera_map,
     camera_map_inverse,
     image_jacobian,
@@ -9,9 +10,9 @@ from geovs_drake.camera import (
     validate_features,
     visibility,
 )
-from geovs_drake.domain import DEFAULT_DOMAIN, DomainMargins, SafeDomain
-from geovs_drake.navigation import NavigationFunction, NavigationGains
-from geovs_drake.so3 import hat, so3_exp, vee
+from geovs_drake.geometry.domain import DEFAULT_DOMAIN, DomainMargins, SafeDomain
+from geovs_drake.geometry.navigation import NavigationFunction, NavigationGains
+from geovs_drake.geometry.so3 import hat, so3_exp, vee
 
 __all__ = [
     "DEFAULT_DOMAIN",
@@ -19,6 +20,7 @@ __all__ = [
     "ImageFeatures",
     "NavigationFunction",
     "NavigationGains",
+    "OutOfDomainError",
     "SafeDomain",
     "camera_map",
     "camera_map_inverse",

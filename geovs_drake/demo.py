@@ -70,7 +70,7 @@ def run_demo(
 ) -> int:
     from geovs_drake.cli import one_line
     from geovs_drake.diagrams import make_dynamic_servo_diagram
-    from geovs_drake.navigation import NavigationFunction
+    from geovs_drake.geometry.navigation import NavigationFunction
     from geovs_drake.plotting import (
         plot_image_view,
         plot_navigation_slices,

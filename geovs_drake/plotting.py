@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from geovs_drake.navigation import (
+from geovs_drake.geometry.navigation import (
     ModelCoordinates,
     NavigationFunction,
     features_from_model,
@@ -147,7 +147,7 @@ def _silhouette(s: np.ndarray, lam: float, n: int = 200) -> np.ndarray:
 def plot_image_view(result, path: str | Path | None = None, snapshots: int = 8):
     """What the camera sees: silhouettes, q1 and the q2 arrow over time (gnomonic view)."""
     plt = _pyplot()
-    from geovs_drake.camera import ImageFeatures
+    from geovs_drake.geometry.camera import ImageFeatures
 
     y = ImageFeatures.from_vector(result.image_features)
     goal = result.config.goal_features()
@@ -187,7 +187,7 @@ def plot_run(result, path: str | Path | None = None):
     plt = _pyplot()
     from pydrake.math import RigidTransform
 
-    from geovs_drake.domain import DomainMargins
+    from geovs_drake.geometry.domain import DomainMargins
     from geovs_drake.simulation import pose_error
 
     t = result.times

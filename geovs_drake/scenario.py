@@ -18,9 +18,9 @@ from pydrake.common.yaml import yaml_load_typed
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import SimulatorConfig
 
-from geovs_drake.camera import ImageFeatures, camera_map
-from geovs_drake.domain import SafeDomain
-from geovs_drake.navigation import NavigationGains
+from geovs_drake.geometry.camera import ImageFeatures, camera_map
+from geovs_drake.geometry.domain import SafeDomain
+from geovs_drake.geometry.navigation import NavigationGains
 
 __all__ = [
     "ControlConfig",

@@ -12,18 +12,22 @@ from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Diagram, EventStatus
+from pydrake.trajectories import PiecewisePolynomial
 
 from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
-from geovs_drake.domain import DomainMargins
-from geovs_drake.navigation import NavigationFunction
+from geovs_drake.geometry.domain import DomainMargins
+from geovs_drake.geometry.kernels import camera_image, navigation
+from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.scenario import ScenarioConfig
 
 __all__ = [
     "CONVERGENCE_POSITION_M",
     "CONVERGENCE_ROTATION_RAD",
+    "SafeDomainMonitor",
     "SimulationResult",
     "StartOutsideDomain",
     "camera_pose_in_target",
+    "camera_signals",
     "check_start",
     "make_simulator",
     "pose_error",
@@ -141,55 +145,103 @@ class SimulationResult:
         return out
 
 
-def make_simulator(
-    diagram: Diagram, config: ScenarioConfig
-) -> tuple[Simulator, Callable[[], tuple[str, str]]]:
-    """A Simulator with the config's integrator and a safe-domain monitor.
+class SafeDomainMonitor:
+    """The simulator monitor: stops a run that leaves D, and records every step.
 
-    The monitor runs after every step. It ends the run with
-    ``ReachedTermination`` when the camera loses sight of the marked point
-    (nu <= 0), leaves D (a margin < 0), or the state is not finite, so a
-    run never continues into NaN. Returns the simulator and a function that
-    reports ``(status, message)`` of the last termination, if any.
+    Called by Drake after every accepted step (and at initialisation). It ends
+    the run with ``ReachedTermination`` when the camera loses sight of the
+    marked point (nu <= 0), leaves D (a margin < 0), or the state is not
+    finite, so a run never continues into NaN. :meth:`termination` reports
+    ``(status, message)`` of the last termination, if any.
+
+    It also records ``(t, x)`` at every accepted step. That is how
+    :func:`simulate` logs: interpolating the steps at the log rate afterwards
+    costs one state copy per step, where Drake's periodic loggers would cut
+    every integrator step at each sample time (about 50% more steps at the
+    default 50 Hz) and evaluate every logged port there.
+    """
+
+    def __init__(self, diagram: Diagram, record: bool = True) -> None:
+        self._diagram = diagram
+        self._camera = diagram.GetSubsystemByName("spherical_camera")
+        self._record = record
+        self._reason: dict[str, str] = {}
+        self.times: list[float] = []
+        self.states: list[np.ndarray] = []
+
+    def termination(self) -> tuple[str, str]:
+        return self._reason.get("status", ""), self._reason.get("message", "")
+
+    def _stop(self, status: str, message: str) -> EventStatus:
+        self._reason.update(status=status, message=message)
+        return EventStatus.ReachedTermination(self._diagram, message)
+
+    def __call__(self, root_context) -> EventStatus:
+        if self._record:
+            t = root_context.get_time()
+            if self.times and t <= self.times[-1]:  # Initialize() and a first step at t = 0
+                self.times.pop()
+                self.states.pop()
+            self.times.append(t)
+            self.states.append(root_context.get_continuous_state_vector().CopyToVector())
+        # The margins come from the camera's one compiled kernel call.
+        ctx = self._camera.GetMyContextFromRoot(root_context)
+        margins = self._camera.domain_margins_output.Eval(ctx).tolist()
+        if margins[0] > 0 and margins[1] > 0 and margins[2] > 0 and margins[3] > 0:
+            return EventStatus.Succeeded()
+        t = root_context.get_time()
+        x = root_context.get_continuous_state_vector().CopyToVector()
+        if not np.all(np.isfinite(x)):
+            return self._stop("non_finite", f"non-finite state at t = {t:.4g}")
+        nu = float(self._camera.visibility_output.Eval(ctx)[0])
+        if not nu > 0:
+            return self._stop(
+                "lost_visibility", f"lost visibility: nu(H) = {nu:.4g} <= 0 at t = {t:.4g}"
+            )
+        if not all(math.isfinite(m) for m in margins):
+            return self._stop("non_finite", f"non-finite domain margins at t = {t:.4g}")
+        i = int(np.argmin(margins))
+        if margins[i] < 0:
+            return self._stop(
+                "left_domain",
+                f"left D: {MARGIN_NAMES[i]} margin = {margins[i]:.4g} < 0 at t = {t:.4g}",
+            )
+        return EventStatus.Succeeded()  # on the boundary of D, still in it
+
+    def resample(self, rate: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(times, states)`` at ``rate`` Hz from t = 0, plus the last step.
+
+        A cubic spline with continuous second derivatives through the steps
+        (Drake's ``PiecewisePolynomial``): its error is fourth order in the
+        step, below the integrator's own at its accuracy setting. Quaternions
+        are interpolated componentwise; every consumer normalises them.
+        """
+        T = np.asarray(self.times)
+        X = np.asarray(self.states).T
+        end = T[-1]
+        times = np.arange(0.0, end, 1.0 / rate)
+        times = np.append(times[times < end - 1e-9], end)
+        if len(T) >= 3:
+            spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(T, X, False)
+        elif len(T) == 2:
+            spline = PiecewisePolynomial.FirstOrderHold(T, X)
+        else:
+            return T, X.T
+        return times, spline.vector_values(times).T
+
+
+def make_simulator(
+    diagram: Diagram, config: ScenarioConfig, record: bool = False
+) -> tuple[Simulator, SafeDomainMonitor]:
+    """A Simulator with the config's integrator and a :class:`SafeDomainMonitor`.
+
+    ``record`` makes the monitor keep every accepted step (for logs).
     """
     simulator = Simulator(diagram)
     ApplySimulatorConfig(config.simulator, simulator)
-    camera = diagram.GetSubsystemByName("spherical_camera")
-    reason: dict[str, str] = {}
-
-    def monitor(root_context) -> EventStatus:
-        x = root_context.get_continuous_state_vector().CopyToVector()
-        if not np.all(np.isfinite(x)):
-            reason.update(
-                status="non_finite",
-                message=f"non-finite state at t = {root_context.get_time():.4g}",
-            )
-            return EventStatus.ReachedTermination(diagram, reason["message"])
-        ctx = camera.GetMyContextFromRoot(root_context)
-        nu = float(camera.visibility_output.Eval(ctx)[0])
-        if nu <= 0:
-            reason.update(
-                status="lost_visibility",
-                message=(
-                    f"lost visibility: nu(H) = {nu:.4g} <= 0 at t = {root_context.get_time():.4g}"
-                ),
-            )
-            return EventStatus.ReachedTermination(diagram, reason["message"])
-        margins = camera.domain_margins_output.Eval(ctx)
-        i = int(np.argmin(margins))
-        if margins[i] < 0:
-            reason.update(
-                status="left_domain",
-                message=(
-                    f"left D: {MARGIN_NAMES[i]} margin = {margins[i]:.4g} < 0 "
-                    f"at t = {root_context.get_time():.4g}"
-                ),
-            )
-            return EventStatus.ReachedTermination(diagram, reason["message"])
-        return EventStatus.Succeeded()
-
+    monitor = SafeDomainMonitor(diagram, record=record)
     simulator.set_monitor(monitor)
-    return simulator, lambda: (reason.get("status", ""), reason.get("message", ""))
+    return simulator, monitor
 
 
 def camera_pose_in_target(config: ScenarioConfig, x: np.ndarray, dynamic: bool) -> RigidTransform:
@@ -210,6 +262,31 @@ def _poses_from_log(config: ScenarioConfig, log: np.ndarray, dynamic: bool) -> n
     )
 
 
+def camera_signals(diagram: Diagram, root_context, states: np.ndarray) -> dict[str, np.ndarray]:
+    """The camera's and the NF's outputs along a batch of states, in one call each.
+
+    ``states`` is (N, n) in the diagram's continuous-state layout (a free body's
+    13 or the kinematic body's 7, pose first). The same generated kernels as
+    the systems, on components of shape (N,), with the systems' parameters
+    from ``root_context``. Returns ``image_features`` (N, 13), ``visibility``
+    (N,), ``margins`` (N, 4) and ``phi`` (N,); where nu <= 0, y and phi are NaN
+    and every margin reads nu, as on the systems' ports.
+    """
+    camera = diagram.GetSubsystemByName("spherical_camera")
+    nav = diagram.GetSubsystemByName("navigation_controller")
+    p_cam = camera.GetMyContextFromRoot(root_context).get_numeric_parameter(0).CopyToVector()
+    p_nav = nav.navigation_parameters(nav.GetMyContextFromRoot(root_context))
+    x = tuple(np.asarray(states, dtype=float)[:, :7].T)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = camera_image(x, p_cam)
+        nu = np.asarray(out[0], dtype=float)
+        visible = nu > 0
+        y = np.where(visible, np.stack(np.broadcast_arrays(*out[1:14])), np.nan)
+        margins = np.where(visible, np.stack(np.broadcast_arrays(*out[14:18])), nu)
+        phi = 1 - np.asarray(navigation(tuple(y), p_nav)[0])
+    return dict(image_features=y.T, visibility=nu, margins=margins.T, phi=phi)
+
+
 def simulate(
     config: ScenarioConfig | None = None,
     meshcat=None,
@@ -220,23 +297,25 @@ def simulate(
     Raises StartOutsideDomain if the start is not in D. A run that leaves D
     stops early with ``status`` ``left_domain`` / ``lost_visibility``.
     ``progress``, if given, is called with the simulated time as it advances.
+    The logs are sampled at ``config.log_rate`` from the recorded steps (see
+    :class:`SafeDomainMonitor`); ``wall_time_s`` times the integration alone.
     """
     config = config or ScenarioConfig()
     config.validate()
     check_start(config)
     dynamic = config.controller == "dynamic"
     diagram = (
-        make_dynamic_servo_diagram(config, meshcat=meshcat)
+        make_dynamic_servo_diagram(config, meshcat=meshcat, log=False)
         if dynamic
-        else make_kinematic_servo_diagram(config)
+        else make_kinematic_servo_diagram(config, log=False)
     )
-    simulator, termination = make_simulator(diagram, config)
+    simulator, monitor = make_simulator(diagram, config, record=True)
     root = simulator.get_mutable_context()
     if meshcat is not None:
         diagram.ForcedPublish(root)
     status, message = "completed", ""
+    simulator.Initialize()  # also loads the compiled kernels: not part of the timing
     start = time.perf_counter()
-    simulator.Initialize()
     if progress is None:
         simulator.AdvanceTo(config.duration)
     else:
@@ -247,26 +326,22 @@ def simulate(
             if sim_status.reason() != sim_status.ReturnReason.kReachedBoundaryTime:
                 break
     wall = time.perf_counter() - start
-    term_status, term_message = termination()
+    term_status, term_message = monitor.termination()
     if term_status:
         status, message = term_status, term_message
 
-    def log(name: str) -> np.ndarray:
-        return diagram.GetSubsystemByName(name).FindLog(root)
-
-    y_log = log("log_image_features")
-    times = y_log.sample_times()
-    pose_log = log("log_body_state" if dynamic else "log_body_pose").data()
-    phi = log("log_phi").data()[0]
+    times, states = monitor.resample(config.log_rate)
+    signals = camera_signals(diagram, root, states)
     energy = None
     if dynamic:
+        # Drake's own kinetic energy of the free body, plus the potential k_p phi.
         plant = diagram.GetSubsystemByName("plant")
         pctx = plant.CreateDefaultContext()
-        kinetic = np.empty(pose_log.shape[1])
-        for k in range(pose_log.shape[1]):
-            plant.SetPositionsAndVelocities(pctx, pose_log[:, k])
+        kinetic = np.empty(len(states))
+        for k, x in enumerate(states):
+            plant.SetPositionsAndVelocities(pctx, x)
             kinetic[k] = plant.CalcKineticEnergy(pctx)
-        energy = kinetic + config.control.potential_gain * phi
+        energy = kinetic + config.control.potential_gain * signals["phi"]
     x_final = root.get_continuous_state_vector().CopyToVector()
     final_X_BC = camera_pose_in_target(config, x_final, dynamic)
     if status == "completed":
@@ -285,11 +360,11 @@ def simulate(
         wall_time_s=wall,
         steps=simulator.get_num_steps_taken(),
         times=times,
-        image_features=y_log.data().T,
-        phi=phi,
-        margins=log("log_margins").data().T,
-        visibility=log("log_visibility").data()[0],
-        X_BC=_poses_from_log(config, pose_log, dynamic),
+        image_features=signals["image_features"],
+        phi=signals["phi"],
+        margins=signals["margins"],
+        visibility=signals["visibility"],
+        X_BC=_poses_from_log(config, states.T, dynamic),
         energy=energy,
         final_X_BC=final_X_BC,
     )

@@ -395,7 +395,7 @@ def test_non_rotation_pose_raises():
         (9, 0.0, r"lambda outside \(0, 1\): lambda = 0"),
         (0, 0.1, r"Q is not a rotation: max\|Q\^T Q - I\|"),
         (10, 0.01, r"s is not a unit vector"),
-        (5, np.nan, r"Q has a non-finite entry"),
+        (5, np.nan, r"q2 has a non-finite entry: y\[5\] = nan"),
         (9, np.nan, r"lambda has a non-finite entry"),
     ],
 )

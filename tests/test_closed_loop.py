@@ -18,7 +18,7 @@ from geovs_drake.analysis.monte_carlo import (
     scenarios_from_starts,
 )
 from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
-from geovs_drake.navigation import NavigationFunction
+from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import StartOutsideDomain, pose_error, simulate
 

@@ -16,8 +16,8 @@ from geovs_drake.analysis.nf_study import (
     gradient_descent,
     random_features_in_domain,
 )
-from geovs_drake.domain import DEFAULT_DOMAIN, SafeDomain
-from geovs_drake.navigation import (
+from geovs_drake.geometry.domain import DEFAULT_DOMAIN, SafeDomain
+from geovs_drake.geometry.navigation import (
     NavigationFunction,
     NavigationGains,
     features_from_model,
@@ -75,7 +75,9 @@ def test_fov_margin_matches_sampled_silhouette():
             + np.sin(t)[:, None] * np.array([0, 1.0, 0])
         )
         worst_angle = np.max(np.arccos(np.clip(u[:, 2], -1, 1)))
-        y = ImageFeatures(np.eye(3)[:, [2, 1, 0]] * [1, 1, -1], np.asarray(lam), s)
+        # The marked point at the silhouette's centre (q1 = s), so y lies in I.
+        q2 = np.array([0.0, 1.0, 0.0])
+        y = ImageFeatures(np.stack([s, q2, np.cross(s, q2)], axis=-1), np.asarray(lam), s)
         margin = DEFAULT_DOMAIN.margins(y).fov
         assert (margin >= 0) == (worst_angle <= th) or abs(worst_angle - th) < 1e-6
         # The errata's f(y) = sqrt(1 - lam^2)(s.e3) - lam sqrt(1 - (s.e3)^2).

@@ -8,8 +8,8 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import FixedOffsetFrame, RotationalInertia, SpatialInertia
 
 from geovs_drake import camera_map, image_jacobian, so3_exp, visibility
-from geovs_drake.domain import DEFAULT_DOMAIN
-from geovs_drake.navigation import NavigationFunction, navigation_differential
+from geovs_drake.geometry.domain import DEFAULT_DOMAIN
+from geovs_drake.geometry.navigation import NavigationFunction, navigation_differential
 from geovs_drake.systems import (
     ImageJacobianForce,
     KinematicController,

@@ -32,11 +32,11 @@ from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
 from geovs_drake.analysis.nf_study import chart_basis
-from geovs_drake.camera import ImageFeatures, image_jacobian
 from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
-from geovs_drake.navigation import NavigationFunction, navigation_differential
+from geovs_drake.geometry.camera import ImageFeatures, image_jacobian
+from geovs_drake.geometry.navigation import NavigationFunction, navigation_differential
+from geovs_drake.geometry.so3 import hat, so3_exp
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
-from geovs_drake.so3 import hat, so3_exp
 
 __all__ = [
     "LinearizationResult",

@@ -27,8 +27,8 @@ from pydrake.math import RigidTransform
 from pydrake.systems.analysis import MonteCarloSimulation
 
 from geovs_drake.analysis.nf_study import random_features_in_domain
-from geovs_drake.camera import camera_map_inverse
 from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
+from geovs_drake.geometry.camera import camera_map_inverse
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import camera_pose_in_target, make_simulator, pose_error, simulate
 

@@ -1,7 +1,7 @@
 """Numerical evidence for Definition 1: batched gradient descent and a critical-point search.
 
 Everything here is vectorised over a batch of images and calls the same
-:mod:`geovs_drake.navigation` functions as the Drake systems.
+:mod:`geovs_drake.geometry.navigation` functions as the Drake systems.
 
 Local chart at y = (Q, lambda, s), for delta in R^6::
 
@@ -18,9 +18,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geovs_drake.camera import ImageFeatures
-from geovs_drake.navigation import ModelCoordinates, NavigationFunction, features_from_model
-from geovs_drake.so3 import so3_exp
+from geovs_drake.geometry.camera import ImageFeatures
+from geovs_drake.geometry.navigation import (
+    ModelCoordinates,
+    NavigationFunction,
+    features_from_model,
+)
+from geovs_drake.geometry.so3 import so3_exp
 
 __all__ = [
     "CriticalPoint",

@@ -2,43 +2,32 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from geovs_drake.camera import image_jacobian
+from geovs_drake.geometry.kernels import servo_force
 from geovs_drake.systems._common import (
     STATE_SIZE,
-    camera_velocity,
     inputs_and_parameters,
-    param_to_pose,
-    pose_from_state,
+    param_vector,
     pose_to_param,
-    set_output_or_nan,
 )
 
-__all__ = ["ImageJacobianForce", "ImageJacobianForce_", "servo_wrench"]
+__all__ = ["ImageJacobianForce", "ImageJacobianForce_"]
+
+# Layout of the one numeric parameter: radius, k_p, damping (6), X_RC (12).
+_RADIUS, _GAIN, _DAMPING, _X_RC = 0, 1, slice(2, 8), slice(8, 20)
 
 
-def servo_wrench(
-    y: np.ndarray,
-    dphi: np.ndarray,
-    V_C: np.ndarray,
-    radius: object,
-    potential_gain: object,
-    damping: np.ndarray,
-) -> np.ndarray:
-    """Eq. (45): ``F_C = k_p C(y)^T dphi - B (Omega, V)``, torque and force on the camera.
-
-    Expressed in the camera frame C, about its origin Co: the pairing with
-    the camera's body velocity ``(Omega, V)`` is the power. With ``(Omega, V) =
-    -(omega, v)`` (Eq. 16), ``d/dt (k_p phi) = -(k_p C^T dphi) . (Omega, V)``,
-    so the energy ``1/2 nu^T M nu + k_p phi`` decreases at the rate
-    ``(Omega, V)^T B (Omega, V)``.
-    """
-    C = image_jacobian(y, radius)
-    return potential_gain * (C.T @ dphi) - damping * V_C
+def _check_damping(damping) -> list[float]:
+    d = np.asarray(damping, dtype=float)
+    if d.shape != (6,) or not np.all(np.isfinite(d)) or np.any(d < 0):
+        raise ValueError(f"damping must be 6 finite non-negative numbers, got {damping}")
+    return d.tolist()
 
 
 @TemplateSystem.define("ImageJacobianForce_")
@@ -60,7 +49,9 @@ def ImageJacobianForce_(T):
         ``body_state`` is the rig's 13-vector free-body state (see
         :mod:`geovs_drake.systems._common`), from which the camera's body
         velocity ``(Omega, V) = G^-1 Gdot`` (Eq. 16) is formed at the camera
-        frame C = X_RC on the rig.
+        frame C = X_RC on the rig. ``image_features`` is expected in I (the
+        :class:`NavigationController` on the same y checks it; NaN passes
+        through as NaN).
 
         ``wrench_C`` is ``F_C = k_p C(y)^T dphi - B (Omega, V)`` of Eq. (45):
         torque and force on the camera about Co, in C. ``generalized_force`` is
@@ -69,9 +60,9 @@ def ImageJacobianForce_(T):
         force, both in W, i.e. the shift of Appendix C.0.6 (``Ad*``), ready for
         MultibodyPlant's ``applied_generalized_force`` input.
 
-        Numeric parameters: the radius rho, the potential gain k_p (the
-        potential is ``k_p phi``), the diagonal damping B (6, rotational first)
-        and X_RC.
+        One numeric parameter vector: ``[rho, k_p, B (6, rotational first),
+        X_RC (12)]`` (the potential is ``k_p phi``); use
+        :meth:`set_potential_gain` and :meth:`set_damping`, which validate.
         """
 
         def _construct(
@@ -84,14 +75,13 @@ def ImageJacobianForce_(T):
         ):
             LeafSystem_[T].__init__(self, converter)
             X_RC = RigidTransform() if X_RC is None else X_RC
-            damping = np.asarray(damping, dtype=float)
-            if damping.shape != (6,) or np.any(damping < 0):
-                raise ValueError(f"damping must be 6 non-negative numbers, got {damping}")
+            damping = _check_damping(damping)
+            if not (math.isfinite(potential_gain) and potential_gain > 0):
+                raise ValueError(f"potential gain must be finite and > 0, got {potential_gain}")
             self._defaults = (radius, potential_gain, damping, X_RC)
-            self._radius_index = self.DeclareNumericParameter(BasicVector_[T]([radius]))
-            self._gain_index = self.DeclareNumericParameter(BasicVector_[T]([potential_gain]))
-            self._damping_index = self.DeclareNumericParameter(BasicVector_[T](damping))
-            self._X_RC_index = self.DeclareNumericParameter(BasicVector_[T](pose_to_param(X_RC)))
+            self._params_index = self.DeclareNumericParameter(
+                BasicVector_[T]([radius, potential_gain] + damping + pose_to_param(X_RC))
+            )
             self.image_features_input = self.DeclareVectorInputPort(name="image_features", size=13)
             self.dphi_input = self.DeclareVectorInputPort(name="dphi", size=7)
             self.body_state_input = self.DeclareVectorInputPort(name="body_state", size=STATE_SIZE)
@@ -111,45 +101,34 @@ def ImageJacobianForce_(T):
         def _construct_copy(self, other, converter=None):
             Impl._construct(self, *other._defaults, converter=converter)
 
-        def _param(self, context, index):
-            return context.get_numeric_parameter(index).CopyToVector()
+        def _set(self, context, where, values) -> None:
+            v = context.get_mutable_numeric_parameter(self._params_index)
+            full = v.CopyToVector()
+            full[where] = values
+            v.SetFromVector(full)
 
         def set_damping(self, context, damping: np.ndarray) -> None:
-            damping = np.asarray(damping, dtype=float)
-            if damping.shape != (6,) or np.any(damping < 0):
-                raise ValueError(f"damping must be 6 non-negative numbers, got {damping}")
-            context.get_mutable_numeric_parameter(self._damping_index).SetFromVector(damping)
+            self._set(context, _DAMPING, _check_damping(damping))
 
         def set_potential_gain(self, context, gain: float) -> None:
-            if not gain > 0:
-                raise ValueError(f"potential gain must be > 0, got {gain}")
-            context.get_mutable_numeric_parameter(self._gain_index).SetAtIndex(0, gain)
+            if not (math.isfinite(gain) and gain > 0):
+                raise ValueError(f"potential gain must be finite and > 0, got {gain}")
+            self._set(context, _GAIN, gain)
 
-        def CalcWrenchC(self, context, output) -> None:
-            x = self.body_state_input.Eval(context)
-            X_RC = self._param(context, self._X_RC_index)
-            set_output_or_nan(
-                output,
-                lambda: servo_wrench(
-                    self.image_features_input.Eval(context),
-                    self.dphi_input.Eval(context),
-                    camera_velocity(x, X_RC),
-                    self._param(context, self._radius_index)[0],
-                    self._param(context, self._gain_index)[0],
-                    self._param(context, self._damping_index),
-                ),
+        def _force(self, context) -> tuple:
+            """(*F_C, *tau_Ro_W, *f_W) by the generated kernel (compiled for floats)."""
+            return servo_force(
+                self.body_state_input.Eval(context),
+                self.image_features_input.Eval(context),
+                self.dphi_input.Eval(context),
+                param_vector(context, self._params_index, T),
             )
 
+        def CalcWrenchC(self, context, output) -> None:
+            output.SetFromVector(self._force(context)[0:6])
+
         def CalcGeneralizedForce(self, context, output) -> None:
-            F_C = self.wrench_C_output.Eval(context)
-            x = self.body_state_input.Eval(context)
-            R_WR, _ = pose_from_state(x[0:7])
-            R_RC, p_RC = param_to_pose(self._param(context, self._X_RC_index))
-            R_WC = R_WR @ R_RC
-            tau_W, f_W = R_WC @ F_C[0:3], R_WC @ F_C[3:6]
-            # Shift the torque from Co to the rig origin Ro: tau_Ro = tau_Co + p_RoCo x f.
-            tau_Ro_W = tau_W + np.cross(R_WR @ p_RC, f_W)
-            output.SetFromVector(np.concatenate([tau_Ro_W, f_W]))
+            output.SetFromVector(self._force(context)[6:12])
 
     return Impl
 

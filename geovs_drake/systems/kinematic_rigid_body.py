@@ -7,7 +7,9 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from geovs_drake.systems._common import POSE_SIZE, quaternion_to_rotation
+from geovs_drake.geometry._ops import namespace
+from geovs_drake.geometry.rigid import apply, quaternion_to_rotation
+from geovs_drake.systems._common import POSE_SIZE
 
 __all__ = ["KinematicRigidBody", "KinematicRigidBody_", "pose_state"]
 
@@ -70,14 +72,19 @@ def KinematicRigidBody_(T):
             output.SetFromVector(context.get_continuous_state_vector().CopyToVector())
 
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
-            x = context.get_continuous_state_vector().CopyToVector()
-            u = self.camera_velocity_input.Eval(context)
-            q, Omega, V = x[0:4], u[0:3], u[3:6]
-            w, v = q[0], q[1:4]
-            # q (x) (0, Omega) = (-v . Omega, w Omega + v x Omega).
-            qdot = 0.5 * np.concatenate([[-(v @ Omega)], w * Omega + np.cross(v, Omega)])
-            pdot = quaternion_to_rotation(q) @ V
-            derivatives.get_mutable_vector().SetFromVector(np.concatenate([qdot, pdot]))
+            x = context.get_continuous_state_vector().CopyToVector().tolist()
+            u = self.camera_velocity_input.Eval(context).tolist()
+            qw, qx, qy, qz = x[0:4]
+            ox, oy, oz = u[0:3]
+            # q (x) (0, Omega) = (-v . Omega, w Omega + v x Omega), v = (qx, qy, qz).
+            qdot = [
+                -0.5 * (qx * ox + qy * oy + qz * oz),
+                0.5 * (qw * ox + qy * oz - qz * oy),
+                0.5 * (qw * oy + qz * ox - qx * oz),
+                0.5 * (qw * oz + qx * oy - qy * ox),
+            ]
+            pdot = apply(quaternion_to_rotation(x[0:4], namespace(qw)), u[3:6])
+            derivatives.get_mutable_vector().SetFromVector(qdot + list(pdot))
 
     return Impl
 

@@ -2,29 +2,46 @@
 
 from __future__ import annotations
 
+import functools
+import math
+
 import numpy as np
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from geovs_drake.camera import ImageFeatures
-from geovs_drake.domain import DEFAULT_DOMAIN, SafeDomain
-from geovs_drake.navigation import (
+from geovs_drake.geometry.camera import ImageFeatures, image_violation
+from geovs_drake.geometry.domain import DEFAULT_DOMAIN, SafeDomain
+from geovs_drake.geometry.kernels import navigation
+from geovs_drake.geometry.navigation import (
     NavigationFunction,
     NavigationGains,
-    navigation_differential,
-    navigation_value,
+    navigation_parameters,
 )
 from geovs_drake.systems._common import (
-    domain_to_param,
-    float_values,
-    gains_to_param,
+    floats,
     inputs_and_parameters,
-    param_to_domain,
-    param_to_gains,
-    set_output_or_nan,
+    read,
+    values_or_none,
 )
 
 __all__ = ["NavigationController", "NavigationController_"]
+
+# Layout of the one numeric parameter: goal y* (13), domain (4), gains (4).
+_GOAL, _DOMAIN, _GAINS = slice(0, 13), slice(13, 17), slice(17, 21)
+
+
+def _domain_param(domain: SafeDomain) -> list[float]:
+    return [domain.fov_half_angle, domain.lam_min, domain.lam_max, domain.occlusion_margin]
+
+
+@functools.lru_cache(maxsize=64)
+def _nf_parameters(values: tuple[float, ...]) -> tuple:
+    """The NF's 16 formula parameters from this system's 21 numbers (built once per value)."""
+    return navigation_parameters(
+        np.array(values[_GOAL]),
+        SafeDomain(*values[_DOMAIN]),
+        NavigationGains(*values[_GAINS]),
+    )
 
 
 @TemplateSystem.define("NavigationController_")
@@ -43,12 +60,18 @@ def NavigationController_(T):
 
         ``dphi`` is the 7-vector with ``d/dt phi = dphi . (xi, lambda_dot,
         s_dot)`` (s-part orthogonal to s), which is also grad phi in the
-        embedded metric (see :mod:`geovs_drake.navigation`).
+        embedded metric (see :mod:`geovs_drake.geometry.navigation`).
 
-        Numeric parameters, settable per context without rebuilding: the goal
-        image y* (13), the domain ``[theta, lam_min, lam_max, kappa]`` and the
-        shape gains ``[k_lam, k_fov, k_occ, circle_weight]``. Use
-        :meth:`set_goal`, :meth:`set_domain`, :meth:`set_gains`, which validate.
+        The input is checked once here, at the loop's first consumer of y: an
+        image outside I (or NaN, from an invisible pose) gives NaN outputs.
+        Downstream systems that read the same y (``ImageJacobianForce``,
+        ``KinematicController``) do not check it again.
+
+        One numeric parameter vector, settable per context without rebuilding:
+        ``[y* (13), theta, lam_min, lam_max, kappa, k_lam, k_fov, k_occ,
+        circle_weight]``. Use :meth:`set_goal`, :meth:`set_domain`,
+        :meth:`set_gains`, which validate. The parameters are float-valued
+        even in an AutoDiffXd system (their derivatives are not propagated).
         """
 
         def _construct(
@@ -61,12 +84,11 @@ def NavigationController_(T):
             LeafSystem_[T].__init__(self, converter)
             gains = gains or NavigationGains()
             nf = NavigationFunction(domain, goal, gains)  # validates the goal in D
-            self._defaults = (nf.goal.to_vector(), domain, gains)
-            self._goal_index = self.DeclareNumericParameter(BasicVector_[T](nf.goal.to_vector()))
-            self._domain_index = self.DeclareNumericParameter(
-                BasicVector_[T](domain_to_param(domain))
+            goal_vector = nf.goal.to_vector()
+            self._defaults = (goal_vector, domain, gains)
+            self._params_index = self.DeclareNumericParameter(
+                BasicVector_[T](goal_vector.tolist() + _domain_param(domain) + list(gains.params))
             )
-            self._gains_index = self.DeclareNumericParameter(BasicVector_[T](gains_to_param(gains)))
             self.image_features_input = self.DeclareVectorInputPort(name="image_features", size=13)
             self.dphi_output = self.DeclareVectorOutputPort(
                 name="dphi",
@@ -84,53 +106,58 @@ def NavigationController_(T):
         def _construct_copy(self, other, converter=None):
             Impl._construct(self, *other._defaults, converter=converter)
 
+        # ------------------------------------------------------- parameters
+        def _values(self, context) -> tuple[float, ...]:
+            return floats(read(context, self._params_index))
+
+        def _set(self, context, goal, domain, gains) -> None:
+            nf = NavigationFunction(domain, goal, gains)  # the goal must lie inside D
+            context.get_mutable_numeric_parameter(self._params_index).SetFromVector(
+                nf.goal.to_vector().tolist() + _domain_param(domain) + list(gains.params)
+            )
+
+        def navigation_parameters(self, context) -> tuple:
+            """The 16 floats the NF formulas take (:func:`navigation_parameters`)."""
+            return _nf_parameters(self._values(context))
+
         def navigation_function(self, context) -> NavigationFunction:
             """A float NavigationFunction with this context's parameters."""
-            goal = float_values(context.get_numeric_parameter(self._goal_index).CopyToVector())
-            return NavigationFunction(self.domain(context), goal, self.gains(context))
+            return NavigationFunction(self.domain(context), self.goal(context), self.gains(context))
 
         def domain(self, context) -> SafeDomain:
-            return param_to_domain(context.get_numeric_parameter(self._domain_index).CopyToVector())
+            return SafeDomain(*self._values(context)[_DOMAIN])
 
         def gains(self, context) -> NavigationGains:
-            return param_to_gains(context.get_numeric_parameter(self._gains_index).CopyToVector())
+            return NavigationGains(*self._values(context)[_GAINS])
 
         def goal(self, context) -> np.ndarray:
-            return context.get_numeric_parameter(self._goal_index).CopyToVector()
+            return np.array(self._values(context)[_GOAL])
 
         def set_goal(self, context, goal: ImageFeatures | np.ndarray) -> None:
-            nf = NavigationFunction(self.domain(context), goal, self.gains(context))
-            context.get_mutable_numeric_parameter(self._goal_index).SetFromVector(
-                nf.goal.to_vector()
-            )
+            self._set(context, goal, self.domain(context), self.gains(context))
 
         def set_domain(self, context, domain: SafeDomain) -> None:
-            goal = float_values(self.goal(context))
-            NavigationFunction(domain, goal, self.gains(context))  # goal must stay inside
-            context.get_mutable_numeric_parameter(self._domain_index).SetFromVector(
-                domain_to_param(domain)
-            )
+            self._set(context, self.goal(context), domain, self.gains(context))
 
         def set_gains(self, context, gains: NavigationGains) -> None:
-            context.get_mutable_numeric_parameter(self._gains_index).SetFromVector(
-                gains_to_param(gains)
-            )
+            self._set(context, self.goal(context), self.domain(context), gains)
 
-        def _args(self, context) -> tuple:
-            return (
-                self.image_features_input.Eval(context),
-                self.goal(context),
-                self.domain(context),
-                self.gains(context),
-            )
+        # ---------------------------------------------------------- outputs
+        def _kernel(self, context) -> tuple | None:
+            """(1 - phi, *dphi) by the generated kernel, or None if y is not in I."""
+            y = self.image_features_input.Eval(context)
+            values = values_or_none(y.tolist())
+            if values is not None and (math.isnan(values[9]) or image_violation(values)):
+                return None
+            return navigation(y, self.navigation_parameters(context))
 
         def CalcDifferential(self, context, output) -> None:
-            args = self._args(context)
-            set_output_or_nan(output, lambda: navigation_differential(*args)[1])
+            out = self._kernel(context)
+            output.SetFromVector([math.nan] * 7 if out is None else out[1:])
 
         def CalcValue(self, context, output) -> None:
-            args = self._args(context)
-            set_output_or_nan(output, lambda: np.atleast_1d(navigation_value(*args)))
+            out = self._kernel(context)
+            output.SetFromVector([math.nan if out is None else 1 - out[0]])
 
     return Impl
 

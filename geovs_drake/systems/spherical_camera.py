@@ -2,27 +2,35 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from geovs_drake._scalar import values_or_none
-from geovs_drake.camera import camera_map, visibility
-from geovs_drake.domain import DEFAULT_DOMAIN, SafeDomain
+from geovs_drake.geometry._ops import namespace
+from geovs_drake.geometry.domain import DEFAULT_DOMAIN, SafeDomain
+from geovs_drake.geometry.kernels import camera_image
+from geovs_drake.geometry.rigid import cross, quaternion_to_rotation, target_in_camera
 from geovs_drake.systems._common import (
     POSE_SIZE,
-    X_CB_matrix,
-    camera_pose,
-    domain_to_param,
+    floats,
     inputs_and_parameters,
-    param_to_domain,
-    param_to_pose,
+    param_vector,
     pose_to_param,
-    set_output_or_nan,
+    read,
+    scalar_value,
 )
 
 __all__ = ["SphericalCamera", "SphericalCamera_"]
+
+# Layout of the one numeric parameter: radius, X_WB, X_RC, domain.
+_RADIUS, _X_WB, _X_RC, _DOMAIN = 0, slice(1, 13), slice(13, 25), slice(25, 29)
+
+
+def _domain_param(domain: SafeDomain) -> list[float]:
+    return [domain.fov_half_angle, domain.lam_min, domain.lam_max, domain.occlusion_margin]
 
 
 @TemplateSystem.define("SphericalCamera_")
@@ -47,15 +55,18 @@ def SphericalCamera_(T):
         ``image_features`` is y = c(X_CB) as the 13-vector ``[q1, q2, q3,
         lambda, s]``; ``visibility`` is nu(X_CB) of Eq. (5);
         ``domain_margins`` is the signed margins ``[fov, lam_min, lam_max,
-        occlusion]`` of :class:`~geovs_drake.domain.SafeDomain` (all >= 0 in D).
-        When the pose is not visible y is undefined: ``image_features`` is all
-        NaN (so an integrator rejects such a trial stage, see
-        :func:`~geovs_drake.systems._common.set_output_or_nan`) and every
-        margin reads nu <= 0. The pure :func:`~geovs_drake.camera.camera_map`
-        raises ``ValueError: pose not visible ...`` instead.
+        occlusion]`` of :class:`~geovs_drake.geometry.domain.SafeDomain` (all
+        >= 0 in D). When the pose is not visible y is undefined:
+        ``image_features`` is all NaN (so an integrator rejects such a trial
+        stage, see :func:`~geovs_drake.systems._common.set_output_or_nan`) and
+        every margin reads nu <= 0. The pure
+        :func:`~geovs_drake.geometry.camera.camera_map` raises
+        ``ValueError: pose not visible ...`` instead.
 
-        Numeric parameters (settable per context, e.g. for sweeps): the radius
-        rho, the target pose X_WB, the camera offset X_RC and the domain.
+        One numeric parameter vector, settable per context (e.g. for sweeps):
+        ``[rho, X_WB (12), X_RC (12), theta, lam_min, lam_max, kappa]``; use
+        :meth:`set_radius`, :meth:`set_target_pose`, :meth:`set_camera_offset`
+        and :meth:`set_domain`, which validate.
         """
 
         def _construct(
@@ -69,12 +80,13 @@ def SphericalCamera_(T):
             LeafSystem_[T].__init__(self, converter)
             X_WB = RigidTransform() if X_WB is None else X_WB
             X_RC = RigidTransform() if X_RC is None else X_RC
+            if not (math.isfinite(radius) and radius > 0):
+                raise ValueError(f"radius must be finite and > 0: radius = {radius}")
             self._defaults = (radius, X_WB, X_RC, domain)
-            self._radius_index = self.DeclareNumericParameter(BasicVector_[T]([radius]))
-            self._X_WB_index = self.DeclareNumericParameter(BasicVector_[T](pose_to_param(X_WB)))
-            self._X_RC_index = self.DeclareNumericParameter(BasicVector_[T](pose_to_param(X_RC)))
-            self._domain_index = self.DeclareNumericParameter(
-                BasicVector_[T](domain_to_param(domain))
+            self._params_index = self.DeclareNumericParameter(
+                BasicVector_[T](
+                    [radius] + pose_to_param(X_WB) + pose_to_param(X_RC) + _domain_param(domain)
+                )
             )
             self.body_pose_input = self.DeclareVectorInputPort(name="body_pose", size=POSE_SIZE)
             self.image_features_output = self.DeclareVectorOutputPort(
@@ -100,60 +112,70 @@ def SphericalCamera_(T):
             Impl._construct(self, *other._defaults, converter=converter)
 
         # ------------------------------------------------------- parameters
+        def _set(self, context, where: int | slice, values) -> None:
+            v = context.get_mutable_numeric_parameter(self._params_index)
+            full = v.CopyToVector()
+            full[where] = values
+            v.SetFromVector(full)
+
         def radius(self, context) -> object:
-            return context.get_numeric_parameter(self._radius_index).GetAtIndex(0)
+            return context.get_numeric_parameter(self._params_index).GetAtIndex(_RADIUS)
 
         def set_radius(self, context, radius: float) -> None:
-            if not radius > 0:
-                raise ValueError(f"radius must be > 0: radius = {radius}")
-            context.get_mutable_numeric_parameter(self._radius_index).SetAtIndex(0, radius)
+            if not (math.isfinite(radius) and radius > 0):
+                raise ValueError(f"radius must be finite and > 0: radius = {radius}")
+            self._set(context, _RADIUS, radius)
 
         def set_target_pose(self, context, X_WB: RigidTransform) -> None:
-            context.get_mutable_numeric_parameter(self._X_WB_index).SetFromVector(
-                pose_to_param(X_WB)
-            )
+            self._set(context, _X_WB, pose_to_param(X_WB))
 
         def set_camera_offset(self, context, X_RC: RigidTransform) -> None:
-            context.get_mutable_numeric_parameter(self._X_RC_index).SetFromVector(
-                pose_to_param(X_RC)
-            )
+            self._set(context, _X_RC, pose_to_param(X_RC))
 
         def set_domain(self, context, domain: SafeDomain) -> None:
-            context.get_mutable_numeric_parameter(self._domain_index).SetFromVector(
-                domain_to_param(domain)
-            )
+            self._set(context, _DOMAIN, _domain_param(domain))
 
         def domain(self, context) -> SafeDomain:
-            return param_to_domain(context.get_numeric_parameter(self._domain_index).CopyToVector())
+            return SafeDomain(*floats(read(context, self._params_index)[_DOMAIN]))
+
+        def pose_terms(self, context) -> tuple:
+            """``(rho, r2, r3, d)``: the radius and the parts of X_CB the camera map uses."""
+            x = self.body_pose_input.Eval(context).tolist()
+            p = read(context, self._params_index)
+            R_WR = quaternion_to_rotation(x[0:4], namespace(x[0]))
+            r2, r3, d = target_in_camera(R_WR, x[4:7], p[13:22], p[22:25], p[1:10], p[10:13])
+            return p[_RADIUS], r2, r3, d
 
         def X_CB(self, context) -> np.ndarray:
-            """The paper's H for the rig pose on the input port."""
-            x = self.body_pose_input.Eval(context)
-            X_RC = context.get_numeric_parameter(self._X_RC_index).CopyToVector()
-            R_WC, p_WC = camera_pose(x, X_RC)
-            R_WB, p_WB = param_to_pose(
-                context.get_numeric_parameter(self._X_WB_index).CopyToVector()
-            )
-            return X_CB_matrix(R_WC, p_WC, R_WB, p_WB)
+            """The paper's H for the rig pose on the input port, as a 4x4 array."""
+            _, r2, r3, d = self.pose_terms(context)
+            r1 = cross(r2, r3)
+            X = np.array([[r1[i], r2[i], r3[i], d[i]] for i in range(3)] + [[0, 0, 0, 1]])
+            return X if X.dtype == object else X.astype(float)
 
         # ---------------------------------------------------------- outputs
+        def _image(self, context) -> tuple:
+            """(nu, *y) by the generated kernel (compiled for floats)."""
+            x = self.body_pose_input.Eval(context)
+            p = param_vector(context, self._params_index, T)
+            return camera_image(x, p)
+
         def CalcImageFeatures(self, context, output) -> None:
-            set_output_or_nan(
-                output, lambda: camera_map(self.X_CB(context), self.radius(context)).to_vector()
-            )
+            out = self._image(context)
+            nu = scalar_value(out[0])
+            if nu is not None and not nu > 0:  # not visible (or NaN): y is undefined
+                output.SetFromVector([math.nan] * 13)
+                return
+            output.SetFromVector(out[1:14])
 
         def CalcVisibility(self, context, output) -> None:
-            output.SetAtIndex(0, visibility(self.X_CB(context), self.radius(context)).item())
+            output.SetFromVector(self._image(context)[0:1])
 
         def CalcDomainMargins(self, context, output) -> None:
-            nu = self.visibility_output.Eval(context)
-            nu_value = values_or_none(nu)
-            if nu_value is not None and nu_value[0] <= 0:
-                output.SetFromVector(np.full(4, nu[0]))
-                return
-            y = self.image_features_output.Eval(context)
-            margins = self.domain(context).margins(y)
-            output.SetFromVector(np.array([m.item() for m in margins]))
+            out = self._image(context)
+            nu = scalar_value(out[0])
+            # Every margin reads nu where the pose is not visible (y undefined).
+            output.SetFromVector(out[0:1] * 4 if nu is not None and not nu > 0 else out[14:18])
 
     return Impl
 

@@ -1,4 +1,4 @@
-"""The safe domain D of Sec. 4.2, with the corrections of ERRATA.md.
+"""The safe domain D of Sec. 4.2, with the errata listed in the README.
 
 D is the set of images y = (Q, lambda, s) with
 
@@ -21,10 +21,16 @@ from typing import NamedTuple
 
 import numpy as np
 
-from geovs_drake._scalar import dot, sqrt, values_or_none
-from geovs_drake.camera import ImageFeatures, as_features, limb_margin
+from geovs_drake.geometry._ops import NUMPY, Ops, components, namespace, to_float
+from geovs_drake.geometry.camera import (
+    ImageFeatures,
+    as_features,
+    limb_margin,
+    silhouette_margin,
+    validated_components,
+)
 
-__all__ = ["DEFAULT_DOMAIN", "DomainMargins", "SafeDomain"]
+__all__ = ["DEFAULT_DOMAIN", "DomainMargins", "SafeDomain", "domain_margins"]
 
 
 class DomainMargins(NamedTuple):
@@ -87,57 +93,76 @@ class SafeDomain:
         if not 0 < k < 1:
             raise ValueError(f"infeasible domain: need 0 < occlusion_margin < 1, got {k}")
 
-    # Smooth, scalar-generic pieces shared with the navigation function. Each
-    # takes lambda (any scalar type or array) and uses only + - * / sqrt, so it
-    # also runs on jets.
+    @property
+    def params(self) -> tuple[float, float, float, float, float]:
+        """``(cos theta, sin theta, lam_min, lam_max, kappa)``: what the formulas take."""
+        th = self.fov_half_angle
+        return (math.cos(th), math.sin(th), self.lam_min, self.lam_max, self.occlusion_margin)
+
     def fov_cap(self, lam: object) -> tuple[object, object]:
         """(cos, sin) of the largest angle ``theta - arcsin(lambda)`` between s and e3."""
-        c_lam = sqrt(1 - lam * lam)
-        ct, st = math.cos(self.fov_half_angle), math.sin(self.fov_half_angle)
-        return ct * c_lam + st * lam, st * c_lam - ct * lam
+        return fov_cap(lam, self.params, namespace(lam))
 
     def occlusion_cap(self, lam: object) -> tuple[object, object]:
-        """(cos, sin^2) of the largest angle between q1 and s.
-
-        ``1 - cos = (1 - kappa)(1 - sqrt(1 - lambda^2))`` with
-        ``1 - sqrt(1 - lambda^2) = lambda^2 / (1 + sqrt(1 - lambda^2))`` formed
-        without cancellation.
-        """
-        lam2 = lam * lam
-        c_lam = sqrt(1 - lam2)
-        one_minus_cos = (1 - self.occlusion_margin) * lam2 / (1 + c_lam)
-        cos = 1 - one_minus_cos
-        return cos, one_minus_cos * (1 + cos)
+        """(cos, sin^2) of the largest angle between q1 and s (:func:`occlusion_cap`)."""
+        return occlusion_cap(lam, self.params, namespace(lam))
 
     def margins(self, y: ImageFeatures | np.ndarray) -> DomainMargins:
-        """Each constraint's signed margin (see :class:`DomainMargins`)."""
-        y = as_features(y)
-        lam, s, q1 = y.lam, y.s, y.q1
-        cos_fov, _ = self.fov_cap(lam)
-        lam2 = lam * lam
-        # kappa (1 - sqrt(1 - lambda^2)), with 1 - sqrt(1 - lambda^2) formed as
-        # lambda^2 / (1 + sqrt(1 - lambda^2)); limb_margin is cancellation-free too.
-        occlusion = limb_margin(q1, lam, s) - self.occlusion_margin * lam2 / (1 + np.sqrt(1 - lam2))
+        """Each constraint's signed margin (see :class:`DomainMargins`), y checked to be in I."""
+        y = validated_components(y)
         return DomainMargins(
-            fov=np.asarray(s[..., 2] - cos_fov),
-            lam_min=np.asarray(lam - self.lam_min),
-            lam_max=np.asarray(self.lam_max - lam),
-            occlusion=np.asarray(occlusion),
+            *(np.asarray(m) for m in domain_margins(y, self.params, namespace(y[9])))
         )
 
     def contains(self, y: ImageFeatures | np.ndarray) -> np.ndarray:
-        """True where every margin is >= 0 (float or evaluable inputs)."""
-        y = as_features(y)
-        values = [values_or_none(x) for x in self.margins(y)]
-        if any(v is None for v in values):
+        """True where y lies in D: in I and every margin >= 0 (float or evaluable inputs)."""
+        v = to_float(as_features(y).to_vector())
+        if v is None:
             raise ValueError("contains() needs numeric (evaluable) features")
-        inside = np.ones(np.shape(values[0]), dtype=bool)
-        for v in values:
-            inside &= v >= 0
-        # A point on the wrong side of the limb (q1.s <= 0) is outside whatever
-        # the stable formula says.
-        q1s = values_or_none(dot(y.q1, y.s))
-        return inside & (q1s > 0)
+        y = components(v, 13, "y")
+        # Beyond the limb (q1.s <= 0) the stable margin formula does not apply.
+        inside = np.isfinite(v).all(axis=-1) & (silhouette_margin(y) > 0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            for m in domain_margins(y, self.params, NUMPY):
+                inside &= np.asarray(m) >= 0
+        return inside
+
+
+# Smooth, scalar-generic pieces shared with the navigation function. Each takes
+# lambda (any number type) and uses only + - * / sqrt.
+def fov_cap(lam: object, params: tuple, xp: Ops) -> tuple[object, object]:
+    """(cos, sin) of the largest angle ``theta - arcsin(lambda)`` between s and e3."""
+    ct, st = params[0], params[1]
+    c_lam = xp.sqrt(1 - lam * lam)
+    return ct * c_lam + st * lam, st * c_lam - ct * lam
+
+
+def occlusion_cap(lam: object, params: tuple, xp: Ops) -> tuple[object, object]:
+    """(cos, sin^2) of the largest angle between q1 and s.
+
+    ``1 - cos = (1 - kappa)(1 - sqrt(1 - lambda^2))`` with
+    ``1 - sqrt(1 - lambda^2) = lambda^2 / (1 + sqrt(1 - lambda^2))`` formed
+    without cancellation.
+    """
+    lam2 = lam * lam
+    one_minus_cos = (1 - params[4]) * lam2 / (1 + xp.sqrt(1 - lam2))
+    cos = 1 - one_minus_cos
+    return cos, one_minus_cos * (1 + cos)
+
+
+def domain_margins(y: tuple, params: tuple, xp: Ops) -> tuple:
+    """The margins ``(fov, lam_min, lam_max, occlusion)`` of :class:`DomainMargins`.
+
+    ``y`` is the 13 components of an image in I; ``params`` is
+    :attr:`SafeDomain.params`.
+    """
+    lam = y[9]
+    cos_fov, _ = fov_cap(lam, params, xp)
+    lam2 = lam * lam
+    # kappa (1 - sqrt(1 - lambda^2)), with 1 - sqrt(1 - lambda^2) formed as
+    # lambda^2 / (1 + sqrt(1 - lambda^2)); limb_margin is cancellation-free too.
+    occlusion = limb_margin(y, xp) - params[4] * lam2 / (1 + xp.sqrt(1 - lam2))
+    return (y[12] - cos_fov, lam - params[2], params[3] - lam, occlusion)
 
 
 #: The default scenario's domain: theta = 35 deg, lambda in [0.05, 0.4], kappa = 0.1.

@@ -60,8 +60,17 @@ It is therefore also the gradient for the *embedded Euclidean metric* on
 plus the round metrics on lambda and S^2), the metric the kinematic
 controller ``ydot = -grad phi`` (Eq. 19) descends.
 
-It is computed by propagating tangents through the very formula that gives
-phi (:mod:`geovs_drake._jet`), for any scalar type.
+One source, generated derivatives
+---------------------------------
+The formula is written once, in scalar style: :func:`model_coordinates_of`
+(Psi) and :func:`clearance_of` (``1 - phi``, the product itself, which keeps
+its digits near the boundary of D). Evaluated directly they give phi for every
+number type. The differential is code generated from that same source
+(:mod:`geovs_drake.geometry._codegen`: sympy differentiates it along the 7
+directions of ``T_y I`` and eliminates common subexpressions) into the
+``navigation`` kernel of :mod:`geovs_drake.geometry.kernels`, committed, and
+regenerated and compared by a test. It uses only ``+ - * /`` and ``sqrt``, so it
+too runs on floats (compiled by numba), float batches, AutoDiffXd and Expression.
 """
 
 from __future__ import annotations
@@ -73,20 +82,22 @@ from typing import NamedTuple
 
 import numpy as np
 
-from geovs_drake import _jet
-from geovs_drake._jet import Jet
-from geovs_drake._scalar import as_array, sqrt, values_or_none
-from geovs_drake.camera import ImageFeatures, as_features, validate_features
-from geovs_drake.domain import SafeDomain
+from geovs_drake.geometry._ops import MATH, Ops, components, namespace, pack, to_float
+from geovs_drake.geometry.camera import ImageFeatures, as_features, validated_components
+from geovs_drake.geometry.domain import SafeDomain, domain_margins, fov_cap, occlusion_cap
+from geovs_drake.geometry.kernels import navigation as navigation_kernel
 
 __all__ = [
     "ModelCoordinates",
     "NavigationFunction",
     "NavigationGains",
+    "clearance_of",
     "features_from_model",
     "model_coordinates",
+    "model_coordinates_of",
     "navigation_clearance",
     "navigation_differential",
+    "navigation_parameters",
     "navigation_value",
     "saddle_of",
 ]
@@ -124,6 +135,10 @@ class NavigationGains:
         if not (math.isfinite(c) and 0 < c < 1):
             raise ValueError(f"navigation gain circle_weight must be in (0, 1), got {c}")
 
+    @property
+    def params(self) -> tuple[float, float, float, float]:
+        return (self.k_lam, self.k_fov, self.k_occ, self.circle_weight)
+
 
 class ModelCoordinates(NamedTuple):
     """Psi(y): the point of [-1, 1] x B^2 x B^2 x S^1 (circle as (cos a, sin a))."""
@@ -134,128 +149,101 @@ class ModelCoordinates(NamedTuple):
     circle: object
 
 
-def _axis_cross(a: Jet) -> Jet:
-    """k = e3 x a, the axis of the minimal rotation from e3 to a."""
-    return _jet.stack([-a[..., 1], a[..., 0], a[..., 0] * 0.0])
-
-
-def _minimal_rotation_apply(a: Jet, v: Jet, transpose: bool = False) -> Jet:
-    """R v with R the minimal rotation taking e3 to the unit vector a (a.e3 > -1).
-
-    ``R = I + K + K^2 / (1 + a.e3)`` with ``K = hat(e3 x a)``; R^T flips K's sign.
-    """
-    k = _axis_cross(a)
-    kv = _jet.cross(k, v)
-    kkv = _jet.cross(k, kv)
-    first = v - kv if transpose else v + kv
-    return first + kkv / (1 + a[..., 2])[..., None]
-
-
-def _constant_vector(e: np.ndarray, like: Jet) -> Jet:
-    return Jet.constant(np.broadcast_to(e, like.shape), like.n)
-
-
-def _model_jets(Q: Jet, lam: Jet, s: Jet, domain: SafeDomain) -> ModelCoordinates:
-    lo, hi = domain.lam_min, domain.lam_max
-    u = (2 * lam - (lo + hi)) / (hi - lo)
-    _, sin_fov = domain.fov_cap(lam)
-    w_fov = _jet.stack([s[..., 0], s[..., 1]]) / sin_fov[..., None]
-    q1, q2 = Q[..., :, 0], Q[..., :, 1]
-    p = _minimal_rotation_apply(s, q1, transpose=True)
-    _, sin2_occ = domain.occlusion_cap(lam)
-    w_occ = _jet.stack([p[..., 0], p[..., 1]]) / sqrt(sin2_occ)[..., None]
-    a1 = _minimal_rotation_apply(q1, _constant_vector(np.array([1.0, 0, 0]), q1))
-    a2 = _minimal_rotation_apply(q1, _constant_vector(np.array([0, 1.0, 0]), q1))
-    circle = _jet.stack([_jet.dot(a1, q2), _jet.dot(a2, q2)])
-    return ModelCoordinates(u, w_fov, w_occ, circle)
-
-
-def _seed(y: ImageFeatures, with_tangents: bool) -> tuple[Jet, Jet, Jet]:
-    """Jets for (Q, lambda, s), seeded with the 7 directions of T_y I in R^7.
-
-    Directions 0-2: Qdot = hat(e_k) Q (xi = e_k, Eq. 13); 3: lambda_dot = 1;
-    4-6: s_dot = (I - s s^T) e_k. The derivative of a function along direction
-    4+k is then the k-th entry of its gradient projected on T_s S^2.
-    """
-    Q, lam, s = as_array(y.Q), as_array(y.lam), as_array(y.s)
-    if not with_tangents:
-        return Jet.constant(Q, 0), Jet.constant(lam, 0), Jet.constant(s, 0)
-    batch = lam.shape
-    nb = len(batch)
-    E = np.zeros((3, 3, 3))  # E[k] = hat(e_k)
-    E[0, 2, 1], E[0, 1, 2] = 1, -1
-    E[1, 0, 2], E[1, 2, 0] = 1, -1
-    E[2, 1, 0], E[2, 0, 1] = 1, -1
-    dQ = np.zeros((7,) + Q.shape, dtype=Q.dtype)
-    dQ[:3] = E.reshape((3,) + (1,) * nb + (3, 3)) @ Q[None]
-    dlam = np.zeros((7,) + batch, dtype=lam.dtype)
-    dlam[3] = 1.0
-    ds = np.zeros((7,) + s.shape, dtype=s.dtype)
-    s_k = np.moveaxis(s, -1, 0)[..., None]  # (3, ..., 1)
-    ds[4:] = np.eye(3).reshape((3,) + (1,) * nb + (3,)) - s[None] * s_k
-    return Jet(Q, dQ), Jet(lam, dlam), Jet(s, ds)
-
-
-def _ball_factor(w: Jet, w_goal: object, k: float, vector: bool) -> Jet:
-    """g / (g + k beta), the navigation function of the unit ball about w_goal."""
-    diff = w - w_goal
-    if vector:
-        g, r2 = _jet.dot(diff, diff), _jet.dot(w, w)
-    else:
-        g, r2 = diff * diff, w * w
-    return g / (g + k * (1 - r2))
-
-
-def _clearance_jet(
-    y: ImageFeatures, goal: ModelCoordinates, domain: SafeDomain, gains: NavigationGains, n: bool
-) -> Jet:
-    """1 - phi, formed as the product itself so it keeps its digits near the boundary."""
-    Q, lam, s = _seed(y, n)
-    m = _model_jets(Q, lam, s, domain)
-    phi_lam = _ball_factor(m.u, goal.u.v, gains.k_lam, vector=False)
-    phi_fov = _ball_factor(m.w_fov, goal.w_fov.v, gains.k_fov, vector=True)
-    phi_occ = _ball_factor(m.w_occ, goal.w_occ.v, gains.k_occ, vector=True)
-    cos_rel = _jet.dot(m.circle, Jet.constant(goal.circle.v, m.circle.n))
-    phi_circle = (0.5 * gains.circle_weight) * (1 - cos_rel)
-    return (1 - phi_lam) * (1 - phi_fov) * (1 - phi_occ) * (1 - phi_circle)
-
-
-def _model_of(y: ImageFeatures, domain: SafeDomain) -> ModelCoordinates:
-    """Psi(y) as jets without tangents."""
-    return _model_jets(*_seed(y, False), domain)
-
-
-def model_coordinates(y: ImageFeatures | np.ndarray, domain: SafeDomain) -> ModelCoordinates:
-    """Psi(y), as arrays of y's scalar type."""
-    return ModelCoordinates(*(x.v for x in _model_of(as_features(y), domain)))
-
-
-def _goal_coordinates(goal: ImageFeatures, domain: SafeDomain) -> ModelCoordinates:
-    v = goal.to_vector()
-    if v.dtype != object and v.shape == (13,):
-        # The servo loop asks for the same goal at every derivative evaluation.
-        return _cached_goal_coordinates(v.tobytes(), domain)
-    return _model_of(goal, domain)
-
-
-@functools.lru_cache(maxsize=64)
-def _cached_goal_coordinates(goal_bytes: bytes, domain: SafeDomain) -> ModelCoordinates:
-    goal = ImageFeatures.from_vector(np.frombuffer(goal_bytes, dtype=float).copy())
-    return _model_of(goal, domain)
-
-
-def _evaluate(
-    y: ImageFeatures | np.ndarray,
-    goal: ImageFeatures | np.ndarray,
-    domain: SafeDomain,
-    gains: NavigationGains | None,
-    tangents: bool,
-) -> Jet:
-    """The clearance 1 - phi at y (validated), with its 7 tangents if asked for."""
-    goal_m = _goal_coordinates(as_features(goal), domain)
-    return _clearance_jet(
-        validate_features(y), goal_m, domain, gains or NavigationGains(), tangents
+# --------------------------------------------------------------------------
+# The source formula (scalar style, any number type; also run on sympy
+# symbols by the code generator)
+# --------------------------------------------------------------------------
+def _rotate_from_e3(a: tuple, v: tuple, sign: int) -> tuple:
+    """``R v`` (sign +1) or ``R^T v`` (sign -1), R the minimal rotation taking e3 to
+    the unit vector a (a.e3 > -1): ``R = I + K + K^2 / (1 + a.e3)``, ``K = hat(e3 x a)``."""
+    kx, ky = -a[1], a[0]  # k = e3 x a; k_z = 0
+    vx, vy, vz = v
+    kvx, kvy, kvz = ky * vz, -kx * vz, kx * vy - ky * vx
+    kkvx, kkvy, kkvz = ky * kvz, -kx * kvz, kx * kvy - ky * kvx
+    den = 1 + a[2]
+    return (
+        vx + sign * kvx + kkvx / den,
+        vy + sign * kvy + kkvy / den,
+        vz + sign * kvz + kkvz / den,
     )
+
+
+def model_coordinates_of(y: tuple, domain_params: tuple, xp: Ops) -> tuple:
+    """Psi(y) as 7 components ``(u, w_fov, w_occ, cos a, sin a)`` (module docstring).
+
+    ``y`` is the 13 components of an image, ``domain_params`` is
+    :attr:`SafeDomain.params`.
+    """
+    q1, q2, lam, s = y[0:3], y[3:6], y[9], y[10:13]
+    lo, hi = domain_params[2], domain_params[3]
+    u = (2 * lam - (lo + hi)) / (hi - lo)
+    _, sin_fov = fov_cap(lam, domain_params, xp)
+    # q1 seen from the minimal rotation taking e3 to s.
+    p = _rotate_from_e3(s, q1, -1)
+    _, sin2_occ = occlusion_cap(lam, domain_params, xp)
+    r_occ = xp.sqrt(sin2_occ)
+    # The arrow's angle about q1, from the frame (R_q1 e1, R_q1 e2).
+    a1 = _rotate_from_e3(q1, (1, 0, 0), 1)
+    a2 = _rotate_from_e3(q1, (0, 1, 0), 1)
+    return (
+        u,
+        s[0] / sin_fov,
+        s[1] / sin_fov,
+        p[0] / r_occ,
+        p[1] / r_occ,
+        a1[0] * q2[0] + a1[1] * q2[1] + a1[2] * q2[2],
+        a2[0] * q2[0] + a2[1] * q2[1] + a2[2] * q2[2],
+    )
+
+
+def _ball_clearance(g: object, r2: object, k: object) -> object:
+    """``1 - g / (g + k beta) = k beta / (g + k beta)``, beta = 1 - |w|^2: one
+    minus the ball's navigation function, without cancellation."""
+    kb = k * (1 - r2)
+    return kb / (g + kb)
+
+
+def clearance_of(y: tuple, params: tuple, xp: Ops) -> object:
+    """``1 - phi(y)`` (module docstring), with ``params`` from :func:`navigation_parameters`."""
+    k_lam, k_fov, k_occ, c_w = params[5:9]
+    u0, wf0x, wf0y, wo0x, wo0y, c0x, c0y = params[9:16]
+    u, wfx, wfy, wox, woy, cx, cy = model_coordinates_of(y, params[0:5], xp)
+    c_lam = _ball_clearance((u - u0) * (u - u0), u * u, k_lam)
+    c_fov = _ball_clearance(
+        (wfx - wf0x) * (wfx - wf0x) + (wfy - wf0y) * (wfy - wf0y), wfx * wfx + wfy * wfy, k_fov
+    )
+    c_occ = _ball_clearance(
+        (wox - wo0x) * (wox - wo0x) + (woy - wo0y) * (woy - wo0y), wox * wox + woy * woy, k_occ
+    )
+    c_circle = 1 - c_w * (1 - (cx * c0x + cy * c0y)) / 2
+    return c_lam * c_fov * c_occ * c_circle
+
+
+# --------------------------------------------------------------------------
+# Parameters and the array API
+# --------------------------------------------------------------------------
+def navigation_parameters(
+    goal: ImageFeatures | np.ndarray, domain: SafeDomain, gains: NavigationGains | None = None
+) -> tuple:
+    """The 16 floats the formulas take: ``domain.params``, ``gains.params`` and Psi(y*)."""
+    gains = gains or NavigationGains()
+    v = np.asarray(as_features(goal).to_vector(), dtype=float)
+    return _parameters(tuple(v.tolist()), domain.params, gains.params)
+
+
+@functools.lru_cache(maxsize=256)
+def _parameters(goal: tuple, domain_params: tuple, gains_params: tuple) -> tuple:
+    # The servo loop asks for the same goal at every derivative evaluation.
+    return domain_params + gains_params + model_coordinates_of(goal, domain_params, MATH)
+
+
+def _evaluate(y, goal, domain, gains, differential: bool):
+    comps = validated_components(y)
+    params = navigation_parameters(goal, domain, gains)
+    xp = namespace(comps[9])
+    if differential:
+        return navigation_kernel(comps, params)
+    return clearance_of(comps, params, xp)
 
 
 def navigation_value(
@@ -265,7 +253,7 @@ def navigation_value(
     gains: NavigationGains | None = None,
 ) -> np.ndarray:
     """phi(y) in [0, 1] (see the module docstring for the construction)."""
-    return 1 - _evaluate(y, goal, domain, gains, False).v
+    return np.asarray(1 - _evaluate(y, goal, domain, gains, False))
 
 
 def navigation_differential(
@@ -279,8 +267,8 @@ def navigation_differential(
     ``d/dt phi(y(t)) = dphi . (xi, lambda_dot, s_dot)``; dphi is also the
     gradient of phi for the embedded Euclidean metric.
     """
-    clearance = _evaluate(y, goal, domain, gains, True)
-    return 1 - clearance.v, -np.moveaxis(clearance.d, 0, -1)
+    out = _evaluate(y, goal, domain, gains, True)
+    return np.asarray(1 - out[0]), pack(out[1:])
 
 
 def navigation_clearance(
@@ -290,28 +278,40 @@ def navigation_clearance(
     gains: NavigationGains | None = None,
 ) -> np.ndarray:
     """1 - phi(y), without the cancellation of forming it from phi near the boundary."""
-    return _evaluate(y, goal, domain, gains, False).v
+    return np.asarray(_evaluate(y, goal, domain, gains, False))
+
+
+def model_coordinates(y: ImageFeatures | np.ndarray, domain: SafeDomain) -> ModelCoordinates:
+    """Psi(y), as arrays of y's scalar type."""
+    comps = as_features(y).components()
+    u, wfx, wfy, wox, woy, cx, cy = model_coordinates_of(comps, domain.params, namespace(comps[9]))
+    return ModelCoordinates(np.asarray(u), pack((wfx, wfy)), pack((wox, woy)), pack((cx, cy)))
 
 
 def features_from_model(m: ModelCoordinates, domain: SafeDomain) -> ImageFeatures:
     """Psi^-1: the image with the given model coordinates (float arrays)."""
     u = np.asarray(m.u, dtype=float)
-    w_fov, w_occ, circle = (np.asarray(x, dtype=float) for x in m[1:])
+    wfx, wfy = components(np.asarray(m.w_fov, dtype=float), 2, "w_fov")
+    wox, woy = components(np.asarray(m.w_occ, dtype=float), 2, "w_occ")
+    cx, cy = components(np.asarray(m.circle, dtype=float), 2, "circle")
+    params = domain.params
     lam = 0.5 * (domain.lam_min + domain.lam_max) + 0.5 * u * (domain.lam_max - domain.lam_min)
-    _, sin_fov = domain.fov_cap(lam)
-    s_xy = sin_fov[..., None] * w_fov
-    s = np.concatenate([s_xy, np.sqrt(1 - np.sum(s_xy**2, -1))[..., None]], axis=-1)
-    _, sin2_occ = domain.occlusion_cap(lam)
-    p_xy = np.sqrt(sin2_occ)[..., None] * w_occ
-    p = np.concatenate([p_xy, np.sqrt(1 - np.sum(p_xy**2, -1))[..., None]], axis=-1)
-    sj, pj = Jet.constant(s, 0), Jet.constant(p, 0)
-    q1 = _minimal_rotation_apply(sj, pj).v
-    q1j = Jet.constant(q1, 0)
-    a1 = _minimal_rotation_apply(q1j, _constant_vector(np.array([1.0, 0, 0]), q1j)).v
-    a2 = _minimal_rotation_apply(q1j, _constant_vector(np.array([0, 1.0, 0]), q1j)).v
-    q2 = circle[..., 0:1] * a1 + circle[..., 1:2] * a2
-    q3 = np.cross(q1, q2)
-    return ImageFeatures(np.stack([q1, q2, q3], axis=-1), lam, s)
+    _, sin_fov = fov_cap(lam, params, np)
+    sx, sy = sin_fov * wfx, sin_fov * wfy
+    s = (sx, sy, np.sqrt(1 - sx * sx - sy * sy))
+    _, sin2_occ = occlusion_cap(lam, params, np)
+    r = np.sqrt(sin2_occ)
+    px, py = r * wox, r * woy
+    q1 = _rotate_from_e3(s, (px, py, np.sqrt(1 - px * px - py * py)), 1)
+    a1 = _rotate_from_e3(q1, (1, 0, 0), 1)
+    a2 = _rotate_from_e3(q1, (0, 1, 0), 1)
+    q2 = tuple(cx * a1[i] + cy * a2[i] for i in range(3))
+    q3 = (
+        q1[1] * q2[2] - q1[2] * q2[1],
+        q1[2] * q2[0] - q1[0] * q2[2],
+        q1[0] * q2[1] - q1[1] * q2[0],
+    )
+    return ImageFeatures.from_components((*q1, *q2, *q3, lam, *s))
 
 
 def saddle_of(goal: ImageFeatures | np.ndarray, domain: SafeDomain) -> ImageFeatures:
@@ -346,15 +346,20 @@ class NavigationFunction:
 
     @goal.setter
     def goal(self, goal: ImageFeatures | np.ndarray) -> None:
-        goal = validate_features(goal)
-        margins = self.domain.margins(goal)
-        for name, value in zip(margins._fields, margins, strict=True):
-            v = values_or_none(value)
+        comps = validated_components(goal)
+        margins = domain_margins(comps, self.domain.params, namespace(comps[9]))
+        for name, value in zip(("fov", "lam_min", "lam_max", "occlusion"), margins, strict=True):
+            v = to_float(value)
             if v is not None and np.any(v <= 0):
                 raise ValueError(
                     f"goal not in the interior of D: {name} margin = {float(np.min(v)):.6g} <= 0"
                 )
-        self._goal = goal
+        self._goal = as_features(goal)
+
+    @property
+    def params(self) -> tuple:
+        """The 16 floats of :func:`navigation_parameters`."""
+        return navigation_parameters(self._goal, self.domain, self.gains)
 
     def value(self, y: ImageFeatures | np.ndarray) -> np.ndarray:
         return navigation_value(y, self._goal, self.domain, self.gains)

@@ -1,0 +1,1 @@
+"""Code generated from the scalar-style sources; see :mod:`geovs_drake.geometry._codegen`."""

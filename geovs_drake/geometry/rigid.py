@@ -1,0 +1,113 @@
+"""Frame bookkeeping of the camera rig, in scalar style on named components.
+
+Rotations are 9-tuples, row-major (``R[3 i + j]``); vectors are 3-tuples. Any
+number type (float, float batches, AutoDiffXd, Expression), so the Drake
+systems and the batch engine share these formulas.
+
+Frames (monogram notation): W world, B target sphere (the paper's F_b), R the
+camera rig's body frame (origin at its centre of mass), C the camera. The
+paper's H is X_CB, its G is X_BC.
+"""
+
+from __future__ import annotations
+
+from geovs_drake.geometry._ops import Ops
+
+__all__ = [
+    "apply",
+    "apply_transpose",
+    "camera_body_velocity",
+    "cross",
+    "matmul",
+    "quaternion_to_rotation",
+    "target_in_camera",
+    "wrench_to_rig",
+]
+
+
+def quaternion_to_rotation(q: tuple, xp: Ops) -> tuple:
+    """R(q) for q = (w, x, y, z), normalised first (as MultibodyPlant does)."""
+    w, x, y, z = q
+    n = xp.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / n, x / n, y / n, z / n
+    return (
+        1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+        2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+        2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
+    )  # fmt: skip
+
+
+def apply(R: tuple, v: tuple) -> tuple:
+    """R v."""
+    return (
+        R[0] * v[0] + R[1] * v[1] + R[2] * v[2],
+        R[3] * v[0] + R[4] * v[1] + R[5] * v[2],
+        R[6] * v[0] + R[7] * v[1] + R[8] * v[2],
+    )
+
+
+def apply_transpose(R: tuple, v: tuple) -> tuple:
+    """R^T v."""
+    return (
+        R[0] * v[0] + R[3] * v[1] + R[6] * v[2],
+        R[1] * v[0] + R[4] * v[1] + R[7] * v[2],
+        R[2] * v[0] + R[5] * v[1] + R[8] * v[2],
+    )
+
+
+def matmul(A: tuple, B: tuple) -> tuple:
+    """A B (unrolled: a comprehension would cost three times as much)."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = A
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = B
+    return (
+        a0 * b0 + a1 * b3 + a2 * b6, a0 * b1 + a1 * b4 + a2 * b7, a0 * b2 + a1 * b5 + a2 * b8,
+        a3 * b0 + a4 * b3 + a5 * b6, a3 * b1 + a4 * b4 + a5 * b7, a3 * b2 + a4 * b5 + a5 * b8,
+        a6 * b0 + a7 * b3 + a8 * b6, a6 * b1 + a7 * b4 + a8 * b7, a6 * b2 + a7 * b5 + a8 * b8,
+    )  # fmt: skip
+
+
+def cross(a: tuple, b: tuple) -> tuple:
+    """a x b."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def target_in_camera(
+    R_WR: tuple, p_WR: tuple, R_RC: tuple, p_RC: tuple, R_WB: tuple, p_WB: tuple
+) -> tuple[tuple, tuple, tuple]:
+    """``(r2, r3, d)`` of the paper's ``H = X_CB = (X_WR X_RC)^-1 X_WB``.
+
+    The columns r2, r3 of R_CB and d = p_CB are all the camera map (Eqs. 3-7)
+    and the visibility (Eq. 5) need.
+    """
+    R_WC = matmul(R_WR, R_RC)
+    o = apply(R_WR, p_RC)
+    p_CoBo_W = (p_WB[0] - p_WR[0] - o[0], p_WB[1] - p_WR[1] - o[1], p_WB[2] - p_WR[2] - o[2])
+    r2 = apply_transpose(R_WC, (R_WB[1], R_WB[4], R_WB[7]))
+    r3 = apply_transpose(R_WC, (R_WB[2], R_WB[5], R_WB[8]))
+    return r2, r3, apply_transpose(R_WC, p_CoBo_W)
+
+
+def camera_body_velocity(
+    R_WR: tuple, R_WC: tuple, w_WR_W: tuple, v_WRo_W: tuple, p_RC: tuple
+) -> tuple:
+    """``(Omega, V)``: the camera's body velocity in C at Co, from the rig's state.
+
+    With B fixed in W this is ``G^-1 Gdot`` of Eq. (16) for G = X_BC.
+    """
+    wxo = cross(w_WR_W, apply(R_WR, p_RC))
+    v_WCo_W = (v_WRo_W[0] + wxo[0], v_WRo_W[1] + wxo[1], v_WRo_W[2] + wxo[2])
+    return apply_transpose(R_WC, w_WR_W) + apply_transpose(R_WC, v_WCo_W)
+
+
+def wrench_to_rig(F_C: tuple, R_WR: tuple, R_WC: tuple, p_RC: tuple) -> tuple:
+    """A wrench on the camera (torque about Co, force; both in C) as ``[tau_Ro_W, f_W]``.
+
+    The torque is shifted to the rig's origin Ro and both are expressed in W
+    (Appendix C.0.6's ``Ad*``): MultibodyPlant's generalized force of a
+    quaternion floating body.
+    """
+    tau_W = apply(R_WC, F_C[0:3])
+    f_W = apply(R_WC, F_C[3:6])
+    # tau_Ro = tau_Co + p_RoCo x f.
+    shift = cross(apply(R_WR, p_RC), f_W)
+    return (tau_W[0] + shift[0], tau_W[1] + shift[1], tau_W[2] + shift[2]) + f_W
