@@ -15,9 +15,9 @@ import math
 import sys
 
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
-from geovs_drake.simulation import SimulationResult, StartOutsideDomain, simulate
+from geovs_drake.simulation import StartOutsideDomain, simulate
 
-__all__ = ["main", "one_line"]
+__all__ = ["main"]
 
 
 def _pose_arg(text: str) -> PoseConfig:
@@ -45,17 +45,6 @@ def _config_from_args(args: argparse.Namespace) -> ScenarioConfig:
     if args.duration is not None:
         config.duration = args.duration
     return config
-
-
-def one_line(result: SimulationResult) -> str:
-    s = result.summary()
-    return (
-        f"{s['controller']}: {s['status']} | position error {s['final_position_error_m']:.2e} m, "
-        f"rotation error {s['final_rotation_error_rad']:.2e} rad | min margins: "
-        f"fov {s['min_fov_margin']:.3g}, occlusion {s['min_occlusion_margin']:.3g}, "
-        f"nu {s['min_visibility']:.3g} | Lyapunov monotone: {s['lyapunov_monotone']} | "
-        f"{s['sim_time_s']:.1f} s simulated in {s['wall_time_s']:.1f} s, {s['steps']} steps"
-    )
 
 
 def _add_scenario_args(p: argparse.ArgumentParser) -> None:
@@ -87,7 +76,7 @@ def _simulate(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result.summary()))
     else:
-        print(one_line(result))
+        print(result.one_line())
     return 0 if result.status in ("converged", "not_converged") else 1
 
 

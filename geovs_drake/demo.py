@@ -68,7 +68,6 @@ def record_meshcat(config: ScenarioConfig, html_path: str | Path, progress=None)
 def run_demo(
     out: str | Path = "results", duration: float | None = None, meshcat: bool = True
 ) -> int:
-    from geovs_drake.cli import one_line
     from geovs_drake.diagrams import make_dynamic_servo_diagram
     from geovs_drake.geometry.navigation import NavigationFunction
     from geovs_drake.plotting import (
@@ -96,5 +95,5 @@ def run_demo(
     )
     plot_navigation_slices(nf, out / "nf_slices.png")
     write_block_diagram(make_dynamic_servo_diagram(config, log=False), out / "block_diagram")
-    print(one_line(result))
+    print(result.one_line())
     return 0 if result.converged else 1

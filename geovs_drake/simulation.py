@@ -118,6 +118,18 @@ class SimulationResult:
             not self.left_domain and dp <= CONVERGENCE_POSITION_M and dr <= CONVERGENCE_ROTATION_RAD
         )
 
+    def one_line(self) -> str:
+        """The run in one line: status, final errors, minimum margins, timing."""
+        s = self.summary()
+        return (
+            f"{s['controller']}: {s['status']} | position error "
+            f"{s['final_position_error_m']:.2e} m, rotation error "
+            f"{s['final_rotation_error_rad']:.2e} rad | min margins: "
+            f"fov {s['min_fov_margin']:.3g}, occlusion {s['min_occlusion_margin']:.3g}, "
+            f"nu {s['min_visibility']:.3g} | Lyapunov monotone: {s['lyapunov_monotone']} | "
+            f"{s['sim_time_s']:.1f} s simulated in {s['wall_time_s']:.1f} s, {s['steps']} steps"
+        )
+
     def summary(self) -> dict:
         dp, dr = self.final_errors
         out = {

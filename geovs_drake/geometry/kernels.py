@@ -33,7 +33,14 @@ import numpy as np
 
 from geovs_drake.geometry._generated import kernels as _generated
 
-__all__ = ["NUMBA", "camera_image", "kinematic_velocity", "navigation", "servo_force"]
+__all__ = [
+    "NUMBA",
+    "camera_image",
+    "for_scalar_type",
+    "kinematic_velocity",
+    "navigation",
+    "servo_force",
+]
 
 try:
     from numba import njit
@@ -51,20 +58,28 @@ def _is_float_vector(a: object) -> bool:
 
 
 def _dispatch(python: Callable) -> Callable:
-    if not NUMBA:
-        return python
-    compiled = njit(cache=True, error_model="numpy", nogil=True)(python)
+    compiled = njit(cache=True, error_model="numpy", nogil=True)(python) if NUMBA else python
 
     def kernel(*args):
-        if all(_is_float_vector(a) for a in args):
-            return compiled(*args)
-        return python(*args)
+        for a in args:
+            if not _is_float_vector(a):
+                return python(*args)
+        return compiled(*args)
 
     kernel.__name__ = python.__name__
     kernel.__doc__ = python.__doc__
     kernel.python = python
     kernel.compiled = compiled
     return kernel
+
+
+def for_scalar_type(kernel: Callable, T: type) -> Callable:
+    """The kernel's implementation for a system of scalar type T, chosen once.
+
+    A ``LeafSystem_[float]`` gets the compiled kernel (its ports hold float64
+    vectors), any other T the generated Python: no per-call type dispatch.
+    """
+    return kernel.compiled if T is float else kernel.python
 
 
 camera_image = _dispatch(_generated.camera_image)

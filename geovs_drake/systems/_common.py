@@ -11,21 +11,28 @@ Each system keeps all its numbers in **one** numeric parameter vector (one
 context access per evaluation, about 1.5 us each), with named accessors that
 validate. A pose parameter is 12 numbers, ``[R row-major (9), p (3)]``, the
 layout of :mod:`geovs_drake.geometry.rigid`.
+
+Outside a map's domain the systems output NaN, never raise. Why: an
+error-controlled integrator evaluates trial stages that may step past the
+visible set V or out of the image space I, where the camera map and phi are
+undefined. Raising there would end the simulation although the step is about
+to be rejected; a NaN derivative makes Drake's integrator reject the step and
+retry a smaller one. Any *accepted* state outside D is caught by the
+safe-domain monitor of :func:`geovs_drake.simulation.simulate`, which stops the
+run with a status. The generated kernels return NaN there by construction
+(``error_model="numpy"``); the camera outputs NaN where nu(H) <= 0 and the NF
+controller where y is not in I.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
-
 import numpy as np
 from pydrake.math import RigidTransform
 
-from geovs_drake.geometry._ops import OutOfDomainError, to_float
+from geovs_drake.geometry._ops import to_float
 
 POSE_SIZE = 7
 STATE_SIZE = 13
-POSE_PARAM_SIZE = 12
 
 
 def pose_to_param(X: RigidTransform | np.ndarray) -> list[float]:
@@ -80,30 +87,3 @@ def inputs_and_parameters(system) -> set:
     parameters symbolic values), and caches on exactly these dependencies.
     """
     return {system.all_input_ports_ticket(), system.all_parameters_ticket()}
-
-
-def _is_domain_error(e: Exception) -> bool:
-    # math.sqrt of a negative number: a value a hair outside the map's domain.
-    return isinstance(e, OutOfDomainError | ArithmeticError) or str(e) == "math domain error"
-
-
-def set_output_or_nan(output, compute: Callable[[], list]) -> None:
-    """``output <- compute()``, or all NaN if its input lies outside the map's domain.
-
-    Why: an error-controlled integrator evaluates trial stages that may step
-    past the visible set V or out of the image space I, where the camera map
-    and phi are undefined. Raising there would end the simulation although
-    the step is about to be rejected; a NaN derivative makes Drake's integrator
-    reject the step and retry a smaller one. Any *accepted* state outside D is
-    caught by the safe-domain monitor of :func:`geovs_drake.simulation.simulate`,
-    which stops the run with a status. Malformed input still raises.
-    """
-    try:
-        value = compute()
-    except ValueError as e:
-        if not _is_domain_error(e):
-            raise
-        value = [math.nan] * output.size()
-    except ArithmeticError:
-        value = [math.nan] * output.size()
-    output.SetFromVector(value)

@@ -9,7 +9,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from geovs_drake.geometry.kernels import servo_force
+from geovs_drake.geometry.kernels import for_scalar_type, servo_force
 from geovs_drake.systems._common import (
     STATE_SIZE,
     inputs_and_parameters,
@@ -32,6 +32,8 @@ def _check_damping(damping) -> list[float]:
 
 @TemplateSystem.define("ImageJacobianForce_")
 def ImageJacobianForce_(T):
+    _servo_force = for_scalar_type(servo_force, T)
+
     class Impl(LeafSystem_[T]):
         """The navigation-function force on the free camera rig (Appendix C).
 
@@ -117,7 +119,7 @@ def ImageJacobianForce_(T):
 
         def _force(self, context) -> tuple:
             """(*F_C, *tau_Ro_W, *f_W) by the generated kernel (compiled for floats)."""
-            return servo_force(
+            return _servo_force(
                 self.body_state_input.Eval(context),
                 self.image_features_input.Eval(context),
                 self.dphi_input.Eval(context),

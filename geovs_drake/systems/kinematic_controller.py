@@ -7,7 +7,7 @@ import math
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from geovs_drake.geometry.kernels import kinematic_velocity
+from geovs_drake.geometry.kernels import for_scalar_type, kinematic_velocity
 from geovs_drake.systems._common import inputs_and_parameters, param_vector
 
 __all__ = ["KinematicController", "KinematicController_"]
@@ -15,6 +15,8 @@ __all__ = ["KinematicController", "KinematicController_"]
 
 @TemplateSystem.define("KinematicController_")
 def KinematicController_(T):
+    _kinematic_velocity = for_scalar_type(kinematic_velocity, T)
+
     class Impl(LeafSystem_[T]):
         """The kinematic visual servo: the camera velocity that descends phi.
 
@@ -54,7 +56,7 @@ def KinematicController_(T):
 
         def CalcCameraVelocity(self, context, output) -> None:
             output.SetFromVector(
-                kinematic_velocity(
+                _kinematic_velocity(
                     self.image_features_input.Eval(context),
                     self.dphi_input.Eval(context),
                     param_vector(context, self._params_index, T),

@@ -11,7 +11,7 @@ from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry.camera import ImageFeatures, image_violation
 from geovs_drake.geometry.domain import DEFAULT_DOMAIN, SafeDomain
-from geovs_drake.geometry.kernels import navigation
+from geovs_drake.geometry.kernels import for_scalar_type, navigation
 from geovs_drake.geometry.navigation import (
     NavigationFunction,
     NavigationGains,
@@ -20,6 +20,7 @@ from geovs_drake.geometry.navigation import (
 from geovs_drake.systems._common import (
     floats,
     inputs_and_parameters,
+    param_vector,
     read,
     values_or_none,
 )
@@ -44,8 +45,15 @@ def _nf_parameters(values: tuple[float, ...]) -> tuple:
     )
 
 
+@functools.lru_cache(maxsize=64)
+def _nf_parameters_of_bytes(values: bytes) -> tuple:
+    return _nf_parameters(tuple(np.frombuffer(values).tolist()))
+
+
 @TemplateSystem.define("NavigationController_")
 def NavigationController_(T):
+    _navigation = for_scalar_type(navigation, T)
+
     class Impl(LeafSystem_[T]):
         """The navigation function phi on the safe domain D, and its differential.
 
@@ -118,6 +126,10 @@ def NavigationController_(T):
 
         def navigation_parameters(self, context) -> tuple:
             """The 16 floats the NF formulas take (:func:`navigation_parameters`)."""
+            if T is float:  # keyed on the raw bytes: no list, no tuple of 21 floats
+                return _nf_parameters_of_bytes(
+                    param_vector(context, self._params_index, T).tobytes()
+                )
             return _nf_parameters(self._values(context))
 
         def navigation_function(self, context) -> NavigationFunction:
@@ -149,7 +161,7 @@ def NavigationController_(T):
             values = values_or_none(y.tolist())
             if values is not None and (math.isnan(values[9]) or image_violation(values)):
                 return None
-            return navigation(y, self.navigation_parameters(context))
+            return _navigation(y, self.navigation_parameters(context))
 
         def CalcDifferential(self, context, output) -> None:
             out = self._kernel(context)

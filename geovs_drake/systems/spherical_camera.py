@@ -11,7 +11,7 @@ from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.domain import DEFAULT_DOMAIN, SafeDomain
-from geovs_drake.geometry.kernels import camera_image
+from geovs_drake.geometry.kernels import camera_image, for_scalar_type
 from geovs_drake.geometry.rigid import cross, quaternion_to_rotation, target_in_camera
 from geovs_drake.systems._common import (
     POSE_SIZE,
@@ -35,6 +35,8 @@ def _domain_param(domain: SafeDomain) -> list[float]:
 
 @TemplateSystem.define("SphericalCamera_")
 def SphericalCamera_(T):
+    _camera_image = for_scalar_type(camera_image, T)
+
     class Impl(LeafSystem_[T]):
         """The spherical camera on the rig, viewing the marked target sphere.
 
@@ -58,7 +60,7 @@ def SphericalCamera_(T):
         occlusion]`` of :class:`~geovs_drake.geometry.domain.SafeDomain` (all
         >= 0 in D). When the pose is not visible y is undefined:
         ``image_features`` is all NaN (so an integrator rejects such a trial
-        stage, see :func:`~geovs_drake.systems._common.set_output_or_nan`) and
+        stage, see :mod:`geovs_drake.systems._common`) and
         every margin reads nu <= 0. The pure
         :func:`~geovs_drake.geometry.camera.camera_map` raises
         ``ValueError: pose not visible ...`` instead.
@@ -158,7 +160,7 @@ def SphericalCamera_(T):
             """(nu, *y) by the generated kernel (compiled for floats)."""
             x = self.body_pose_input.Eval(context)
             p = param_vector(context, self._params_index, T)
-            return camera_image(x, p)
+            return _camera_image(x, p)
 
         def CalcImageFeatures(self, context, output) -> None:
             out = self._image(context)

@@ -1,0 +1,64 @@
+"""The layers show in the imports: geometry imports nothing of ours above it,
+systems only geometry, and no module imports itself back through another
+(function-level imports included)."""
+
+import ast
+from pathlib import Path
+
+import geovs_drake
+
+ROOT = Path(geovs_drake.__file__).parent
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports() -> dict[str, set[str]]:
+    """Every module of the package -> the package modules it imports, anywhere in it."""
+    modules = {_module_name(p): p for p in ROOT.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                targets = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            else:
+                continue
+            found |= {t for t in targets if t in modules and t != name}
+        graph[name] = found
+    return graph
+
+
+def test_geometry_and_systems_import_only_the_layers_below():
+    graph = _imports()
+    for name, deps in graph.items():
+        if name.startswith("geovs_drake.geometry"):
+            assert all(d.startswith("geovs_drake.geometry") for d in deps), (name, deps)
+        if name.startswith("geovs_drake.systems"):
+            allowed = ("geovs_drake.geometry", "geovs_drake.systems")
+            assert all(d.startswith(allowed) for d in deps), (name, deps)
+
+
+def test_no_import_cycles():
+    graph = _imports()
+    # A package's __init__ re-exports its children; an edge child -> package
+    # is the only way back, and counts like any other.
+    state: dict[str, int] = {}
+
+    def visit(node: str, path: list[str]) -> None:
+        state[node] = 1
+        for dep in sorted(graph[node]):
+            if state.get(dep) == 1:
+                cycle = path[path.index(dep) :] + [dep] if dep in path else [node, dep]
+                raise AssertionError(f"import cycle: {' -> '.join(cycle)}")
+            if dep not in state:
+                visit(dep, path + [dep])
+        state[node] = 2
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [name])
