@@ -17,7 +17,8 @@ Reported:
   invalidated by a new state) and its ratio to bare;
 * the real-time factor of both loops, on the default scenario, with the
   monitor and (a) ``simulate()``'s step recorder, (b) Drake's periodic
-  ``LogVectorOutput`` loggers, (c) no logging;
+  ``LogVectorOutput`` loggers, (c) no logging; and (d) a bare ``Simulator``
+  with neither, whose ratio to (a) is what the monitor and the logging cost;
 * the time of Drake's ``Linearize`` of the whole dynamic loop.
 
     .venv/bin/python benchmarks/bench_closed_loop.py [--repeat 3]
@@ -30,6 +31,7 @@ import time
 import timeit
 
 import numpy as np
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
@@ -124,10 +126,19 @@ def real_time_factors(config: ScenarioConfig, repeat: int) -> dict[str, float]:
     out["simulate() (recorder)"] = max(
         (r := simulate(config)).sim_time_s / r.wall_time_s for _ in range(repeat)
     )
-    for label, log in (("Drake LogVectorOutput", True), ("no logging", False)):
+    for label, log, monitor in (
+        ("Drake LogVectorOutput", True, True),
+        ("monitor only", False, True),
+        ("bare Simulator", False, False),
+    ):
         rates = []
         for _ in range(repeat):
-            simulator, _ = make_simulator(build(config, log=log), config)
+            diagram = build(config, log=log)
+            if monitor:
+                simulator, _ = make_simulator(diagram, config)
+            else:
+                simulator = Simulator(diagram)
+                ApplySimulatorConfig(config.simulator, simulator)
             simulator.Initialize()
             start = time.perf_counter()
             simulator.AdvanceTo(config.duration)
@@ -167,6 +178,8 @@ def main() -> None:
         rates = real_time_factors(c, args.repeat)
         text = ", ".join(f"{k} {v:.0f}x" for k, v in rates.items())
         print(f"real-time factor, default {controller} scenario ({c.duration:.0f} s): {text}")
+        cost = rates["bare Simulator"] / rates["simulate() (recorder)"] - 1
+        print(f"  monitor + step recorder cost {cost:.0%} of a step")
 
     lin_diagram = make_dynamic_servo_diagram(config_at_goal(config), log=False)
     lin_ctx = lin_diagram.CreateDefaultContext()

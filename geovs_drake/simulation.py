@@ -16,7 +16,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
 from geovs_drake.geometry.domain import DomainMargins
-from geovs_drake.geometry.kernels import camera_image, navigation
+from geovs_drake.geometry.kernels import camera_image, for_scalar_type, navigation
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.scenario import ScenarioConfig
 
@@ -37,6 +37,7 @@ __all__ = [
 CONVERGENCE_POSITION_M = 1e-3
 CONVERGENCE_ROTATION_RAD = 1e-3
 MARGIN_NAMES = DomainMargins._fields
+_camera_kernel = for_scalar_type(camera_image, float)
 
 
 class StartOutsideDomain(ValueError):
@@ -178,6 +179,7 @@ class SafeDomainMonitor:
         self._camera = diagram.GetSubsystemByName("spherical_camera")
         self._record = record
         self._reason: dict[str, str] = {}
+        self._params_of: tuple = (None, None)
         self.times: list[float] = []
         self.states: list[np.ndarray] = []
 
@@ -189,27 +191,34 @@ class SafeDomainMonitor:
         return EventStatus.ReachedTermination(self._diagram, message)
 
     def __call__(self, root_context) -> EventStatus:
+        # The diagram's only continuous state is the body's, pose first.
+        x = root_context.get_continuous_state_vector().CopyToVector()
         if self._record:
             t = root_context.get_time()
             if self.times and t <= self.times[-1]:  # Initialize() and a first step at t = 0
                 self.times.pop()
                 self.states.pop()
             self.times.append(t)
-            self.states.append(root_context.get_continuous_state_vector().CopyToVector())
-        # The margins come from the camera's one compiled kernel call.
-        ctx = self._camera.GetMyContextFromRoot(root_context)
-        margins = self._camera.domain_margins_output.Eval(ctx).tolist()
-        if margins[0] > 0 and margins[1] > 0 and margins[2] > 0 and margins[3] > 0:
+            self.states.append(x)
+        # One call of the camera's compiled kernel on the accepted state: nu and
+        # the margins, without evaluating the diagram's ports (which would
+        # rebuild their caches for this state, at several times the cost).
+        if root_context is not self._params_of[0]:
+            # A live read-only view of the camera's parameters in this context.
+            camera_context = self._camera.GetMyContextFromRoot(root_context)
+            self._params_of = (root_context, camera_context.get_numeric_parameter(0).get_value())
+        out = _camera_kernel(x[0:7], self._params_of[1])
+        if out[0] > 0 and out[14] > 0 and out[15] > 0 and out[16] > 0 and out[17] > 0:
             return EventStatus.Succeeded()
         t = root_context.get_time()
-        x = root_context.get_continuous_state_vector().CopyToVector()
         if not np.all(np.isfinite(x)):
             return self._stop("non_finite", f"non-finite state at t = {t:.4g}")
-        nu = float(self._camera.visibility_output.Eval(ctx)[0])
+        nu = out[0]
         if not nu > 0:
             return self._stop(
                 "lost_visibility", f"lost visibility: nu(H) = {nu:.4g} <= 0 at t = {t:.4g}"
             )
+        margins = out[14:18]
         if not all(math.isfinite(m) for m in margins):
             return self._stop("non_finite", f"non-finite domain margins at t = {t:.4g}")
         i = int(np.argmin(margins))

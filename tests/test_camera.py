@@ -272,6 +272,12 @@ def test_left_inverse_and_range(poses):
     assert np.all(err <= np.maximum(1e-9, 100 * eps * cond * np.linalg.norm(C, 2, axis=(-2, -1))))
     kappa = cond * np.linalg.norm(C, 2, axis=(-2, -1))  # sigma_max / sigma_min
     assert np.max(err[kappa < 1e6]) < 1e-9
+    # The closed form (no solve) against numpy's SVD pseudo-inverse of C.
+    well = kappa < 1e6
+    pinv = np.linalg.pinv(C[well])
+    pinv_err = np.abs(pinv - Ti[well]) / np.linalg.norm(pinv, 2, axis=(-2, -1))[:, None, None]
+    print(f"\nTc^-1 closed form vs pinv(C): worst {np.max(pinv_err):.1e} ({well.sum()} poses)")
+    assert np.max(pinv_err) < 1e-9
     # Independent of the SVD: the normal-equations form of Eq. (15) agrees
     # where C^T C is well conditioned.
     # Forming C^T C squares kappa: compare where kappa^2 eps stays below 1e-8.

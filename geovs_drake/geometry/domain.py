@@ -5,10 +5,10 @@ D is the set of images y = (Q, lambda, s) with
 * field of view: the whole silhouette inside the cone of half-angle theta
   about the optical axis e3. With ``cos(alpha) = s.e3`` and the silhouette's
   angular radius ``gamma = arcsin(lambda)``, this is ``alpha + gamma <= theta``
-  (ERRATA, Sec. 4.2: ``f(y) = cos(alpha + gamma) >= cos(theta)``);
+  (errata, Sec. 4.2: ``f(y) = cos(alpha + gamma) >= cos(theta)``);
 * distance: ``lam_min <= lambda <= lam_max``;
 * occlusion: the marked point strictly inside the silhouette with a margin
-  relative to the visible cap's cosine width (ERRATA, design note)::
+  relative to the visible cap's cosine width (errata, design note)::
 
       q1.s >= sqrt(1 - lambda^2) + kappa (1 - sqrt(1 - lambda^2)),  0 < kappa < 1.
 """
