@@ -3,9 +3,12 @@
 Subsystem names (for ``diagram.GetSubsystemByName``): ``plant``,
 ``scene_graph``, ``spherical_camera``, ``navigation_controller``,
 ``image_jacobian_force`` (dynamic), ``kinematic_controller`` and
-``kinematic_rigid_body`` (kinematic), and loggers ``log_image_features``,
-``log_phi``, ``log_margins``, ``log_visibility``, ``log_body_state`` /
-``log_body_pose``.
+``kinematic_rigid_body`` (kinematic), and, with ``log=True`` (the default),
+Drake's ``LogVectorOutput`` loggers ``log_image_features``, ``log_phi``,
+``log_margins``, ``log_visibility``, ``log_body_state`` / ``log_body_pose`` at
+``config.log_rate``. :func:`geovs_drake.simulation.simulate` builds with
+``log=False`` and logs from its recorded steps instead: periodic loggers cut
+every integrator step at each sample time.
 """
 
 from __future__ import annotations

@@ -434,11 +434,11 @@ def validated_components(y: ImageFeatures | np.ndarray) -> tuple:
     AutoDiffXd and constant Expressions are checked on their values; symbolic
     entries with free variables cannot be, and pass unchecked.
     """
-    comps = as_features(y).components()
-    values = to_float(np.stack(np.broadcast_arrays(*comps), axis=-1))
+    v = as_features(y).to_vector()
+    values = to_float(v)
     if values is not None:
         check_image(components(values, 13, "y"))
-    return comps
+    return components(v, 13, "y")
 
 
 def validate_features(y: ImageFeatures | np.ndarray) -> ImageFeatures:

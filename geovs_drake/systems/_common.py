@@ -30,6 +30,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from geovs_drake.geometry._ops import to_float
+from geovs_drake.geometry.domain import SafeDomain
 
 POSE_SIZE = 7
 STATE_SIZE = 13
@@ -39,6 +40,11 @@ def pose_to_param(X: RigidTransform | np.ndarray) -> list[float]:
     """A RigidTransform (or 4x4) as the 12 numbers ``[R row-major, p]``."""
     M = X.GetAsMatrix4() if hasattr(X, "GetAsMatrix4") else np.asarray(X, dtype=float)
     return M[:3, :3].ravel().tolist() + M[:3, 3].tolist()
+
+
+def domain_to_param(domain: SafeDomain) -> list[float]:
+    """A SafeDomain as the 4 numbers ``[theta, lam_min, lam_max, kappa]``."""
+    return [domain.fov_half_angle, domain.lam_min, domain.lam_max, domain.occlusion_margin]
 
 
 def param_vector(context, index, T: type) -> np.ndarray:

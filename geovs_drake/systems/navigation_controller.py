@@ -18,6 +18,7 @@ from geovs_drake.geometry.navigation import (
     navigation_parameters,
 )
 from geovs_drake.systems._common import (
+    domain_to_param,
     floats,
     inputs_and_parameters,
     param_vector,
@@ -29,10 +30,6 @@ __all__ = ["NavigationController", "NavigationController_"]
 
 # Layout of the one numeric parameter: goal y* (13), domain (4), gains (4).
 _GOAL, _DOMAIN, _GAINS = slice(0, 13), slice(13, 17), slice(17, 21)
-
-
-def _domain_param(domain: SafeDomain) -> list[float]:
-    return [domain.fov_half_angle, domain.lam_min, domain.lam_max, domain.occlusion_margin]
 
 
 @functools.lru_cache(maxsize=64)
@@ -95,7 +92,7 @@ def NavigationController_(T):
             goal_vector = nf.goal.to_vector()
             self._defaults = (goal_vector, domain, gains)
             self._params_index = self.DeclareNumericParameter(
-                BasicVector_[T](goal_vector.tolist() + _domain_param(domain) + list(gains.params))
+                BasicVector_[T](goal_vector.tolist() + domain_to_param(domain) + list(gains.params))
             )
             self.image_features_input = self.DeclareVectorInputPort(name="image_features", size=13)
             self.dphi_output = self.DeclareVectorOutputPort(
@@ -121,7 +118,7 @@ def NavigationController_(T):
         def _set(self, context, goal, domain, gains) -> None:
             nf = NavigationFunction(domain, goal, gains)  # the goal must lie inside D
             context.get_mutable_numeric_parameter(self._params_index).SetFromVector(
-                nf.goal.to_vector().tolist() + _domain_param(domain) + list(gains.params)
+                nf.goal.to_vector().tolist() + domain_to_param(domain) + list(gains.params)
             )
 
         def navigation_parameters(self, context) -> tuple:
@@ -159,7 +156,7 @@ def NavigationController_(T):
             """(1 - phi, *dphi) by the generated kernel, or None if y is not in I."""
             y = self.image_features_input.Eval(context)
             values = values_or_none(y.tolist())
-            if values is not None and (math.isnan(values[9]) or image_violation(values)):
+            if values is not None and image_violation(values) is not None:
                 return None
             return _navigation(y, self.navigation_parameters(context))
 

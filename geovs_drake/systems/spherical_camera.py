@@ -15,6 +15,7 @@ from geovs_drake.geometry.kernels import camera_image, for_scalar_type
 from geovs_drake.geometry.rigid import cross, quaternion_to_rotation, target_in_camera
 from geovs_drake.systems._common import (
     POSE_SIZE,
+    domain_to_param,
     floats,
     inputs_and_parameters,
     param_vector,
@@ -27,10 +28,6 @@ __all__ = ["SphericalCamera", "SphericalCamera_"]
 
 # Layout of the one numeric parameter: radius, X_WB, X_RC, domain.
 _RADIUS, _X_WB, _X_RC, _DOMAIN = 0, slice(1, 13), slice(13, 25), slice(25, 29)
-
-
-def _domain_param(domain: SafeDomain) -> list[float]:
-    return [domain.fov_half_angle, domain.lam_min, domain.lam_max, domain.occlusion_margin]
 
 
 @TemplateSystem.define("SphericalCamera_")
@@ -87,7 +84,7 @@ def SphericalCamera_(T):
             self._defaults = (radius, X_WB, X_RC, domain)
             self._params_index = self.DeclareNumericParameter(
                 BasicVector_[T](
-                    [radius] + pose_to_param(X_WB) + pose_to_param(X_RC) + _domain_param(domain)
+                    [radius] + pose_to_param(X_WB) + pose_to_param(X_RC) + domain_to_param(domain)
                 )
             )
             self.body_pose_input = self.DeclareVectorInputPort(name="body_pose", size=POSE_SIZE)
@@ -135,7 +132,7 @@ def SphericalCamera_(T):
             self._set(context, _X_RC, pose_to_param(X_RC))
 
         def set_domain(self, context, domain: SafeDomain) -> None:
-            self._set(context, _DOMAIN, _domain_param(domain))
+            self._set(context, _DOMAIN, domain_to_param(domain))
 
         def domain(self, context) -> SafeDomain:
             return SafeDomain(*floats(read(context, self._params_index)[_DOMAIN]))
