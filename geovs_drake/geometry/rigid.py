@@ -20,6 +20,7 @@ __all__ = [
     "cross",
     "matmul",
     "quaternion_to_rotation",
+    "rig_velocity",
     "target_in_camera",
     "wrench_to_rig",
 ]
@@ -97,6 +98,19 @@ def camera_body_velocity(
     wxo = cross(w_WR_W, apply(R_WR, p_RC))
     v_WCo_W = (v_WRo_W[0] + wxo[0], v_WRo_W[1] + wxo[1], v_WRo_W[2] + wxo[2])
     return apply_transpose(R_WC, w_WR_W) + apply_transpose(R_WC, v_WCo_W)
+
+
+def rig_velocity(R_WR: tuple, R_WC: tuple, twist_C: tuple, p_RC: tuple) -> tuple:
+    """The rig's ``(w_WR_W, v_WRo_W)`` for a camera body twist ``(Omega, V)`` in C.
+
+    The inverse of :func:`camera_body_velocity`: ``w = R_WC Omega``,
+    ``v_WCo = R_WC V`` and ``v_WRo = v_WCo - w x p_RoCo`` (B fixed in W, so
+    ``(Omega, V) = G^-1 Gdot`` of Eqs. 16-17 for G = X_BC).
+    """
+    w = apply(R_WC, twist_C[0:3])
+    v_Co = apply(R_WC, twist_C[3:6])
+    wxo = cross(w, apply(R_WR, p_RC))
+    return w + (v_Co[0] - wxo[0], v_Co[1] - wxo[1], v_Co[2] - wxo[2])
 
 
 def wrench_to_rig(F_C: tuple, R_WR: tuple, R_WC: tuple, p_RC: tuple) -> tuple:
