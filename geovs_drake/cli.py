@@ -4,6 +4,7 @@ Examples::
 
     geovs-drake simulate --json
     geovs-drake simulate --controller kinematic --initial=-0.1,0.05,-0.7,0.1,0,1.2
+    geovs-drake simulate --initial-velocity=-0.2,0,0.3,0.05,-0.1,0
     geovs-drake demo --out results
 """
 
@@ -13,6 +14,7 @@ import argparse
 import json
 import math
 import sys
+from typing import NoReturn
 
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import StartOutsideDomain, simulate
@@ -20,18 +22,32 @@ from geovs_drake.simulation import StartOutsideDomain, simulate
 __all__ = ["main"]
 
 
-def _pose_arg(text: str) -> PoseConfig:
+class _OneLineParser(argparse.ArgumentParser):
+    """Bad arguments in one line on stderr (exit code 2), without argparse's usage block."""
+
+    def error(self, message: str) -> NoReturn:
+        if message.endswith("expected one argument"):  # most often a value "-0.1,..."
+            message += " (write a value that starts with '-' as --option=-0.1,...)"
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _six_numbers(text: str, names: str) -> list[float]:
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError as e:
-        raise argparse.ArgumentTypeError(
-            f"expected 6 numbers x,y,z,roll,pitch,yaw: {text!r}"
-        ) from e
+        raise argparse.ArgumentTypeError(f"expected 6 numbers {names}: {text!r}") from e
     if len(values) != 6 or not all(math.isfinite(v) for v in values):
-        raise argparse.ArgumentTypeError(
-            f"expected 6 finite numbers x,y,z,roll,pitch,yaw, got {text!r}"
-        )
+        raise argparse.ArgumentTypeError(f"expected 6 finite numbers {names}, got {text!r}")
+    return values
+
+
+def _pose_arg(text: str) -> PoseConfig:
+    values = _six_numbers(text, "x,y,z,roll,pitch,yaw")
     return PoseConfig(xyz=values[:3], rpy=values[3:])
+
+
+def _twist_arg(text: str) -> list[float]:
+    return _six_numbers(text, "wx,wy,wz,vx,vy,vz")
 
 
 def _config_from_args(args: argparse.Namespace) -> ScenarioConfig:
@@ -40,6 +56,8 @@ def _config_from_args(args: argparse.Namespace) -> ScenarioConfig:
         config.controller = args.controller
     if args.initial is not None:
         config.initial = args.initial
+    if args.initial_velocity is not None:
+        config.initial_velocity = args.initial_velocity
     if args.goal is not None:
         config.goal = args.goal
     if args.duration is not None:
@@ -56,6 +74,14 @@ def _add_scenario_args(p: argparse.ArgumentParser) -> None:
         metavar="x,y,z,roll,pitch,yaw",
         help="initial camera pose X_BC in the target frame [m, rad]; "
         "write negative first values as --initial=-0.2,...",
+    )
+    p.add_argument(
+        "--initial-velocity",
+        type=_twist_arg,
+        metavar="wx,wy,wz,vx,vy,vz",
+        help="initial body twist (Omega, V) of the camera in its frame C [rad/s, m/s], "
+        "G^-1 dG/dt for G = X_BC (dynamic loop only; default at rest); "
+        "write negative first values as --initial-velocity=-0.1,...",
     )
     p.add_argument(
         "--goal",
@@ -87,7 +113,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
+    parser = _OneLineParser(
         prog="geovs-drake",
         description="Geometric visual servoing (Cowan & Chang) on Drake.",
     )

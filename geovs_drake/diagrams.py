@@ -22,6 +22,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, LogVectorOutput
 from pydrake.visualization import AddFrameTriadIllustration
 
+from geovs_drake.geometry.rigid import rig_velocity
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems import (
     ImageJacobianForce,
@@ -35,6 +36,7 @@ from geovs_drake.visualization import add_camera_geometry, add_goal_ghost, add_t
 __all__ = [
     "RIG_BODY_NAME",
     "initial_rig_pose",
+    "initial_rig_state",
     "make_dynamic_servo_diagram",
     "make_kinematic_servo_diagram",
 ]
@@ -45,6 +47,31 @@ RIG_BODY_NAME = "camera_rig"
 def initial_rig_pose(config: ScenarioConfig) -> RigidTransform:
     """X_WR(0) = X_WB X_BC(0) X_RC^-1."""
     return config.X_WB @ config.X_BC_initial @ config.X_RC.inverse()
+
+
+def initial_rig_state(config: ScenarioConfig) -> np.ndarray:
+    """The rig's free-body state at t = 0, in the plant's layout (13 numbers).
+
+    ``[qw, qx, qy, qz, x, y, z, wx, wy, wz, vx, vy, vz]``: X_WR(0) of
+    :func:`initial_rig_pose`, then the angular velocity of R in W and the
+    translational velocity of R's origin in W, both expressed in W, that give
+    the camera the body twist ``config.initial_velocity`` = (Omega, V) =
+    G^-1 Gdot of Eqs. (16)-(17). For :meth:`MultibodyPlant.SetPositionsAndVelocities`
+    (the plant has no default velocity, so a simulator's context must be set).
+    """
+    X_WR = initial_rig_pose(config)
+    X_RC = config.X_RC
+    R_WR = X_WR.rotation().matrix()
+    R_WC = R_WR @ X_RC.rotation().matrix()
+    velocity = rig_velocity(
+        tuple(R_WR.ravel().tolist()),
+        tuple(R_WC.ravel().tolist()),
+        tuple(float(v) for v in config.initial_velocity),
+        tuple(X_RC.translation().tolist()),
+    )
+    return np.concatenate(
+        [X_WR.rotation().ToQuaternion().wxyz(), X_WR.translation(), np.asarray(velocity)]
+    )
 
 
 def _add_loggers(builder: DiagramBuilder, camera, nav, rate: float) -> None:

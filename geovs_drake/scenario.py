@@ -101,6 +101,15 @@ class ControlConfig:
     kinematic_gain: float = 4.0
 
 
+def _finite_numbers(values, n: int) -> list[float] | None:
+    """``values`` as n finite floats, or None if it is not that."""
+    try:
+        out = [float(v) for v in values]
+    except (TypeError, ValueError):
+        return None
+    return out if len(out) == n and all(math.isfinite(v) for v in out) else None
+
+
 def _default_simulator() -> SimulatorConfig:
     return SimulatorConfig(
         integration_scheme="runge_kutta3",
@@ -127,6 +136,13 @@ class ScenarioConfig:
     initial: PoseConfig = field(
         default_factory=lambda: PoseConfig(xyz=[0.12, -0.08, -0.8], rpy=[0.15, -0.1, 2.0])
     )
+    #: (Omega, V)(0), the camera's initial body twist in C [rad/s, m/s], rotational
+    #: first; dynamic loop only. The sign convention of Eqs. (16)-(17): (Omega, V)
+    #: = G^-1 Gdot for G = X_BC, the camera's body velocity relative to the fixed
+    #: target, i.e. minus the right-trivialised velocity (omega, v) of H = X_CB.
+    #: The kinematic loop is first order (its velocity is commanded), so there it
+    #: must stay zero.
+    initial_velocity: list[float] = field(default_factory=lambda: [0.0] * 6)
     domain: DomainConfig = field(default_factory=DomainConfig)
     navigation: NavigationGainsConfig = field(default_factory=NavigationGainsConfig)
     rig: RigConfig = field(default_factory=RigConfig)
@@ -153,6 +169,18 @@ class ScenarioConfig:
             )
         if self.control.potential_gain <= 0 or self.control.kinematic_gain <= 0:
             raise ValueError("potential_gain and kinematic_gain must be > 0")
+        twist = _finite_numbers(self.initial_velocity, 6)
+        if twist is None:
+            raise ValueError(
+                "initial_velocity must be 6 finite numbers (Omega, V) in C [rad/s, m/s], "
+                f"got {self.initial_velocity!r}"
+            )
+        if self.controller == "kinematic" and any(v != 0 for v in twist):
+            raise ValueError(
+                "initial_velocity applies to the dynamic loop only (the kinematic loop "
+                f"commands the camera's velocity): got initial_velocity = {twist} "
+                "with controller 'kinematic'"
+            )
         self.domain.to_domain()
         self.navigation.to_gains()
 

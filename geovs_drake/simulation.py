@@ -14,7 +14,11 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Diagram, EventStatus
 from pydrake.trajectories import PiecewisePolynomial
 
-from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
+from geovs_drake.diagrams import (
+    initial_rig_state,
+    make_dynamic_servo_diagram,
+    make_kinematic_servo_diagram,
+)
 from geovs_drake.geometry.domain import DomainMargins
 from geovs_drake.geometry.kernels import camera_image, for_scalar_type, navigation
 from geovs_drake.geometry.navigation import NavigationFunction
@@ -29,6 +33,7 @@ __all__ = [
     "camera_pose_in_target",
     "camera_signals",
     "check_start",
+    "energy_note",
     "make_simulator",
     "pose_error",
     "simulate",
@@ -58,6 +63,20 @@ def check_start(config: ScenarioConfig) -> None:
         NavigationFunction(config.domain.to_domain(), config.goal_features())
     except ValueError as e:
         raise StartOutsideDomain(f"goal invalid: {e}") from e
+
+
+def energy_note(initial_energy: float, bound: float) -> str:
+    """What the energy guarantee says about a dynamic run's start, in words.
+
+    Appendix C: E = 1/2 nu^T M nu + k_p phi never increases and k_p phi <= E, so
+    E0 < k_p keeps phi < 1 (phi = 1 exactly on the boundary of D) for all time.
+    A start with E0 >= k_p may still converge, but nothing guarantees that.
+    """
+    covered = initial_energy < bound
+    return (
+        f"E0 = {initial_energy:.4g} {'<' if covered else '>='} k_p = {bound:.4g}: "
+        f"the energy guarantee {'covers' if covered else 'does not cover'} this start"
+    )
 
 
 def pose_error(X_BC: RigidTransform, X_BC_goal: RigidTransform) -> tuple[float, float]:
@@ -105,6 +124,23 @@ class SimulationResult:
         return bool(len(L) < 2 or np.max(np.diff(L)) <= self.lyapunov_tolerance)
 
     @property
+    def initial_energy(self) -> float | None:
+        """E0 = 1/2 nu^T M nu + k_p phi(y0) (dynamic loop), else None."""
+        return None if self.energy is None else float(self.energy[0])
+
+    @property
+    def energy_bound(self) -> float | None:
+        """k_p, the level below which E0 keeps the loop in D (dynamic loop), else None."""
+        return None if self.energy is None else float(self.config.control.potential_gain)
+
+    @property
+    def energy_guarantee(self) -> bool | None:
+        """E0 < k_p: Appendix C's guarantee that phi < 1 throughout (dynamic), else None."""
+        if self.energy is None:
+            return None
+        return bool(self.initial_energy < self.energy_bound)
+
+    @property
     def final_errors(self) -> tuple[float, float]:
         return pose_error(self.final_X_BC, self.config.X_BC_goal)
 
@@ -122,16 +158,23 @@ class SimulationResult:
     def one_line(self) -> str:
         """The run in one line: status, final errors, minimum margins, timing."""
         s = self.summary()
+        energy = ""
+        if self.energy is not None:
+            energy = f" | {energy_note(self.initial_energy, self.energy_bound)}"
         return (
             f"{s['controller']}: {s['status']} | position error "
             f"{s['final_position_error_m']:.2e} m, rotation error "
             f"{s['final_rotation_error_rad']:.2e} rad | min margins: "
             f"fov {s['min_fov_margin']:.3g}, occlusion {s['min_occlusion_margin']:.3g}, "
-            f"nu {s['min_visibility']:.3g} | Lyapunov monotone: {s['lyapunov_monotone']} | "
+            f"nu {s['min_visibility']:.3g} | Lyapunov monotone: {s['lyapunov_monotone']}"
+            f"{energy} | "
             f"{s['sim_time_s']:.1f} s simulated in {s['wall_time_s']:.1f} s, {s['steps']} steps"
         )
 
     def summary(self) -> dict:
+        """The run as JSON-ready values. The energy fields (``initial_energy``,
+        ``energy_bound`` = k_p, ``energy_guarantee`` = E0 < k_p, ``max_energy``) are
+        None for the kinematic loop, which has no energy."""
         dp, dr = self.final_errors
         out = {
             "controller": self.config.controller,
@@ -151,10 +194,11 @@ class SimulationResult:
             "sim_time_s": self.sim_time_s,
             "wall_time_s": self.wall_time_s,
             "steps": self.steps,
+            "initial_energy": self.initial_energy,
+            "energy_bound": self.energy_bound,
+            "energy_guarantee": self.energy_guarantee,
+            "max_energy": None if self.energy is None else float(np.max(self.energy)),
         }
-        if self.energy is not None:
-            out["max_energy"] = float(np.max(self.energy))
-            out["initial_energy"] = float(self.energy[0])
         return out
 
 
@@ -256,10 +300,17 @@ def make_simulator(
 ) -> tuple[Simulator, SafeDomainMonitor]:
     """A Simulator with the config's integrator and a :class:`SafeDomainMonitor`.
 
-    ``record`` makes the monitor keep every accepted step (for logs).
+    ``record`` makes the monitor keep every accepted step (for logs). For the
+    dynamic loop (a diagram with a ``plant``) the context starts in
+    :func:`geovs_drake.diagrams.initial_rig_state`: the rig's pose and the
+    velocity that gives the camera ``config.initial_velocity``.
     """
     simulator = Simulator(diagram)
     ApplySimulatorConfig(config.simulator, simulator)
+    if diagram.HasSubsystemNamed("plant"):
+        plant = diagram.GetSubsystemByName("plant")
+        plant_context = plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+        plant.SetPositionsAndVelocities(plant_context, initial_rig_state(config))
     monitor = SafeDomainMonitor(diagram, record=record)
     simulator.set_monitor(monitor)
     return simulator, monitor
@@ -316,7 +367,10 @@ def simulate(
     """Simulate the configured loop (``config.controller``) for ``config.duration``.
 
     Raises StartOutsideDomain if the start is not in D. A run that leaves D
-    stops early with ``status`` ``left_domain`` / ``lost_visibility``.
+    stops early with ``status`` ``left_domain`` / ``lost_visibility``. The
+    dynamic loop starts with the camera's body twist ``config.initial_velocity``;
+    if its energy E0 is not below k_p, the message says that Appendix C's energy
+    guarantee does not cover the start (see :func:`energy_note`).
     ``progress``, if given, is called with the simulated time as it advances.
     The logs are sampled at ``config.log_rate`` from the recorded steps (see
     :class:`SafeDomainMonitor`); ``wall_time_s`` times the integration alone.
@@ -373,7 +427,7 @@ def simulate(
             f"{'converged' if converged else 'did not converge'}: position error {dp:.3g} m, "
             f"rotation error {dr:.3g} rad after {root.get_time():.3g} s"
         )
-    return SimulationResult(
+    result = SimulationResult(
         config=config,
         status=status,
         message=message,
@@ -389,3 +443,6 @@ def simulate(
         energy=energy,
         final_X_BC=final_X_BC,
     )
+    if result.energy_guarantee is False:
+        result.message += f" ({energy_note(result.initial_energy, result.energy_bound)})"
+    return result

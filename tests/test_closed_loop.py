@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RigidTransform
+from pydrake.multibody.tree import JacobianWrtVariable, RotationalInertia, SpatialInertia
 
 from geovs_drake.analysis.linearization import linearize_at_goal, navigation_hessian
 from geovs_drake.analysis.monte_carlo import (
@@ -17,7 +18,11 @@ from geovs_drake.analysis.monte_carlo import (
     run_scenarios,
     scenarios_from_starts,
 )
-from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
+from geovs_drake.diagrams import (
+    RIG_BODY_NAME,
+    make_dynamic_servo_diagram,
+    make_kinematic_servo_diagram,
+)
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import StartOutsideDomain, make_simulator, pose_error, simulate
@@ -266,3 +271,173 @@ def test_drake_monte_carlo_simulation_runs():
     assert len(out) == 3
     assert all(o["position_error_m"] < 1e-3 and o["min_margin"] > 0 for o in out)
     assert all(o["output"] == o["position_error_m"] for o in out)
+
+
+# ------------------------------------------------------- initial velocity
+MOVING = [1.0, -0.8, 1.5, 0.4, -0.3, 0.5]  # (Omega, V) in C [rad/s, m/s]
+
+
+def _camera_spatial_inertia(config: ScenarioConfig) -> np.ndarray:
+    """M_C: the rig's spatial inertia about Co, expressed in C, (rotational, translational)
+    order; from config.rig alone (mass and principal inertia about the CoM), by Drake's
+    parallel-axis shift, so 1/2 (Omega, V)^T M_C (Omega, V) is the kinetic energy."""
+    X_RC = config.X_RC
+    M_R = SpatialInertia.MakeFromCentralInertia(
+        config.rig.mass, np.zeros(3), RotationalInertia(*config.rig.inertia_diagonal)
+    )
+    return M_R.Shift(X_RC.translation()).ReExpress(X_RC.rotation().inverse()).CopyToFullMatrix6()
+
+
+def _expected_initial_energy(config: ScenarioConfig) -> float:
+    """E0 = 1/2 nu^T M nu + k_p phi(y0), without the plant or the servo's kernels."""
+    twist = np.asarray(config.initial_velocity)
+    kinetic = 0.5 * twist @ _camera_spatial_inertia(config) @ twist
+    nf = NavigationFunction(
+        config.domain.to_domain(), config.goal_features(), config.navigation.to_gains()
+    )
+    phi0 = float(nf.value(config.initial_features()))
+    return float(kinetic + config.control.potential_gain * phi0)
+
+
+@pytest.mark.parametrize("offset", [False, True], ids=["camera-at-com", "camera-off-com"])
+def test_initial_velocity_is_the_cameras_body_twist_in_drake(offset):
+    """After make_simulator, Drake's own kinematics give the camera frame C the
+    configured (Omega, V) = G^-1 Gdot, G = X_BC (Eqs. 16-17): by the rig's spatial
+    velocity Jacobian at Co re-expressed in C, and by differencing G along qdot."""
+    config = _with_offset() if offset else ScenarioConfig()
+    config.initial_velocity = list(MOVING)
+    diagram = make_dynamic_servo_diagram(config, log=False)
+    simulator, _ = make_simulator(diagram, config)
+    plant = diagram.GetSubsystemByName("plant")
+    ctx = plant.GetMyContextFromRoot(simulator.get_context())
+    rig = plant.GetBodyByName(RIG_BODY_NAME)
+    X_RC = config.X_RC
+    X_WC = plant.EvalBodyPoseInWorld(ctx, rig) @ X_RC
+    X_WC_expected = config.X_WB @ config.X_BC_initial
+    np.testing.assert_allclose(X_WC.GetAsMatrix4(), X_WC_expected.GetAsMatrix4(), atol=1e-12)
+    J = plant.CalcJacobianSpatialVelocity(
+        ctx,
+        JacobianWrtVariable.kV,
+        rig.body_frame(),
+        X_RC.translation(),
+        plant.world_frame(),
+        plant.world_frame(),
+    )
+    V_WC_W = J @ plant.GetVelocities(ctx)
+    R_CW = X_WC.rotation().inverse().matrix()
+    twist_drake = np.concatenate([R_CW @ V_WC_W[:3], R_CW @ V_WC_W[3:]])
+    np.testing.assert_allclose(twist_drake, MOVING, rtol=0, atol=1e-12)
+
+    # G^-1 Gdot by central differences of the poses at q -/+ h qdot.
+    q = plant.GetPositions(ctx)
+    qdot = plant.MapVelocityToQDot(ctx, plant.GetVelocities(ctx))
+    h = 1e-6
+
+    def G(sign: float) -> np.ndarray:
+        c = plant.CreateDefaultContext()
+        plant.SetPositions(c, q + sign * h * qdot)
+        X_WC_t = plant.EvalBodyPoseInWorld(c, rig) @ X_RC
+        return (config.X_WB.inverse() @ X_WC_t).GetAsMatrix4()
+
+    body = np.linalg.inv(G(0.0)) @ (G(1.0) - G(-1.0)) / (2 * h)
+    omega_hat = body[:3, :3]
+    np.testing.assert_allclose(omega_hat, -omega_hat.T, atol=1e-8)
+    twist_fd = [omega_hat[2, 1], omega_hat[0, 2], omega_hat[1, 0], *body[:3, 3]]
+    np.testing.assert_allclose(twist_fd, MOVING, rtol=0, atol=1e-7)
+
+
+def test_moving_start_below_the_energy_bound_converges_inside_domain():
+    config = _with_offset()
+    config.initial_velocity = list(MOVING)
+    config.duration = 15.0
+    expected = _expected_initial_energy(config)
+    at_rest = config.control.potential_gain * float(
+        NavigationFunction(
+            config.domain.to_domain(), config.goal_features(), config.navigation.to_gains()
+        ).value(config.initial_features())
+    )
+    assert expected - at_rest > 0.2  # the start really moves
+    assert expected < config.control.potential_gain
+    r = simulate(config)
+    assert r.status == "converged", r.message
+    assert np.all(r.margins >= 0) and np.all(r.visibility > 0) and np.all(r.phi < 1)
+    assert r.lyapunov_monotone
+    s = r.summary()
+    assert s["initial_energy"] == pytest.approx(expected, rel=1e-9)
+    assert s["energy_bound"] == config.control.potential_gain
+    assert s["energy_guarantee"] is True
+    assert "does not cover" not in r.message
+    assert "the energy guarantee covers this start" in r.one_line()
+
+
+def test_start_above_the_energy_bound_runs_and_says_the_guarantee_does_not_cover_it():
+    config = ScenarioConfig(duration=5.0, initial_velocity=[0.0, 0.0, 0.0, 3.0, 0.0, 0.0])
+    expected = _expected_initial_energy(config)
+    assert expected > 1.5 * config.control.potential_gain
+    r = simulate(config)
+    assert r.sim_time_s > 0
+    s = r.summary()
+    assert s["initial_energy"] == pytest.approx(expected, rel=1e-9)
+    assert s["energy_guarantee"] is False
+    note = f"(E0 = {expected:.4g} >= k_p = 4: the energy guarantee does not cover this start)"
+    assert r.message.endswith(note), r.message
+    assert "the energy guarantee does not cover this start" in r.one_line()
+
+
+def test_kinematic_loop_rejects_an_initial_velocity_and_has_no_energy_fields():
+    c = ScenarioConfig(controller="kinematic", initial_velocity=[0.0, 0.0, 0.0, 0.1, 0.0, 0.0])
+    with pytest.raises(ValueError, match="initial_velocity applies to the dynamic loop only"):
+        c.validate()
+    with pytest.raises(ValueError, match="initial_velocity applies to the dynamic loop only"):
+        simulate(c)
+    for bad in ([0.0] * 5, [0.0] * 5 + [float("nan")], ["a"] * 6):
+        with pytest.raises(ValueError, match=r"initial_velocity must be 6 finite numbers.*got"):
+            ScenarioConfig(initial_velocity=bad).validate()
+    s = simulate(ScenarioConfig(controller="kinematic", duration=2.0)).summary()
+    for key in ("initial_energy", "energy_bound", "energy_guarantee", "max_energy"):
+        assert s[key] is None, key
+    json.loads(json.dumps(s, allow_nan=False))
+    c = load_scenario(data="initial_velocity: [0.1, 0, 0, 0, 0.2, 0]\n")
+    assert c.initial_velocity == [0.1, 0.0, 0.0, 0.0, 0.2, 0.0]
+    c.validate()
+
+
+def test_cli_initial_velocity_json_round_trip():
+    twist = "-0.2,0.1,0.3,0.05,-0.1,0.02"
+    out = _cli("simulate", "--json", f"--initial-velocity={twist}", "--duration", "10")
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.strip().splitlines()
+    assert len(lines) == 1
+    s = json.loads(lines[0])
+    config = ScenarioConfig(duration=10.0, initial_velocity=[float(v) for v in twist.split(",")])
+    r = simulate(config).summary()
+    for key in (JSON_FIELDS | {"initial_energy", "energy_bound", "energy_guarantee"}) - {
+        "wall_time_s"
+    }:
+        if isinstance(r[key], bool | str | int):
+            assert s[key] == r[key], key
+        else:
+            assert s[key] == pytest.approx(r[key], rel=1e-9, abs=1e-15), key
+    # The flag reached the plant: E0 is the moving start's, not k_p phi0 at rest.
+    assert s["initial_energy"] == pytest.approx(_expected_initial_energy(config), rel=1e-9)
+    assert s["energy_guarantee"] is True and s["converged"] is True
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["--initial-velocity=0,0,0,0.1,0"],
+        ["--initial-velocity", "abc"],
+        ["--initial-velocity", "-0.1,0,0,0,0,0"],
+        ["--controller", "kinematic", "--initial-velocity=0,0,0,0.1,0,0"],
+    ],
+    ids=["five-numbers", "abc", "negative-without-equals", "kinematic"],
+)
+def test_cli_bad_initial_velocity_exits_2_with_one_line(args):
+    out = _cli("simulate", *args, "--duration", "1")
+    assert out.returncode == 2
+    assert out.stdout == ""
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1, out.stderr
+    assert "initial-velocity" in lines[0] or "initial_velocity" in lines[0]
+    assert "Traceback" not in out.stderr
