@@ -22,7 +22,8 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, LogVectorOutput
 from pydrake.visualization import AddFrameTriadIllustration
 
-from geovs_drake.geometry.rigid import rig_velocity
+from geovs_drake.geometry._ops import NUMPY
+from geovs_drake.geometry.rigid import matmul, quaternion_to_rotation, rig_velocity
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems import (
     ImageJacobianForce,
@@ -35,6 +36,7 @@ from geovs_drake.visualization import add_camera_geometry, add_goal_ghost, add_t
 
 __all__ = [
     "RIG_BODY_NAME",
+    "initial_body_states",
     "initial_rig_pose",
     "initial_rig_state",
     "make_dynamic_servo_diagram",
@@ -49,29 +51,53 @@ def initial_rig_pose(config: ScenarioConfig) -> RigidTransform:
     return config.X_WB @ config.X_BC_initial @ config.X_RC.inverse()
 
 
-def initial_rig_state(config: ScenarioConfig) -> np.ndarray:
-    """The rig's free-body state at t = 0, in the plant's layout (13 numbers).
+def initial_body_states(
+    config: ScenarioConfig, X_BC: np.ndarray, twists: np.ndarray | None = None
+) -> np.ndarray:
+    """The loop's body states for camera poses X_BC (N, 4, 4) and body twists (N, 6).
 
-    ``[qw, qx, qy, qz, x, y, z, wx, wy, wz, vx, vy, vz]``: X_WR(0) of
-    :func:`initial_rig_pose`, then the angular velocity of R in W and the
-    translational velocity of R's origin in W, both expressed in W, that give
-    the camera the body twist ``config.initial_velocity`` = (Omega, V) =
-    G^-1 Gdot of Eqs. (16)-(17). For :meth:`MultibodyPlant.SetPositionsAndVelocities`
-    (the plant has no default velocity, so a simulator's context must be set).
+    Dynamic loop: the rig's free-body state in the plant's layout (N, 13),
+    ``[qw, qx, qy, qz, x, y, z, wx, wy, wz, vx, vy, vz]``: ``X_WR = X_WB X_BC
+    X_RC^-1``, then the angular velocity of R in W and the translational
+    velocity of R's origin in W, both expressed in W, that give the camera the
+    body twist (Omega, V) = G^-1 Gdot of Eqs. (16)-(17)
+    (:func:`~geovs_drake.geometry.rigid.rig_velocity`). Kinematic loop: the
+    camera's pose ``X_WC = X_WB X_BC`` as (N, 7); that loop is first order, so
+    a non-zero twist is an error.
     """
-    X_WR = initial_rig_pose(config)
-    X_RC = config.X_RC
-    R_WR = X_WR.rotation().matrix()
-    R_WC = R_WR @ X_RC.rotation().matrix()
-    velocity = rig_velocity(
-        tuple(R_WR.ravel().tolist()),
-        tuple(R_WC.ravel().tolist()),
-        tuple(float(v) for v in config.initial_velocity),
-        tuple(X_RC.translation().tolist()),
-    )
-    return np.concatenate(
-        [X_WR.rotation().ToQuaternion().wxyz(), X_WR.translation(), np.asarray(velocity)]
-    )
+    X_BC = np.asarray(X_BC, dtype=float).reshape(-1, 4, 4)
+    n = len(X_BC)
+    dynamic = config.controller == "dynamic"
+    if twists is not None and not dynamic and np.any(np.asarray(twists) != 0):
+        raise ValueError(
+            "an initial twist applies to the dynamic loop only (first-order kinematic)"
+        )
+    X_RC = config.X_RC if dynamic else RigidTransform()
+    X_RC_inv = X_RC.inverse()
+    states = np.zeros((n, 13 if dynamic else 7))
+    for i in range(n):
+        X_W = config.X_WB @ RigidTransform(X_BC[i]) @ X_RC_inv
+        states[i, 0:4] = X_W.rotation().ToQuaternion().wxyz()
+        states[i, 4:7] = X_W.translation()
+    if dynamic and twists is not None:
+        twists = np.asarray(twists, dtype=float).reshape(n, 6)
+        R_WR = quaternion_to_rotation(tuple(states[:, 0:4].T), NUMPY)
+        R_RC = tuple(X_RC.rotation().matrix().ravel())
+        velocity = rig_velocity(
+            R_WR, matmul(R_WR, R_RC), tuple(twists.T), tuple(X_RC.translation())
+        )
+        states[:, 7:13] = np.stack(np.broadcast_arrays(*velocity), axis=-1)
+    return states
+
+
+def initial_rig_state(config: ScenarioConfig) -> np.ndarray:
+    """The rig's free-body state at t = 0 (13 numbers, :func:`initial_body_states`):
+    X_BC(0) and ``config.initial_velocity``. For
+    :meth:`MultibodyPlant.SetPositionsAndVelocities` (the plant has no default
+    velocity, so a simulator's context must be set)."""
+    return initial_body_states(
+        config, config.X_BC_initial.GetAsMatrix4(), np.asarray(config.initial_velocity)
+    )[0]
 
 
 def _add_loggers(builder: DiagramBuilder, camera, nav, rate: float) -> None:

@@ -195,3 +195,63 @@ def test_domain_margins_source_matches_generated_kernel_margins(batch):
     np.testing.assert_allclose(out[14], expected, atol=1e-13)
     assert np.all(out[14:18] > 0)  # every sample lies in D
     assert MATH.sqrt is math.sqrt
+
+
+def test_free_body_kernel_is_drakes_plant():
+    """xdot and kinetic energy of the free rig against MultibodyPlant itself."""
+    from pydrake.multibody.plant import MultibodyPlant
+    from pydrake.multibody.tree import RotationalInertia, SpatialInertia
+
+    body = (1.3, 0.02, 0.03, 0.025)
+    plant = MultibodyPlant(0.0)
+    plant.AddRigidBody(
+        "rig",
+        SpatialInertia.MakeFromCentralInertia(body[0], np.zeros(3), RotationalInertia(*body[1:])),
+    )
+    plant.mutable_gravity_field().set_gravity_vector(np.zeros(3))
+    plant.Finalize()
+    ctx = plant.CreateDefaultContext()
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        q = rng.normal(size=4)
+        x = np.concatenate([q / np.linalg.norm(q), rng.normal(size=3), rng.normal(size=6)])
+        F = rng.normal(size=6)
+        plant.SetPositionsAndVelocities(ctx, x)
+        plant.get_applied_generalized_force_input_port().FixValue(ctx, F)
+        out = kernels.free_body(x, F, np.array(body))
+        np.testing.assert_allclose(
+            out[0:13], plant.EvalTimeDerivatives(ctx).CopyToVector(), atol=1e-12
+        )
+        assert out[13] == pytest.approx(plant.CalcKineticEnergy(ctx), rel=1e-13)
+
+
+def test_pose_error_kernel_matches_rigid_transform_errors():
+    from geovs_drake.simulation import pose_error
+
+    rng = np.random.default_rng(8)
+    X_RC = RigidTransform(
+        PoseConfig(xyz=[0.03, 0.0, 0.05], rpy=[0.2, 0.1, -0.3]).to_rigid_transform()
+    )
+    X_WC_goal = RigidTransform(
+        PoseConfig(xyz=[0.1, 0.2, 0.9], rpy=[1.0, 0.2, 0.4]).to_rigid_transform()
+    )
+    p = np.concatenate(
+        [
+            X_RC.rotation().matrix().ravel(),
+            X_RC.translation(),
+            X_WC_goal.rotation().matrix().ravel(),
+            X_WC_goal.translation(),
+        ]
+    )
+    for scale in (1.0, 1e-3, 1e-6):
+        pose = PoseConfig(
+            xyz=list(scale * rng.normal(size=3)), rpy=list(scale * rng.normal(size=3))
+        )
+        X_WC = X_WC_goal @ pose.to_rigid_transform()
+        X_WR = X_WC @ X_RC.inverse()
+        q = X_WR.rotation().ToQuaternion()
+        x = np.array([q.w(), q.x(), q.y(), q.z(), *X_WR.translation()])
+        dp2, dR2 = kernels.pose_error(x, p)
+        dp, dr = pose_error(X_WC, X_WC_goal)
+        assert math.sqrt(dp2) == pytest.approx(dp, rel=1e-9, abs=1e-15)
+        assert 2 * math.asin(math.sqrt(dR2 / 8)) == pytest.approx(dr, rel=1e-6, abs=1e-14)

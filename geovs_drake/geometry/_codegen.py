@@ -123,6 +123,30 @@ def _kinematic_velocity(y, dphi, p):
     return list(kinematic_velocity(y, dphi, p[0], p[1], _sympy_ops()))
 
 
+def _free_body(x, F, p):
+    """(xdot, kinetic energy) of the free rig, gravity off, p = (mass, Ixx, Iyy, Izz)
+    (MultibodyPlant's state layout; Newton-Euler about the centre of mass)."""
+    from geovs_drake.geometry.rigid import free_body_derivative, kinetic_energy
+
+    xp = _sympy_ops()
+    return [*free_body_derivative(x, F, p, xp), kinetic_energy(x, p, xp)]
+
+
+def _kinematic_body(x, twist):
+    """xdot of the kinematic body [q_WC, p_WC] moving with body twist (Omega, V), Eq. (17)."""
+    from geovs_drake.geometry.rigid import kinematic_body_derivative
+
+    return list(kinematic_body_derivative(x, twist, _sympy_ops()))
+
+
+def _pose_error(x, p):
+    """(|p_WC - p_WC*|^2, |R_WC - R_WC*|_F^2) from the rig pose x = [q_WR, p_WR] and
+    p = [R_RC (9), p_RC (3), R_WC* (9), p_WC* (3)]."""
+    from geovs_drake.geometry.rigid import camera_pose_error
+
+    return list(camera_pose_error(x, p[0:9], p[9:12], p[12:21], p[21:24], _sympy_ops()))
+
+
 KERNELS = (
     Kernel("camera_image", (("x", 7), ("p", 29)), _camera_image, _camera_image.__doc__),
     Kernel("navigation", (("y", 13), ("p", 16)), _navigation, _navigation.__doc__),
@@ -138,6 +162,9 @@ KERNELS = (
         _kinematic_velocity,
         _kinematic_velocity.__doc__,
     ),
+    Kernel("free_body", (("x", 13), ("F", 6), ("p", 4)), _free_body, _free_body.__doc__),
+    Kernel("kinematic_body", (("x", 7), ("twist", 6)), _kinematic_body, _kinematic_body.__doc__),
+    Kernel("pose_error", (("x", 7), ("p", 24)), _pose_error, _pose_error.__doc__),
 )
 
 

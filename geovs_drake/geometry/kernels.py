@@ -15,7 +15,12 @@ source of every formula it composes:
   wrench in C and at the rig's origin in W, from the rig state and the
   :class:`~geovs_drake.systems.ImageJacobianForce` parameter vector;
 * ``kinematic_velocity(y, dphi, p) -> (Omega, V)``: ``k Tc^-1 dphi`` (Eqs. 15,
-  18-19), ``p = [rho, k]``.
+  18-19), ``p = [rho, k]``;
+* ``free_body(x, F, p) -> (*xdot, kinetic energy)``: the free rig under the
+  plant's generalized force, ``p = (mass, Ixx, Iyy, Izz)``;
+* ``kinematic_body(x, twist) -> xdot``: Eq. (17) for the kinematic body;
+* ``pose_error(x, p) -> (|dp|^2, |dR|_F^2)``: the camera's pose error, ``p =
+  [R_RC, p_RC, R_WC*, p_WC*]`` (rotations row-major).
 
 Where the first argument holds floats (a float tuple or a float64 vector), the
 kernel runs compiled by numba (``cache=True``: compiled once per machine, then
@@ -37,8 +42,11 @@ __all__ = [
     "NUMBA",
     "camera_image",
     "for_scalar_type",
+    "free_body",
+    "kinematic_body",
     "kinematic_velocity",
     "navigation",
+    "pose_error",
     "servo_force",
 ]
 
@@ -57,7 +65,13 @@ def _is_float_vector(a: object) -> bool:
     return t is tuple and all(type(v) is float for v in a)
 
 
-def _dispatch(python: Callable) -> Callable:
+def _dispatch(name: str) -> Callable:
+    python = getattr(_generated, name, None)
+    if python is None:  # a kernel added to _codegen but not generated yet
+
+        def python(*args):
+            raise RuntimeError(f"run python -m geovs_drake.geometry._codegen: no kernel {name}")
+
     compiled = njit(cache=True, error_model="numpy", nogil=True)(python) if NUMBA else python
 
     def kernel(*args):
@@ -82,7 +96,10 @@ def for_scalar_type(kernel: Callable, T: type) -> Callable:
     return kernel.compiled if T is float else kernel.python
 
 
-camera_image = _dispatch(_generated.camera_image)
-navigation = _dispatch(_generated.navigation)
-servo_force = _dispatch(_generated.servo_force)
-kinematic_velocity = _dispatch(_generated.kinematic_velocity)
+camera_image = _dispatch("camera_image")
+navigation = _dispatch("navigation")
+servo_force = _dispatch("servo_force")
+kinematic_velocity = _dispatch("kinematic_velocity")
+free_body = _dispatch("free_body")
+kinematic_body = _dispatch("kinematic_body")
+pose_error = _dispatch("pose_error")

@@ -15,6 +15,10 @@ from geovs_drake.geometry._ops import Ops
 
 __all__ = [
     "apply",
+    "camera_pose_error",
+    "free_body_derivative",
+    "kinematic_body_derivative",
+    "kinetic_energy",
     "apply_transpose",
     "camera_body_velocity",
     "cross",
@@ -98,6 +102,88 @@ def camera_body_velocity(
     wxo = cross(w_WR_W, apply(R_WR, p_RC))
     v_WCo_W = (v_WRo_W[0] + wxo[0], v_WRo_W[1] + wxo[1], v_WRo_W[2] + wxo[2])
     return apply_transpose(R_WC, w_WR_W) + apply_transpose(R_WC, v_WCo_W)
+
+
+def free_body_derivative(x: tuple, F: tuple, body: tuple, xp: Ops) -> tuple:
+    """``xdot`` of a free rigid body in MultibodyPlant's state layout, gravity off.
+
+    ``x = [q_WR (4), p_WR (3), w_WR_W (3), v_WRo_W (3)]`` with R's origin at
+    the centre of mass and its axes principal; ``F = [tau_Ro_W, f_W]`` (the
+    plant's generalized force); ``body = (mass, Ixx, Iyy, Izz)``. Newton for
+    the centre of mass, Euler's equations with the gyroscopic term in the body
+    frame, ``qdot = 1/2 (0, w_W) (x) q`` for the world-frame angular velocity.
+    """
+    qw, qx, qy, qz = x[0:4]
+    wx, wy, wz = x[7:10]
+    m, Ixx, Iyy, Izz = body
+    R = quaternion_to_rotation(x[0:4], xp)
+    # (0, w) (x) q = (-w . v, qw w + w x v), v = (qx, qy, qz).
+    qdot = (
+        -0.5 * (wx * qx + wy * qy + wz * qz),
+        0.5 * (qw * wx + wy * qz - wz * qy),
+        0.5 * (qw * wy + wz * qx - wx * qz),
+        0.5 * (qw * wz + wx * qy - wy * qx),
+    )
+    # Euler: I wdot_B = tau_B - w_B x (I w_B), then back to W.
+    w_B = apply_transpose(R, x[7:10])
+    tau_B = apply_transpose(R, F[0:3])
+    Iw = (Ixx * w_B[0], Iyy * w_B[1], Izz * w_B[2])
+    gyro = cross(w_B, Iw)
+    wdot_B = ((tau_B[0] - gyro[0]) / Ixx, (tau_B[1] - gyro[1]) / Iyy, (tau_B[2] - gyro[2]) / Izz)
+    return qdot + tuple(x[10:13]) + apply(R, wdot_B) + (F[3] / m, F[4] / m, F[5] / m)
+
+
+def kinetic_energy(x: tuple, body: tuple, xp: Ops) -> object:
+    """``1/2 (m |v|^2 + w_B^T I w_B)`` of the free body of :func:`free_body_derivative`."""
+    m, Ixx, Iyy, Izz = body
+    w_B = apply_transpose(quaternion_to_rotation(x[0:4], xp), x[7:10])
+    vx, vy, vz = x[10:13]
+    return 0.5 * (
+        m * (vx * vx + vy * vy + vz * vz)
+        + Ixx * w_B[0] * w_B[0]
+        + Iyy * w_B[1] * w_B[1]
+        + Izz * w_B[2] * w_B[2]
+    )
+
+
+def kinematic_body_derivative(x: tuple, twist: tuple, xp: Ops) -> tuple:
+    """``xdot`` of a pose ``x = [q_WC, p_WC]`` moving with body twist ``(Omega, V)`` in C.
+
+    Eq. (17) with the target fixed in W: ``qdot = 1/2 q (x) (0, Omega)``,
+    ``pdot = R(q) V``.
+    """
+    qw, qx, qy, qz = x[0:4]
+    ox, oy, oz = twist[0:3]
+    # q (x) (0, Omega) = (-v . Omega, qw Omega + v x Omega), v = (qx, qy, qz).
+    qdot = (
+        -0.5 * (qx * ox + qy * oy + qz * oz),
+        0.5 * (qw * ox + qy * oz - qz * oy),
+        0.5 * (qw * oy + qz * ox - qx * oz),
+        0.5 * (qw * oz + qx * oy - qy * ox),
+    )
+    return qdot + apply(quaternion_to_rotation(x[0:4], xp), twist[3:6])
+
+
+def camera_pose_error(
+    x: tuple, R_RC: tuple, p_RC: tuple, R_WC_goal: tuple, p_WC_goal: tuple, xp: Ops
+) -> tuple:
+    """``(|p_WC - p_WC*|^2, |R_WC - R_WC*|_F^2)`` for the rig pose ``x = [q_WR, p_WR]``.
+
+    Both are invariant under the target's pose, so they equal the errors of
+    X_BC against X_BC*. The rotation angle is ``2 asin(|dR|_F / sqrt(8))``
+    (``|R - R*|_F^2 = 8 sin^2(angle / 2)``), accurate near 0 where the trace
+    formula is not.
+    """
+    R_WR = quaternion_to_rotation(x[0:4], xp)
+    R_WC = matmul(R_WR, R_RC)
+    o = apply(R_WR, p_RC)
+    dx = x[4] + o[0] - p_WC_goal[0]
+    dy = x[5] + o[1] - p_WC_goal[1]
+    dz = x[6] + o[2] - p_WC_goal[2]
+    dR = 0
+    for i in range(9):
+        dR = dR + (R_WC[i] - R_WC_goal[i]) * (R_WC[i] - R_WC_goal[i])
+    return dx * dx + dy * dy + dz * dz, dR
 
 
 def rig_velocity(R_WR: tuple, R_WC: tuple, twist_C: tuple, p_RC: tuple) -> tuple:

@@ -7,8 +7,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from geovs_drake.geometry._ops import namespace
-from geovs_drake.geometry.rigid import apply, quaternion_to_rotation
+from geovs_drake.geometry.kernels import for_scalar_type, kinematic_body
 from geovs_drake.systems._common import POSE_SIZE
 
 __all__ = ["KinematicRigidBody", "KinematicRigidBody_", "pose_state"]
@@ -22,6 +21,8 @@ def pose_state(X_WC: RigidTransform) -> np.ndarray:
 
 @TemplateSystem.define("KinematicRigidBody_")
 def KinematicRigidBody_(T):
+    _kinematic_body = for_scalar_type(kinematic_body, T)
+
     class Impl(LeafSystem_[T]):
         """A free body whose pose integrates a commanded body velocity on SE(3).
 
@@ -72,19 +73,13 @@ def KinematicRigidBody_(T):
             output.SetFromVector(context.get_continuous_state_vector().CopyToVector())
 
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
-            x = context.get_continuous_state_vector().CopyToVector().tolist()
-            u = self.camera_velocity_input.Eval(context).tolist()
-            qw, qx, qy, qz = x[0:4]
-            ox, oy, oz = u[0:3]
-            # q (x) (0, Omega) = (-v . Omega, w Omega + v x Omega), v = (qx, qy, qz).
-            qdot = [
-                -0.5 * (qx * ox + qy * oy + qz * oz),
-                0.5 * (qw * ox + qy * oz - qz * oy),
-                0.5 * (qw * oy + qz * ox - qx * oz),
-                0.5 * (qw * oz + qx * oy - qy * ox),
-            ]
-            pdot = apply(quaternion_to_rotation(x[0:4], namespace(qw)), u[3:6])
-            derivatives.get_mutable_vector().SetFromVector(qdot + list(pdot))
+            # Eq. (17), kinematic_body_derivative of geometry.rigid, as a kernel.
+            derivatives.get_mutable_vector().SetFromVector(
+                _kinematic_body(
+                    context.get_continuous_state_vector().CopyToVector(),
+                    self.camera_velocity_input.Eval(context),
+                )
+            )
 
     return Impl
 

@@ -382,3 +382,126 @@ def kinematic_velocity(y, dphi, p):
         p1*(t14*(t12*t26 + t29*t31) + t21),
         p1*(dphi1*t10 + t14*(t13*t26 + t30*t31) - t22 - t23 + t24*t6),
     )
+
+
+def free_body(x, F, p):
+    """(xdot, kinetic energy) of the free rig, gravity off, p = (mass, Ixx, Iyy, Izz) (MultibodyPlant's state layout; Newton-Euler about the centre of mass)."""
+    x0, x1, x2, x3, _, _, _, x7, x8, x9, x10, x11, x12 = x
+    F0, F1, F2, F3, F4, F5 = F
+    p0, p1, p2, p3 = p
+    t0 = 0.5*x7
+    t1 = 0.5*x8
+    t2 = 0.5*x9
+    t3 = (x1*x1)
+    t4 = (x2*x2)
+    t5 = (x3*x3)
+    t6 = (1/((t3 + t4 + t5 + (x0*x0))))
+    t7 = 2*t6
+    t8 = t7*x0
+    t9 = t8*x3
+    t10 = 2*t6*x1*x2 - t9
+    t11 = t8*x1
+    t12 = t11 + t7*x2*x3
+    t13 = t3*t7
+    t14 = t5*t7 - 1
+    t15 = -t13 - t14
+    t16 = t8*x2
+    t17 = t7*x1
+    t18 = t16 + t17*x3
+    t19 = -t11 + 2*t6*x2*x3
+    t20 = t4*t7
+    t21 = -t13 - t20 + 1
+    t22 = t18*x7 + t19*x8 + t21*x9
+    t23 = t17*x2 + t9
+    t24 = -t16 + 2*t6*x1*x3
+    t25 = -t14 - t20
+    t26 = t23*x8 + t24*x9 + t25*x7
+    t27 = t22*t26
+    t28 = (F0*t10 + F1*t15 + F2*t12 - p1*t27 + p3*t27)/p2
+    t29 = t10*x7 + t12*x9 + t15*x8
+    t30 = t26*t29
+    t31 = (F0*t18 + F1*t19 + F2*t21 + p1*t30 - p2*t30)/p3
+    t32 = t22*t29
+    t33 = (F0*t25 + F1*t23 + F2*t24 + p2*t32 - p3*t32)/p1
+    t34 = (1/(p0))
+    return (
+        -t0*x1 - t1*x2 - t2*x3,
+        t0*x0 + t1*x3 - t2*x2,
+        -t0*x3 + t1*x0 + t2*x1,
+        t0*x2 - t1*x1 + t2*x0,
+        x10,
+        x11,
+        x12,
+        t10*t28 + t18*t31 + t25*t33,
+        t15*t28 + t19*t31 + t23*t33,
+        t12*t28 + t21*t31 + t24*t33,
+        F3*t34,
+        F4*t34,
+        F5*t34,
+        0.5*p0*((x10*x10) + (x11*x11) + (x12*x12)) + 0.5*p1*(t26*t26) + 0.5*p2*(t29*t29) + 0.5*p3*(t22*t22),
+    )
+
+
+def kinematic_body(x, twist):
+    """xdot of the kinematic body [q_WC, p_WC] moving with body twist (Omega, V), Eq. (17)."""
+    x0, x1, x2, x3, _, _, _ = x
+    twist0, twist1, twist2, twist3, twist4, twist5 = twist
+    t0 = 0.5*twist0
+    t1 = 0.5*x2
+    t2 = 0.5*x3
+    t3 = 0.5*twist1
+    t4 = 0.5*twist2
+    t5 = (x1*x1)
+    t6 = (x2*x2)
+    t7 = (x3*x3)
+    t8 = (1/((t5 + t6 + t7 + (x0*x0))))
+    t9 = 2*t8
+    t10 = t9*x0
+    t11 = t10*x3
+    t12 = t10*x2
+    t13 = t9*x1
+    t14 = t6*t9
+    t15 = t7*t9 - 1
+    t16 = t10*x1
+    t17 = t5*t9
+    return (
+        -t0*x1 - t1*twist1 - t2*twist2,
+        t0*x0 + t1*twist2 - t2*twist1,
+        t0*x3 + t3*x0 - t4*x1,
+        -t0*x2 + t3*x1 + t4*x0,
+        twist3*(-t14 - t15) + twist4*(-t11 + 2*t8*x1*x2) + twist5*(t12 + t13*x3),
+        twist3*(t11 + t13*x2) + twist4*(-t15 - t17) + twist5*(-t16 + 2*t8*x2*x3),
+        twist3*(-t12 + 2*t8*x1*x3) + twist4*(t16 + t9*x2*x3) + twist5*(-t14 - t17 + 1),
+    )
+
+
+def pose_error(x, p):
+    """(|p_WC - p_WC*|^2, |R_WC - R_WC*|_F^2) from the rig pose x = [q_WR, p_WR] and p = [R_RC (9), p_RC (3), R_WC* (9), p_WC* (3)]."""
+    x0, x1, x2, x3, x4, x5, x6 = x
+    p0, p1, p2, p3, p4, p5, p6, p7, p8, p9, p10, p11, p12, p13, p14, p15, p16, p17, p18, p19, p20, p21, p22, p23 = p
+    t0 = (x1*x1)
+    t1 = (x2*x2)
+    t2 = (x3*x3)
+    t3 = (1/((t0 + t1 + t2 + (x0*x0))))
+    t4 = 2*t3
+    t5 = t4*x0
+    t6 = t5*x1
+    t7 = t4*x2*x3 + t6
+    t8 = t5*x2
+    t9 = 2*t3*x1*x3 - t8
+    t10 = t0*t4
+    t11 = t1*t4
+    t12 = -t10 - t11 + 1
+    t13 = t5*x3
+    t14 = -t13 + 2*t3*x1*x2
+    t15 = t4*x1
+    t16 = t15*x3 + t8
+    t17 = t2*t4 - 1
+    t18 = -t11 - t17
+    t19 = 2*t3*x2*x3 - t6
+    t20 = t13 + t15*x2
+    t21 = -t10 - t17
+    return (
+        ((p10*t14 + p11*t16 - p21 + p9*t18 + x4)*(p10*t14 + p11*t16 - p21 + p9*t18 + x4)) + ((p10*t21 + p11*t19 - p22 + p9*t20 + x5)*(p10*t21 + p11*t19 - p22 + p9*t20 + x5)) + ((p10*t7 + p11*t12 - p23 + p9*t9 + x6)*(p10*t7 + p11*t12 - p23 + p9*t9 + x6)),
+        ((-p14 + p2*t18 + p5*t14 + p8*t16)*(-p14 + p2*t18 + p5*t14 + p8*t16)) + ((-p17 + p2*t20 + p5*t21 + p8*t19)*(-p17 + p2*t20 + p5*t21 + p8*t19)) + ((p0*t18 - p12 + p3*t14 + p6*t16)*(p0*t18 - p12 + p3*t14 + p6*t16)) + ((p0*t20 - p15 + p3*t21 + p6*t19)*(p0*t20 - p15 + p3*t21 + p6*t19)) + ((p0*t9 - p18 + p3*t7 + p6*t12)*(p0*t9 - p18 + p3*t7 + p6*t12)) + ((p1*t18 - p13 + p4*t14 + p7*t16)*(p1*t18 - p13 + p4*t14 + p7*t16)) + ((p1*t20 - p16 + p4*t21 + p7*t19)*(p1*t20 - p16 + p4*t21 + p7*t19)) + ((p1*t9 - p19 + p4*t7 + p7*t12)*(p1*t9 - p19 + p4*t7 + p7*t12)) + ((p2*t9 - p20 + p5*t7 + p8*t12)*(p2*t9 - p20 + p5*t7 + p8*t12)),
+    )

@@ -1,0 +1,135 @@
+"""The batch engine against the Drake loop, and its per-sample masking.
+
+Truth: Drake's own Simulator on the same diagram (MultibodyPlant free body or
+the kinematic body), with its fifth-order integrator at accuracy 1e-10, and
+simulate()'s statuses.
+"""
+
+import copy
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+
+from geovs_drake.analysis.monte_carlo import random_initial_poses
+from geovs_drake.batch import STATUS_NAMES, loop_parameters, run_batch
+from geovs_drake.diagrams import (
+    initial_body_states,
+    make_dynamic_servo_diagram,
+    make_kinematic_servo_diagram,
+)
+from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.simulation import simulate
+
+OFFSET = PoseConfig(xyz=[0.03, -0.02, 0.05], rpy=[0.1, 0.2, -0.3])
+
+
+def _starts(config: ScenarioConfig, n: int, seed: int) -> np.ndarray:
+    poses = random_initial_poses(np.random.default_rng(seed), n, config, shrink=0.9)
+    return np.stack([p.to_rigid_transform().GetAsMatrix4() for p in poses])
+
+
+def _drake_state_at(config: ScenarioConfig, x0: np.ndarray, t: float) -> np.ndarray:
+    build = (
+        make_dynamic_servo_diagram
+        if config.controller == "dynamic"
+        else make_kinematic_servo_diagram
+    )
+    truth = copy.deepcopy(config)
+    # Tight: RK5 at 1e-10 for the dynamic loop; RK3 at 1e-9 for the kinematic one, where
+    # Drake's RK5 crawls (its error control meets the NF's steep walls near the boundary).
+    dynamic = config.controller == "dynamic"
+    truth.simulator.integration_scheme = "runge_kutta5" if dynamic else "runge_kutta3"
+    truth.simulator.accuracy = 1e-10 if dynamic else 1e-9
+    simulator = Simulator(build(truth, log=False))
+    ApplySimulatorConfig(truth.simulator, simulator)
+    simulator.get_mutable_context().SetContinuousState(x0)
+    simulator.AdvanceTo(t)
+    return simulator.get_context().get_continuous_state_vector().CopyToVector()
+
+
+@pytest.mark.parametrize(
+    "controller,moving", [("dynamic", False), ("dynamic", True), ("kinematic", False)]
+)
+def test_batch_states_at_one_second_match_the_drake_loop(controller, moving):
+    """16 starts (dynamic: camera off the rig's centre of mass, anisotropic inertia):
+    the states at t = 1 s agree to 1e-6, and so do the statuses."""
+    config = ScenarioConfig(controller=controller)
+    if controller == "dynamic":
+        config.rig.camera_offset = copy.deepcopy(OFFSET)
+        config.rig.inertia_diagonal = [0.02, 0.03, 0.025]
+    X_BC = _starts(config, 16, seed=11)
+    twists = None
+    if moving:
+        twists = np.random.default_rng(12).normal(scale=[0.3] * 3 + [0.05] * 3, size=(16, 6))
+    result = run_batch(config, X_BC, twists, duration=1.0, accuracy=1e-10)
+    X0 = initial_body_states(config, X_BC, twists)
+    worst = max(
+        float(np.max(np.abs(result.final_states[i] - _drake_state_at(config, X0[i], 1.0))))
+        for i in range(16)
+    )
+    print(f"\n{controller} moving={moving}: max |batch - Drake| at t = 1 s: {worst:.1e}")
+    assert worst < 1e-6
+    assert np.all(result.status == "not_converged")  # 1 s is too short to converge
+
+
+def test_batch_statuses_match_simulate_including_a_start_that_leaves_D():
+    """The same starts through simulate() and the engine end with the same statuses:
+    three at rest converge, and one thrown backwards fast (E0 >> k_p) leaves D."""
+    config = ScenarioConfig(duration=8.0)
+    X_BC = _starts(config, 4, seed=3)
+    twists = np.zeros((4, 6))
+    twists[3, 3:6] = [8.0, 0.0, 0.0]  # sideways, 8 m/s: out through the field of view
+    result = run_batch(config, X_BC, twists)
+    for i in range(4):
+        c = copy.deepcopy(config)
+        c.initial = PoseConfig.from_rigid_transform(RigidTransform(X_BC[i]))
+        c.initial_velocity = twists[i].tolist()
+        r = simulate(c)
+        assert result.status[i] == r.status, (i, result.status[i], r.message)
+    assert list(result.status) == ["converged"] * 3 + ["left_domain"]
+    assert result.max_lyapunov_ratio[3] > 1  # outside the energy guarantee
+    assert np.all(result.max_lyapunov_ratio[:3] < 1) and np.all(result.monotone[:3])
+
+
+def test_one_bad_sample_never_stops_the_batch():
+    config = ScenarioConfig(duration=3.0)
+    X_BC = _starts(config, 4, seed=5)
+    X_BC[1, 0:3, 3] *= 50  # 50 times further out: outside D from the start
+    X_BC[2, 0:3, 3] = np.nan  # no position at all
+    result = run_batch(config, X_BC, step=0.01)
+    assert result.status[1] == "left_domain" and result.t_stop[1] == 0.0
+    assert result.status[2] == "non_finite"
+    assert result.status[0] in ("converged", "not_converged")
+    assert result.status[3] in ("converged", "not_converged")
+    assert set(result.counts()) == set(STATUS_NAMES) and sum(result.counts().values()) == 4
+
+
+def test_fixed_and_error_controlled_steps_agree_on_the_default_start():
+    config = ScenarioConfig(duration=10.0)
+    X_BC = config.X_BC_initial.GetAsMatrix4()[None]
+    adaptive = run_batch(config, X_BC)
+    fixed = run_batch(config, X_BC, step=0.01)
+    assert adaptive.status[0] == fixed.status[0] == "converged"
+    assert abs(adaptive.t_converged[0] - fixed.t_converged[0]) < 0.05
+    assert adaptive.monotone[0] and fixed.monotone[0]
+    # The engine's convergence time is simulate()'s, to the log's resolution.
+    r = simulate(config)
+    errors = [r.final_errors]  # converged there too
+    assert r.status == "converged" and errors
+    assert loop_parameters(config).potential_gain == config.control.potential_gain
+
+
+@pytest.mark.parametrize(
+    "kwargs,message",
+    [
+        (dict(duration=-1.0), "duration must be finite and > 0"),
+        (dict(step=0.0), "step must be in"),
+        (dict(accuracy=2.0), "accuracy must be in"),
+    ],
+)
+def test_bad_settings_raise_clear_errors(kwargs, message):
+    config = ScenarioConfig()
+    with pytest.raises(ValueError, match=message):
+        run_batch(config, config.X_BC_initial.GetAsMatrix4()[None], **kwargs)
