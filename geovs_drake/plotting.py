@@ -242,3 +242,37 @@ def write_block_diagram(diagram, path_stem: str | Path, max_depth: int = 1) -> l
         subprocess.run([dot, f"-T{fmt}", "-o", str(target)], input=source, text=True, check=True)
         out.append(target)
     return out
+
+
+def plot_basin_map(basin, path: str | Path) -> None:
+    """Convergence time over the roll x distance slice; failed starts marked by status."""
+    import matplotlib.pyplot as plt
+
+    r = basin.result
+    t = basin.grid(np.where(r.status_code == 0, r.t_converged, np.nan))
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    mesh = ax.pcolormesh(basin.distances, np.degrees(basin.rolls), t, shading="nearest")
+    fig.colorbar(mesh, ax=ax, label="time to 1 mm / 1 mrad [s]")
+    status = basin.grid(r.status_code)
+    for code, marker in ((1, "x"), (2, "s"), (3, "v"), (4, "o")):
+        rows, cols = np.nonzero(status == code)
+        if len(rows):
+            ax.scatter(
+                basin.distances[cols],
+                np.degrees(basin.rolls[rows]),
+                marker=marker,
+                s=12,
+                color="red",
+                label=f"{r.names[code]} ({len(rows)})",
+            )
+    ax.set(
+        xlabel="distance to the marked point [m]",
+        ylabel="roll about the optical axis [deg]",
+        title=f"basin map, {r.plant} loop: {int(np.sum(r.status_code == 0))}/{r.status_code.size} "
+        f"converged in {r.duration:g} s",
+    )
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
