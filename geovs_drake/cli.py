@@ -1,4 +1,4 @@
-"""Command line: ``geovs-drake simulate`` and ``geovs-drake demo``.
+"""Command line: ``geovs-drake simulate``, ``geovs-drake demo`` and ``geovs-drake sweep``.
 
 Examples::
 
@@ -6,14 +6,19 @@ Examples::
     geovs-drake simulate --controller kinematic --initial=-0.1,0.05,-0.7,0.1,0,1.2
     geovs-drake simulate --initial-velocity=-0.2,0,0.3,0.05,-0.1,0
     geovs-drake demo --out results
+    geovs-drake sweep --starts 10000 --duration 10 --json
+    geovs-drake sweep --scheduler tcp://host:8786 --starts 100000
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import math
 import sys
+import time
+from pathlib import Path
 from typing import NoReturn
 
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
@@ -112,6 +117,222 @@ def _demo(args: argparse.Namespace) -> int:
     return run_demo(args.out, args.duration, meshcat=not args.no_meshcat)
 
 
+class _SweepInputError(ValueError):
+    """A bad ``sweep`` argument, found before anything runs."""
+
+
+class _Progress:
+    """Finished chunks on stderr: a tqdm bar on a terminal, else a line per chunk, at
+    most one every few seconds (and always the last), so a log gets no carriage-return flood."""
+
+    MIN_INTERVAL_S = 2.0
+
+    def __init__(self, starts: int, chunks: int) -> None:
+        self.starts, self.chunks, self.done, self.chunks_done = starts, chunks, 0, 0
+        self.start = time.perf_counter()
+        self.last_line = -math.inf
+        self.bar = None
+        if sys.stderr.isatty():
+            try:
+                from tqdm import tqdm
+            except ImportError:
+                tqdm = None
+            if tqdm is not None:
+                self.bar = tqdm(total=starts, unit="start", file=sys.stderr, desc="sweep")
+
+    def update(self, rows: int) -> None:
+        self.done += rows
+        self.chunks_done += 1
+        if self.bar is not None:
+            self.bar.update(rows)
+            return
+        now = time.perf_counter()
+        if now - self.last_line >= self.MIN_INTERVAL_S or self.chunks_done == self.chunks:
+            self.last_line = now
+            print(
+                f"geovs-drake sweep: {self.done}/{self.starts} starts "
+                f"({self.chunks_done}/{self.chunks} chunks) after {now - self.start:.1f} s",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _sweep_checks(args: argparse.Namespace) -> None:
+    """Every bad input in one line, before anything starts (exit code 2)."""
+    for name in ("starts", "workers", "chunk"):
+        value = getattr(args, name)
+        if value < 1:
+            raise _SweepInputError(f"--{name} must be >= 1: --{name} {value}")
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        raise _SweepInputError(f"--duration must be finite and > 0 [s]: --duration {args.duration}")
+    if args.velocity == "bounded" and args.plant == "kinematic":
+        raise _SweepInputError(
+            "--velocity bounded needs --plant dynamic (the kinematic loop is first order "
+            "and starts at rest)"
+        )
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise _SweepInputError(f"--out {out} exists and is not a directory")
+    if args.config and not Path(args.config).is_file():
+        raise _SweepInputError(f"--config {args.config}: no such file")
+
+
+def _write_rows(path: Path, rows: list[dict], fields: tuple[str, ...]) -> None:
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=fields)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from geovs_drake.analysis import sweep
+
+    _sweep_checks(args)
+    config = load_scenario(args.config) if args.config else ScenarioConfig()
+    config.controller = args.plant
+    config.validate()
+    velocity = args.velocity or ("bounded" if args.plant == "dynamic" else "none")
+    X_BC, twists = sweep.sample_starts(config, args.starts, args.seed, velocity)
+    out = Path(args.out)
+    csv_path = out / "sweep.csv"
+    progress = _Progress(args.starts, -(-args.starts // args.chunk))
+    stream = {}
+
+    def on_chunk(rows: list[dict]) -> None:
+        # Rows as they arrive (a crash leaves what finished); sorted at the end.
+        if not stream:
+            out.mkdir(parents=True, exist_ok=True)
+            stream["file"] = open(csv_path, "w", newline="")
+            stream["writer"] = csv.DictWriter(stream["file"], fieldnames=sweep.ROW_FIELDS)
+            stream["writer"].writeheader()
+        stream["writer"].writerows(rows)
+        stream["file"].flush()
+        progress.update(len(rows))
+
+    code = 0
+    try:
+        result = sweep.run_sweep(
+            config,
+            X_BC,
+            twists,
+            duration=args.duration,
+            engine=args.engine,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            chunk=args.chunk,
+            on_chunk=on_chunk,
+        )
+    except sweep.SweepInterrupted as e:
+        result, code = e.result, 130
+    finally:
+        progress.close()
+        if stream:
+            stream["file"].close()
+    out.mkdir(parents=True, exist_ok=True)
+    _write_rows(csv_path, result.rows, sweep.ROW_FIELDS)
+    summary = sweep.summarize(result, seed=args.seed, velocity=velocity)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    if result.rows:
+        try:
+            sweep.plot_sweep(result, out)
+        except ImportError:
+            print("geovs-drake: matplotlib is not installed: plots skipped", file=sys.stderr)
+        except KeyboardInterrupt:  # the rows and the summary are written already
+            print("geovs-drake: interrupted while plotting: plots skipped", file=sys.stderr)
+            code = 130
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        counts = ", ".join(f"{k} {v}" for k, v in summary["counts"].items())
+        g = summary["guarantee"]
+        print(
+            f"{result.plant}: {len(result.rows)} of {result.starts} starts x "
+            f"{result.duration:g} s ({result.engine}): {counts} | E0 < k_p: {g['starts']} "
+            f"starts, of which left D {g['left_domain']}, lost visibility "
+            f"{g['lost_visibility']}, non-finite {g['non_finite']} | "
+            f"{result.wall_time_s:.1f} s wall | {out}/"
+        )
+    if code == 130:
+        print(
+            f"geovs-drake: interrupted: {len(result.rows)} of {result.starts} starts "
+            f"finished, written to {out}/",
+            file=sys.stderr,
+        )
+    return code
+
+
+def _add_sweep_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--config", metavar="FILE", help="scenario YAML (fields of ScenarioConfig; default: none)"
+    )
+    p.add_argument(
+        "--plant",
+        choices=["kinematic", "dynamic"],
+        default="dynamic",
+        help="the loop (sets the config's controller; default: dynamic)",
+    )
+    p.add_argument(
+        "--starts", type=int, default=1000, metavar="N", help="number of starts (default: 1000)"
+    )
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=10.0,
+        metavar="T",
+        help="simulated time per start [s] (default: 10)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        metavar="S",
+        help="seed of the starts' generator (default: 0)",
+    )
+    p.add_argument(
+        "--velocity",
+        choices=["none", "bounded"],
+        default=None,
+        help="initial twists: none (at rest) or bounded (random, E0 < k_p) "
+        "(default: bounded on the dynamic plant, none on the kinematic one)",
+    )
+    p.add_argument(
+        "--engine",
+        choices=["batch", "drake"],
+        default="batch",
+        help="batch: the compiled batch engine; drake: Drake's Simulator start by start, "
+        "slow, for cross-checks (default: batch)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=2,
+        metavar="K",
+        help="worker processes of the local Dask cluster; 1 runs in this process "
+        "(default: 2; ignored with --scheduler)",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="address of a running Dask scheduler, e.g. tcp://host:8786 "
+        "(default: none, a local cluster of --workers processes)",
+    )
+    p.add_argument(
+        "--chunk", type=int, default=1000, metavar="C", help="starts per task (default: 1000)"
+    )
+    p.add_argument(
+        "--out",
+        default="results/sweep",
+        metavar="DIR",
+        help="output folder: sweep.csv, summary.json, plots (default: results/sweep)",
+    )
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON line")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = _OneLineParser(
         prog="geovs-drake",
@@ -127,6 +348,16 @@ def main(argv: list[str] | None = None) -> int:
     demo.add_argument("--duration", type=float, default=None)
     demo.add_argument("--no-meshcat", action="store_true", help="skip the Meshcat recording")
     demo.set_defaults(func=_demo)
+    sw = sub.add_parser(
+        "sweep",
+        help="the energy guarantee on many random starts in D, in chunks on Dask",
+        description="Run the loop from N random starts in D (images uniform in D's model "
+        "chart) on dask.distributed; write DIR/sweep.csv (a row per start), "
+        "DIR/summary.json and plots. Exit code 0 when the sweep ran, 2 for bad input, "
+        "130 after Ctrl-C (the finished rows are written).",
+    )
+    _add_sweep_args(sw)
+    sw.set_defaults(func=_sweep)
     args = parser.parse_args(argv)
     try:
         return args.func(args)
