@@ -47,6 +47,7 @@ format: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_camera_map.py
 	$(BIN)/python benchmarks/bench_closed_loop.py
+	$(BIN)/python benchmarks/bench_batch.py
 	$(BIN)/python benchmarks/time_to_converge.py
 
 clean:

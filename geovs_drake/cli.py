@@ -169,9 +169,9 @@ def _sweep_checks(args: argparse.Namespace) -> None:
             raise _SweepInputError(f"--{name} must be >= 1: --{name} {value}")
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise _SweepInputError(f"--duration must be finite and > 0 [s]: --duration {args.duration}")
-    if args.velocity == "bounded" and args.plant == "kinematic":
+    if args.velocity in ("bounded", "above") and args.plant == "kinematic":
         raise _SweepInputError(
-            "--velocity bounded needs --plant dynamic (the kinematic loop is first order "
+            f"--velocity {args.velocity} needs --plant dynamic (the kinematic loop is first order "
             "and starts at rest)"
         )
     out = Path(args.out)
@@ -294,9 +294,10 @@ def _add_sweep_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--velocity",
-        choices=["none", "bounded"],
+        choices=["none", "bounded", "above"],
         default=None,
-        help="initial twists: none (at rest) or bounded (random, E0 < k_p) "
+        help="initial twists: none (at rest), bounded (random, E0 < k_p) or above "
+        "(E0 / k_p uniform in [1.5, 4): outside the guarantee) "
         "(default: bounded on the dynamic plant, none on the kinematic one)",
     )
     p.add_argument(

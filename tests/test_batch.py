@@ -133,3 +133,25 @@ def test_bad_settings_raise_clear_errors(kwargs, message):
     config = ScenarioConfig()
     with pytest.raises(ValueError, match=message):
         run_batch(config, config.X_BC_initial.GetAsMatrix4()[None], **kwargs)
+
+
+def test_energy_guarantee_on_1000_moving_starts_and_its_other_side():
+    """Appendix C: E0 < k_p keeps phi < 1, so no start leaves D. With E0 / k_p in
+    [1.5, 4) the guarantee is silent, and some starts do leave: the check can fail."""
+    from geovs_drake.analysis.sweep import sample_starts
+
+    config = ScenarioConfig(duration=10.0)
+    X_BC, twists = sample_starts(config, 1000, seed=4, velocity="bounded")
+    below = run_batch(config, X_BC, twists)
+    assert np.all(below.initial_lyapunov < config.control.potential_gain)
+    assert below.counts()["left_domain"] == below.counts()["lost_visibility"] == 0
+    assert below.counts()["non_finite"] == 0 and np.all(below.max_lyapunov_ratio < 1)
+    assert np.all(below.monotone) and below.counts()["converged"] == 1000
+    X_BC, twists = sample_starts(config, 300, seed=4, velocity="above")
+    above = run_batch(config, X_BC, twists)
+    assert np.all(above.initial_lyapunov >= 1.5 * config.control.potential_gain)
+    left = above.counts()["left_domain"] + above.counts()["lost_visibility"]
+    print(f"\nE0 < k_p: {below.counts()}; E0/k_p in [1.5, 4): {left}/300 left D")
+    assert 0 < left < 300
+    exits = above.status_code == 2
+    assert np.all(np.min(above.min_margins[exits], axis=1) < 0)  # the exit state is recorded

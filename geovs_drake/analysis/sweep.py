@@ -54,6 +54,7 @@ from geovs_drake.simulation import (
 )
 
 __all__ = [
+    "ABOVE_RANGE",
     "ENERGY_FACTOR",
     "ROW_FIELDS",
     "SCHEDULER_TIMEOUT_S",
@@ -109,7 +110,10 @@ ENERGY_FACTOR = 0.99
 #: How long to try to reach an existing scheduler before giving up [s].
 SCHEDULER_TIMEOUT_S = 10.0
 ENGINES = ("batch", "drake")
-VELOCITIES = ("none", "bounded")
+VELOCITIES = ("none", "bounded", "above")
+#: With ``velocity="above"``: E0 / k_p is drawn uniformly in this interval, outside
+#: the guarantee, to show how often the loop then leaves D.
+ABOVE_RANGE = (1.5, 4.0)
 
 
 class SweepError(ValueError):
@@ -163,6 +167,8 @@ def sample_starts(
     direction is uniform on the unit sphere of R^6 and whose kinetic energy KE is
     uniform in [0, k_p (1 - phi0)) times :data:`ENERGY_FACTOR`, so that
     E0 = k_p phi0 + KE < k_p: every start is one Appendix C's guarantee covers.
+    ``velocity="above"`` draws E0 / k_p uniformly in :data:`ABOVE_RANGE` instead:
+    starts the guarantee does not cover.
     KE is quadratic in the twist's scale, so the scale is sqrt(KE / KE1) with KE1
     the kinetic energy of the unit twist, from the rig's state
     (:func:`~geovs_drake.diagrams.initial_body_states`) and the ``free_body`` kernel,
@@ -176,9 +182,9 @@ def sample_starts(
     if velocity not in VELOCITIES:
         raise SweepError(f"velocity must be one of {VELOCITIES}: velocity = {velocity!r}")
     dynamic = config.controller == "dynamic"
-    if velocity == "bounded" and not dynamic:
+    if velocity != "none" and not dynamic:
         raise SweepError(
-            "velocity 'bounded' needs the dynamic plant (the kinematic loop is first order "
+            f"velocity {velocity!r} needs the dynamic plant (the kinematic loop is first order "
             f"and starts at rest): controller = {config.controller!r}"
         )
     rng = np.random.default_rng(seed)
@@ -193,8 +199,12 @@ def sample_starts(
     direction = rng.normal(size=(int(n), 6))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
     kinetic_unit = _kinetic_energy(config, p, X_BC, direction)
-    room = p.potential_gain * (1.0 - phi0)
-    kinetic = ENERGY_FACTOR * rng.uniform(0.0, 1.0, size=int(n)) * room
+    if velocity == "above":
+        target = p.potential_gain * rng.uniform(*ABOVE_RANGE, size=int(n))
+        kinetic = target - p.potential_gain * phi0
+    else:
+        room = p.potential_gain * (1.0 - phi0)
+        kinetic = ENERGY_FACTOR * rng.uniform(0.0, 1.0, size=int(n)) * room
     twists = direction * np.sqrt(kinetic / kinetic_unit)[:, None]
     return X_BC, twists
 
