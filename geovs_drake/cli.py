@@ -198,7 +198,7 @@ def _sweep(args: argparse.Namespace) -> int:
     velocity = args.velocity or ("bounded" if args.plant == "dynamic" else "none")
     X_BC, twists = sweep.sample_starts(config, args.starts, args.seed, velocity)
     out = Path(args.out)
-    csv_path = out / "sweep.csv"
+    csv_path = out / "results.csv"
     progress = _Progress(args.starts, -(-args.starts // args.chunk))
     stream = {}
 
@@ -329,7 +329,7 @@ def _add_sweep_args(p: argparse.ArgumentParser) -> None:
         "--out",
         default="results/sweep",
         metavar="DIR",
-        help="output folder: sweep.csv, summary.json, plots (default: results/sweep)",
+        help="output folder: results.csv, summary.json, plots (default: results/sweep)",
     )
     p.add_argument("--json", action="store_true", help="print the summary as one JSON line")
 
@@ -353,7 +353,7 @@ def main(argv: list[str] | None = None) -> int:
         "sweep",
         help="the energy guarantee on many random starts in D, in chunks on Dask",
         description="Run the loop from N random starts in D (images uniform in D's model "
-        "chart) on dask.distributed; write DIR/sweep.csv (a row per start), "
+        "chart) on dask.distributed; write DIR/results.csv (a row per start), "
         "DIR/summary.json and plots. Exit code 0 when the sweep ran, 2 for bad input, "
         "130 after Ctrl-C (the finished rows are written).",
     )

@@ -171,7 +171,7 @@ def test_cli_end_to_end(tmp_path, capsys):
     assert summary["guarantee"]["left_domain"] == 0
     assert (summary["seed"], summary["chunk"], summary["duration"]) == (3, 4, 2.0)
     assert summary["wall_time_s"] > 0
-    with open(out_dir / "sweep.csv", newline="") as f:
+    with open(out_dir / "results.csv", newline="") as f:
         reader = csv.reader(f)
         header = next(reader)
         rows = list(reader)
