@@ -33,8 +33,11 @@ __all__ = [
     "NUMPY",
     "OutOfDomainError",
     "Ops",
+    "any_true",
+    "components",
     "first_bad",
     "namespace",
+    "pack",
     "to_float",
 ]
 
@@ -42,8 +45,8 @@ __all__ = [
 class OutOfDomainError(ValueError):
     """A value outside the set a map is defined on: an invisible pose, an image
     outside I, a non-finite entry. Distinct from malformed input (shapes,
-    parameters), so that Drake systems can turn it into NaN outputs for an
-    integrator's rejected trial stage while every other error still raises."""
+    parameters), so that a caller can tell a point outside the maps' domain
+    from a wrong call."""
 
 
 class Ops(NamedTuple):
@@ -64,13 +67,13 @@ _BY_TYPE = {float: MATH, int: MATH, np.float64: MATH, np.ndarray: NUMPY}
 
 
 def namespace(x: object) -> Ops:
-    """The :class:`Ops` for the number type of ``x`` (one component of a formula)."""
-    ops = _BY_TYPE.get(type(x))
-    if ops is NUMPY and x.dtype == object:
-        # An object array (AutoDiffXd or Expression entries): numpy's ufuncs
-        # call each entry's own method, which pydrake provides.
-        return NUMPY
-    return ops if ops is not None else DRAKE
+    """The :class:`Ops` for the number type of ``x`` (one component of a formula).
+
+    An ndarray gets numpy, whatever its entries: on object arrays (AutoDiffXd,
+    Expression) numpy's ufuncs call each entry's own method, which pydrake
+    provides. Any other non-float scalar is a pydrake scalar.
+    """
+    return _BY_TYPE.get(type(x), DRAKE)
 
 
 class _Unevaluable(Exception):
