@@ -368,3 +368,20 @@ def test_goal_changes_without_rebuild(goal):
 def test_pure_functions_match_class(nf, samples):
     y = samples[:50]
     np.testing.assert_array_equal(navigation_value(y, nf.goal, nf.domain, nf.gains), nf.value(y))
+
+
+def test_phi_outside_domain_raises_naming_the_face(nf, goal):
+    """Outside D the formula is no navigation function: the functions refuse it."""
+    far = camera_map(RigidTransform([0.0, 0.0, 2.5]), RHO)  # lambda = 0.04 < lam_min
+    with pytest.raises(ValueError, match=r"y outside D: lam_min margin = -0.01\d* < 0"):
+        nf.value(far)
+    with pytest.raises(ValueError, match="y outside D: lam_min margin"):
+        navigation_differential(far, goal, nf.domain, nf.gains)
+    batch = ImageFeatures.from_vector(np.stack([goal.to_vector(), far.to_vector()]))
+    with pytest.raises(ValueError, match=r"y outside D: lam_min margin = .* at batch index \(1,\)"):
+        nf.clearance(batch)
+    # Out of the field of view: the sphere's edge beyond the 35 deg cone.
+    wide = camera_map(RigidTransform([0.35, 0.0, 0.5]), RHO)
+    assert DEFAULT_DOMAIN.margins(wide).fov < 0
+    with pytest.raises(ValueError, match="y outside D: fov margin"):
+        nf.value(wide)

@@ -78,8 +78,12 @@ def retract(y: ImageFeatures, delta: np.ndarray) -> ImageFeatures:
 
 
 def chart_gradient(nf: NavigationFunction, y: ImageFeatures) -> tuple[np.ndarray, np.ndarray]:
-    """(phi, F) with F = (dphi_xi, dphi_lambda, B^T dphi_s), shape (..., 6)."""
-    phi, dphi = nf.value_and_differential(y)
+    """(phi, F) with F = (dphi_xi, dphi_lambda, B^T dphi_s), shape (..., 6).
+
+    The formula's smooth extension is used just outside D: the Hessian's
+    difference probes around points in D's boundary layer straddle it.
+    """
+    phi, dphi = nf.value_and_differential(y, extend=True)
     Bs = np.einsum("...ij,...i->...j", chart_basis(y.s), dphi[..., 4:7])
     return phi, np.concatenate([dphi[..., 0:4], Bs], axis=-1)
 
@@ -190,7 +194,7 @@ def _in_domain(nf: NavigationFunction, y: ImageFeatures) -> np.ndarray:
 
 
 def _relative_residual(nf: NavigationFunction, y: ImageFeatures, F: np.ndarray) -> np.ndarray:
-    return np.linalg.norm(F, axis=-1) / np.maximum(nf.clearance(y), 1e-300)
+    return np.linalg.norm(F, axis=-1) / np.maximum(nf.clearance(y, extend=True), 1e-300)
 
 
 @dataclass

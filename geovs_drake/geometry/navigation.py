@@ -82,13 +82,23 @@ from typing import NamedTuple
 
 import numpy as np
 
-from geovs_drake.geometry._ops import MATH, Ops, components, namespace, pack, to_float
+from geovs_drake.geometry._ops import (
+    MATH,
+    Ops,
+    OutOfDomainError,
+    components,
+    first_bad,
+    namespace,
+    pack,
+    to_float,
+)
 from geovs_drake.geometry.camera import ImageFeatures, as_features, validated_components
 from geovs_drake.geometry.domain import SafeDomain, domain_margins, fov_cap, occlusion_cap
 from geovs_drake.geometry.kernels import navigation as navigation_kernel
 
 __all__ = [
     "ModelCoordinates",
+    "check_in_domain",
     "NavigationFunction",
     "NavigationGains",
     "clearance_of",
@@ -237,8 +247,33 @@ def _parameters(goal: tuple, domain_params: tuple, gains_params: tuple) -> tuple
     return domain_params + gains_params + model_coordinates_of(goal, domain_params, MATH)
 
 
-def _evaluate(y, goal, domain, gains, differential: bool):
+_MARGIN_NAMES = ("fov", "lam_min", "lam_max", "occlusion")
+
+
+def check_in_domain(comps: tuple, domain: SafeDomain) -> None:
+    """Raise OutOfDomainError naming the first face of D that the image y crosses.
+
+    phi is defined on D (Definition 1): on its boundary phi = 1, and outside
+    it the formula's extension is no navigation function (values below 0 or
+    above 1 happen). ``comps`` are y's 13 components, already checked to lie
+    in I; symbolic entries with free variables pass unchecked.
+    """
+    values = to_float(pack(comps))
+    if values is None:
+        return
+    y = components(values, 13, "y")
+    xp = namespace(y[9])
+    for name, margin in zip(_MARGIN_NAMES, domain_margins(y, domain.params, xp), strict=True):
+        bad = np.asarray(margin) < 0
+        if np.any(bad):
+            value, where = first_bad(margin, bad)
+            raise OutOfDomainError(f"y outside D: {name} margin = {value:.6g} < 0{where}")
+
+
+def _evaluate(y, goal, domain, gains, differential: bool, extend: bool = False):
     comps = validated_components(y)
+    if not extend:
+        check_in_domain(comps, domain)
     params = navigation_parameters(goal, domain, gains)
     xp = namespace(comps[9])
     if differential:
@@ -251,9 +286,18 @@ def navigation_value(
     goal: ImageFeatures | np.ndarray,
     domain: SafeDomain,
     gains: NavigationGains | None = None,
+    extend: bool = False,
 ) -> np.ndarray:
-    """phi(y) in [0, 1] (see the module docstring for the construction)."""
-    return np.asarray(1 - _evaluate(y, goal, domain, gains, False))
+    """phi(y) in [0, 1] (see the module docstring for the construction).
+
+    Raises OutOfDomainError outside D (``y outside D: fov margin = -0.03 < 0``)
+    and ValueError outside I; phi = 1 exactly on the boundary of D. With
+    ``extend=True`` it returns the formula's smooth extension to I instead (no
+    navigation function there: values outside [0, 1] happen), for numerical
+    probes that straddle the boundary; the same holds for the differential
+    and the clearance.
+    """
+    return np.asarray(1 - _evaluate(y, goal, domain, gains, False, extend))
 
 
 def navigation_differential(
@@ -261,13 +305,14 @@ def navigation_differential(
     goal: ImageFeatures | np.ndarray,
     domain: SafeDomain,
     gains: NavigationGains | None = None,
+    extend: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(phi(y), dphi(y)); dphi has shape (..., 7), its s-part orthogonal to s.
 
     ``d/dt phi(y(t)) = dphi . (xi, lambda_dot, s_dot)``; dphi is also the
     gradient of phi for the embedded Euclidean metric.
     """
-    out = _evaluate(y, goal, domain, gains, True)
+    out = _evaluate(y, goal, domain, gains, True, extend)
     return np.asarray(1 - out[0]), pack(out[1:])
 
 
@@ -276,9 +321,10 @@ def navigation_clearance(
     goal: ImageFeatures | np.ndarray,
     domain: SafeDomain,
     gains: NavigationGains | None = None,
+    extend: bool = False,
 ) -> np.ndarray:
     """1 - phi(y), without the cancellation of forming it from phi near the boundary."""
-    return np.asarray(_evaluate(y, goal, domain, gains, False))
+    return np.asarray(_evaluate(y, goal, domain, gains, False, extend))
 
 
 def model_coordinates(y: ImageFeatures | np.ndarray, domain: SafeDomain) -> ModelCoordinates:
@@ -361,20 +407,21 @@ class NavigationFunction:
         """The 16 floats of :func:`navigation_parameters`."""
         return navigation_parameters(self._goal, self.domain, self.gains)
 
-    def value(self, y: ImageFeatures | np.ndarray) -> np.ndarray:
-        return navigation_value(y, self._goal, self.domain, self.gains)
+    def value(self, y: ImageFeatures | np.ndarray, extend: bool = False) -> np.ndarray:
+        """phi(y); raises outside D unless ``extend`` (see :func:`navigation_value`)."""
+        return navigation_value(y, self._goal, self.domain, self.gains, extend)
 
-    def differential(self, y: ImageFeatures | np.ndarray) -> np.ndarray:
-        return navigation_differential(y, self._goal, self.domain, self.gains)[1]
+    def differential(self, y: ImageFeatures | np.ndarray, extend: bool = False) -> np.ndarray:
+        return navigation_differential(y, self._goal, self.domain, self.gains, extend)[1]
 
     def value_and_differential(
-        self, y: ImageFeatures | np.ndarray
+        self, y: ImageFeatures | np.ndarray, extend: bool = False
     ) -> tuple[np.ndarray, np.ndarray]:
-        return navigation_differential(y, self._goal, self.domain, self.gains)
+        return navigation_differential(y, self._goal, self.domain, self.gains, extend)
 
-    def clearance(self, y: ImageFeatures | np.ndarray) -> np.ndarray:
+    def clearance(self, y: ImageFeatures | np.ndarray, extend: bool = False) -> np.ndarray:
         """1 - phi(y), accurate where phi is within rounding of 1."""
-        return navigation_clearance(y, self._goal, self.domain, self.gains)
+        return navigation_clearance(y, self._goal, self.domain, self.gains, extend)
 
     def saddle(self) -> ImageFeatures:
         return saddle_of(self._goal, self.domain)

@@ -69,6 +69,11 @@ def NavigationController_(T):
 
         The input is checked once here, at the loop's first consumer of y: an
         image outside I (or NaN, from an invisible pose) gives NaN outputs.
+        Between the boundary of D and that of I the outputs continue the
+        formula smoothly (the pure functions' ``extend=True``; phi may leave
+        [0, 1] there), so an integrator's trial stage just outside D does not
+        fail; the safe-domain monitor of ``simulate()`` stops any run whose
+        accepted state leaves D.
         Downstream systems that read the same y (``ImageJacobianForce``,
         ``KinematicController``) do not check it again.
 
