@@ -8,12 +8,15 @@ Examples::
     geovs-drake demo --out results
     geovs-drake sweep --starts 10000 --duration 10 --json
     geovs-drake sweep --scheduler tcp://host:8786 --starts 100000
+
+Exit codes: see ``EXIT_CODES`` (shown by ``geovs-drake --help``).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import importlib.metadata
 import json
 import math
 import sys
@@ -24,7 +27,51 @@ from typing import NoReturn
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import StartOutsideDomain, simulate
 
-__all__ = ["main"]
+__all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_CODES",
+    "EXIT_CONVERGED",
+    "EXIT_INTERRUPTED",
+    "EXIT_NOT_CONVERGED",
+    "exit_code_of",
+    "main",
+]
+
+EXIT_CONVERGED = 0
+EXIT_BAD_INPUT = 2
+EXIT_NOT_CONVERGED = 3
+EXIT_INTERRUPTED = 130
+
+#: The exit codes of every command, in one place (``--help`` and the README show them).
+EXIT_CODES: dict[int, str] = {
+    EXIT_CONVERGED: "ran and converged (simulate, demo); the table finished (sweep)",
+    EXIT_BAD_INPUT: "bad input: an argument, the --config file, a start outside D\n"
+    "(one line on stderr, nothing run)",
+    EXIT_NOT_CONVERGED: "ran and did not converge (simulate, demo): status not_converged,\n"
+    "left_domain, lost_visibility or non_finite",
+    EXIT_INTERRUPTED: "interrupted (Ctrl-C)",
+}
+
+
+def _exit_codes_epilog() -> str:
+    lines = ["exit codes:"]
+    for code, text in EXIT_CODES.items():
+        first, *rest = text.splitlines()
+        lines.append(f"  {code:<4} {first}")
+        lines += [f"       {line}" for line in rest]
+    return "\n".join(lines)
+
+
+def exit_code_of(status: str) -> int:
+    """The exit code of a run that finished with ``status``: 0 converged, else 3."""
+    return EXIT_CONVERGED if status == "converged" else EXIT_NOT_CONVERGED
+
+
+def _version() -> str:
+    try:
+        return importlib.metadata.version("geovs-drake")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown (not installed)"
 
 
 class _OneLineParser(argparse.ArgumentParser):
@@ -34,6 +81,15 @@ class _OneLineParser(argparse.ArgumentParser):
         if message.endswith("expected one argument"):  # most often a value "-0.1,..."
             message += " (write a value that starts with '-' as --option=-0.1,...)"
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+class _EpilogTableFormatter(argparse.HelpFormatter):
+    """Wraps descriptions as usual but keeps the exit-code table's lines."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        if text.startswith("exit codes:"):
+            return "".join(indent + line for line in text.splitlines(keepends=True))
+        return super()._fill_text(text, width, indent)
 
 
 def _six_numbers(text: str, names: str) -> list[float]:
@@ -67,34 +123,57 @@ def _config_from_args(args: argparse.Namespace) -> ScenarioConfig:
         config.goal = args.goal
     if args.duration is not None:
         config.duration = args.duration
+    config.validate()
     return config
 
 
+def _numbers(values: list[float]) -> str:
+    return ",".join(f"{v:g}" for v in values)
+
+
 def _add_scenario_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--config", help="scenario YAML (fields of ScenarioConfig)")
-    p.add_argument("--controller", choices=["kinematic", "dynamic"])
+    d = ScenarioConfig()
+    p.add_argument(
+        "--config",
+        metavar="FILE",
+        help="scenario YAML (fields of ScenarioConfig; the options below override it) "
+        "(default: none, the built-in scenario)",
+    )
+    p.add_argument(
+        "--controller",
+        choices=["kinematic", "dynamic"],
+        help=f"the loop (default: the config's, else {d.controller})",
+    )
     p.add_argument(
         "--initial",
         type=_pose_arg,
         metavar="x,y,z,roll,pitch,yaw",
         help="initial camera pose X_BC in the target frame [m, rad]; "
-        "write negative first values as --initial=-0.2,...",
+        "write negative first values as --initial=-0.2,... "
+        f"(default: the config's, else {_numbers(d.initial.xyz + d.initial.rpy)})",
     )
     p.add_argument(
         "--initial-velocity",
         type=_twist_arg,
         metavar="wx,wy,wz,vx,vy,vz",
         help="initial body twist (Omega, V) of the camera in its frame C [rad/s, m/s], "
-        "G^-1 dG/dt for G = X_BC (dynamic loop only; default at rest); "
-        "write negative first values as --initial-velocity=-0.1,...",
+        "G^-1 dG/dt for G = X_BC (dynamic loop only); "
+        "write negative first values as --initial-velocity=-0.1,... "
+        f"(default: the config's, else at rest {_numbers(d.initial_velocity)})",
     )
     p.add_argument(
         "--goal",
         type=_pose_arg,
         metavar="x,y,z,roll,pitch,yaw",
-        help="goal camera pose X_BC* (default 0,0,-0.5,0,0,0)",
+        help="goal camera pose X_BC* in the target frame [m, rad] "
+        f"(default: the config's, else {_numbers(d.goal.xyz + d.goal.rpy)})",
     )
-    p.add_argument("--duration", type=float, help="simulated seconds")
+    p.add_argument(
+        "--duration",
+        type=float,
+        metavar="T",
+        help=f"simulated time [s] (default: the config's, else {d.duration:g})",
+    )
 
 
 def _simulate(args: argparse.Namespace) -> int:
@@ -103,18 +182,20 @@ def _simulate(args: argparse.Namespace) -> int:
         result = simulate(config)
     except StartOutsideDomain as e:
         print(f"geovs-drake: {e}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     if args.json:
         print(json.dumps(result.summary()))
     else:
         print(result.one_line())
-    return 0 if result.status in ("converged", "not_converged") else 1
+    return exit_code_of(result.status)
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from geovs_drake.demo import run_demo
+    from geovs_drake.demo import check_demo_args, run_demo
 
-    return run_demo(args.out, args.duration, meshcat=not args.no_meshcat)
+    check_demo_args(args.out, args.duration)  # before any side effect
+    result = run_demo(args.out, args.duration, meshcat=not args.no_meshcat)
+    return exit_code_of(result.status)
 
 
 class _SweepInputError(ValueError):
@@ -227,7 +308,7 @@ def _sweep(args: argparse.Namespace) -> int:
             on_chunk=on_chunk,
         )
     except sweep.SweepInterrupted as e:
-        result, code = e.result, 130
+        result, code = e.result, EXIT_INTERRUPTED
     finally:
         progress.close()
         if stream:
@@ -243,7 +324,7 @@ def _sweep(args: argparse.Namespace) -> int:
             print("geovs-drake: matplotlib is not installed: plots skipped", file=sys.stderr)
         except KeyboardInterrupt:  # the rows and the summary are written already
             print("geovs-drake: interrupted while plotting: plots skipped", file=sys.stderr)
-            code = 130
+            code = EXIT_INTERRUPTED
     if args.json:
         print(json.dumps(summary))
     else:
@@ -256,7 +337,7 @@ def _sweep(args: argparse.Namespace) -> int:
             f"{g['lost_visibility']}, non-finite {g['non_finite']} | "
             f"{result.wall_time_s:.1f} s wall | {out}/"
         )
-    if code == 130:
+    if code == EXIT_INTERRUPTED:
         print(
             f"geovs-drake: interrupted: {len(result.rows)} of {result.starts} starts "
             f"finished, written to {out}/",
@@ -335,19 +416,51 @@ def _add_sweep_args(p: argparse.ArgumentParser) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    epilog = _exit_codes_epilog()
+    formatter = _EpilogTableFormatter
     parser = _OneLineParser(
         prog="geovs-drake",
         description="Geometric visual servoing (Cowan & Chang) on Drake.",
+        epilog=epilog,
+        formatter_class=formatter,
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
-    sim = sub.add_parser("simulate", help="simulate a scenario and print a one-line result")
+    sim = sub.add_parser(
+        "simulate",
+        help="simulate a scenario and print a one-line result",
+        epilog=epilog,
+        formatter_class=formatter,
+    )
     _add_scenario_args(sim)
-    sim.add_argument("--json", action="store_true", help="print one JSON object")
+    sim.add_argument(
+        "--json", action="store_true", help="print one JSON object (default: one line of text)"
+    )
     sim.set_defaults(func=_simulate)
-    demo = sub.add_parser("demo", help="the default dynamic scenario from a hard start, with plots")
-    demo.add_argument("--out", default="results", help="output folder (default: results)")
-    demo.add_argument("--duration", type=float, default=None)
-    demo.add_argument("--no-meshcat", action="store_true", help="skip the Meshcat recording")
+    demo = sub.add_parser(
+        "demo",
+        help="the default dynamic scenario from a hard start, with plots",
+        epilog=epilog,
+        formatter_class=formatter,
+    )
+    demo.add_argument(
+        "--out",
+        default="results",
+        metavar="DIR",
+        help="output folder, created if missing (default: results)",
+    )
+    demo.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="T",
+        help=f"simulated time [s] (default: {ScenarioConfig().duration:g})",
+    )
+    demo.add_argument(
+        "--no-meshcat",
+        action="store_true",
+        help="skip the Meshcat recording servo.html (default: record it)",
+    )
     demo.set_defaults(func=_demo)
     sw = sub.add_parser(
         "sweep",
@@ -356,6 +469,8 @@ def main(argv: list[str] | None = None) -> int:
         "chart) on dask.distributed; write DIR/results.csv (a row per start), "
         "DIR/summary.json and plots. Exit code 0 when the sweep ran, 2 for bad input, "
         "130 after Ctrl-C (the finished rows are written).",
+        epilog=epilog,
+        formatter_class=formatter,
     )
     _add_sweep_args(sw)
     sw.set_defaults(func=_sweep)
@@ -364,7 +479,10 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except ValueError as e:  # bad configuration: one clear line, no traceback
         print(f"geovs-drake: {e}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("geovs-drake: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

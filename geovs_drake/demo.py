@@ -13,12 +13,18 @@ Writes to the output folder:
 from __future__ import annotations
 
 import json
+import math
+import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 
-__all__ = ["HARD_START", "demo_config", "record_meshcat", "run_demo"]
+if TYPE_CHECKING:
+    from geovs_drake.simulation import SimulationResult
+
+__all__ = ["HARD_START", "check_demo_args", "demo_config", "record_meshcat", "run_demo"]
 
 #: Rolled 160 deg about the optical axis, offset sideways and 0.35 m further out.
 HARD_START = PoseConfig(xyz=[0.18, -0.12, -0.85], rpy=[0.12, -0.15, 2.8])
@@ -29,6 +35,27 @@ def demo_config(duration: float | None = None) -> ScenarioConfig:
     if duration is not None:
         config.duration = duration
     return config
+
+
+def check_demo_args(out: str | Path, duration: float | None) -> None:
+    """Raise ValueError (one line naming the option and its value) for a duration that is
+    not finite and > 0, or an output folder that is a file or cannot be created/written."""
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f"--duration must be finite and > 0 [s]: --duration {duration}")
+    out = Path(out)
+    if out.exists():
+        if not out.is_dir():
+            raise ValueError(f"--out {out} exists and is not a directory")
+        if not os.access(out, os.W_OK | os.X_OK):
+            raise ValueError(f"--out {out}: the folder is not writable")
+        return
+    parent = out.absolute().parent
+    while not parent.exists():  # the nearest existing ancestor is where mkdir starts
+        parent = parent.parent
+    if not parent.is_dir():
+        raise ValueError(f"--out {out}: {parent} is not a directory")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"--out {out}: cannot create it, {parent} is not writable")
 
 
 def _progress(total: float, description: str):
@@ -67,7 +94,10 @@ def record_meshcat(config: ScenarioConfig, html_path: str | Path, progress=None)
 
 def run_demo(
     out: str | Path = "results", duration: float | None = None, meshcat: bool = True
-) -> int:
+) -> SimulationResult:
+    """Run the demo, write its files to ``out`` and print the run's line; return the run.
+
+    Bad ``out`` or ``duration`` raise ValueError before anything is written."""
     from geovs_drake.diagrams import make_dynamic_servo_diagram
     from geovs_drake.geometry.navigation import NavigationFunction
     from geovs_drake.plotting import (
@@ -78,9 +108,11 @@ def run_demo(
     )
     from geovs_drake.simulation import simulate
 
+    check_demo_args(out, duration)
+    config = demo_config(duration)
+    config.validate()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    config = demo_config(duration)
     bar, update = _progress(config.duration, "dynamic servo")
     if meshcat:
         result = record_meshcat(config, out / "servo.html", progress=update)
@@ -96,4 +128,4 @@ def run_demo(
     plot_navigation_slices(nf, out / "nf_slices.png")
     write_block_diagram(make_dynamic_servo_diagram(config, log=False), out / "block_diagram")
     print(result.one_line())
-    return 0 if result.converged else 1
+    return result

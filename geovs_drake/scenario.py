@@ -9,14 +9,17 @@ Poses of the camera are given in the *target* frame B, as X_BC (metres,
 radians, Drake's RollPitchYaw), the natural way to say where the camera is.
 """
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import yaml
 from pydrake.common.yaml import yaml_load_typed
 from pydrake.math import RigidTransform, RollPitchYaw
-from pydrake.systems.analysis import SimulatorConfig
+from pydrake.systems.analysis import GetIntegrationSchemes, SimulatorConfig
 
 from geovs_drake.geometry.camera import ImageFeatures, camera_map
 from geovs_drake.geometry.domain import SafeDomain
@@ -154,6 +157,7 @@ class ScenarioConfig:
     simulator: SimulatorConfig = field(default_factory=_default_simulator)
 
     def validate(self) -> None:
+        """Raise ValueError naming the first bad field and its value."""
         if self.controller not in ("dynamic", "kinematic"):
             raise ValueError(
                 f"controller must be 'dynamic' or 'kinematic', got {self.controller!r}"
@@ -161,14 +165,33 @@ class ScenarioConfig:
         if not (math.isfinite(self.radius) and self.radius > 0):
             raise ValueError(f"radius must be finite and > 0: radius = {self.radius}")
         if not (math.isfinite(self.duration) and self.duration > 0):
-            raise ValueError(f"duration must be > 0: duration = {self.duration}")
-        if not (self.rig.mass > 0 and all(v > 0 for v in self.rig.inertia_diagonal)):
+            raise ValueError(f"duration must be finite and > 0 [s]: duration = {self.duration}")
+        if not (math.isfinite(self.log_rate) and self.log_rate > 0):
+            raise ValueError(f"log_rate must be finite and > 0 [1/s]: log_rate = {self.log_rate}")
+        if not (math.isfinite(self.rig.mass) and self.rig.mass > 0):
+            raise ValueError(f"rig.mass must be finite and > 0 [kg]: rig.mass = {self.rig.mass}")
+        inertia = _finite_numbers(self.rig.inertia_diagonal, 3)
+        if inertia is None or not all(v > 0 for v in inertia):
             raise ValueError(
-                f"rig mass and inertia must be > 0: mass = {self.rig.mass}, "
-                f"inertia = {self.rig.inertia_diagonal}"
+                "rig.inertia_diagonal must be exactly 3 positive numbers [kg m^2], "
+                f"got {self.rig.inertia_diagonal!r}"
             )
-        if self.control.potential_gain <= 0 or self.control.kinematic_gain <= 0:
-            raise ValueError("potential_gain and kinematic_gain must be > 0")
+        damping = _finite_numbers(self.control.damping, 6)
+        if damping is None or not all(v >= 0 for v in damping):
+            raise ValueError(
+                "control.damping must be 6 finite non-negative numbers, "
+                f"got {self.control.damping!r}"
+            )
+        for name in ("potential_gain", "kinematic_gain"):
+            value = getattr(self.control, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"control.{name} must be finite and > 0: {name} = {value}")
+        schemes = GetIntegrationSchemes()
+        if self.simulator.integration_scheme not in schemes:
+            raise ValueError(
+                f"simulator.integration_scheme {self.simulator.integration_scheme!r} is not "
+                f"one Drake knows ({', '.join(schemes)})"
+            )
         twist = _finite_numbers(self.initial_velocity, 6)
         if twist is None:
             raise ValueError(
@@ -209,10 +232,103 @@ class ScenarioConfig:
         return camera_map(self.X_BC_initial.inverse(), self.radius)
 
 
+def _describe(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _is_number(value: Any) -> bool:
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, int | float):
+        return True
+    if isinstance(value, str):  # PyYAML reads 1e-6 (no dot) as a string; Drake takes it
+        try:
+            float(value)
+        except ValueError:
+            return False
+        return True
+    return False
+
+
+def _schema_fields(default: Any) -> dict[str, Any] | None:
+    """Field name -> default value of a dataclass or a Drake-bound struct, else None."""
+    if dataclasses.is_dataclass(default):
+        return {f.name: getattr(default, f.name) for f in dataclasses.fields(default)}
+    fields = getattr(type(default), "__fields__", None)
+    if fields is not None:
+        return {f.name: getattr(default, f.name) for f in fields}
+    return None
+
+
+def _check_node(value: Any, default: Any, where: str) -> None:
+    """Raise ValueError ``where: expected ..., got ...`` if ``value`` cannot fill a field
+    whose default is ``default`` (the defaults have the shapes the fields need)."""
+    fields = _schema_fields(default)
+    if fields is not None:
+        if not isinstance(value, dict):
+            raise ValueError(f"{where}: expected a mapping of fields, got {_describe(value)}")
+        unknown = [k for k in value if k not in fields]
+        if unknown:
+            raise ValueError(
+                f"{where + '.' if where else ''}{unknown[0]}: unknown field "
+                f"(known here: {', '.join(fields)})"
+            )
+        for key, item in value.items():
+            _check_node(item, fields[key], f"{where}.{key}" if where else str(key))
+        return
+    if isinstance(default, bool):
+        ok, expected = isinstance(value, bool), "true or false"
+    elif isinstance(default, float | int):
+        ok, expected = _is_number(value), "a number"
+    elif isinstance(default, str):
+        ok, expected = isinstance(value, str), "a string"
+    elif isinstance(default, list):
+        n = len(default)
+        ok = isinstance(value, list) and len(value) == n and all(_is_number(v) for v in value)
+        expected = f"a list of {n} numbers"
+    else:  # not a shape this schema uses: Drake decides
+        return
+    if not ok:
+        raise ValueError(f"{where}: expected {expected}, got {_describe(value)}")
+
+
 def load_scenario(path: str | Path | None = None, data: str | None = None) -> ScenarioConfig:
-    """A ScenarioConfig from a YAML file or string; unspecified fields keep defaults."""
+    """A ScenarioConfig from a YAML file or string; unspecified fields keep defaults.
+
+    A missing file, malformed YAML, an unknown field or a value of the wrong type or
+    length raises ValueError with one line naming the file and the field. The values
+    themselves are checked by ``ScenarioConfig.validate``.
+    """
     if path is None and data is None:
         return ScenarioConfig()
+    source = "scenario" if path is None else str(path)
     if path is not None:
-        return yaml_load_typed(schema=ScenarioConfig, filename=str(path), defaults=ScenarioConfig())
-    return yaml_load_typed(schema=ScenarioConfig, data=data, defaults=ScenarioConfig())
+        try:
+            data = Path(path).read_text()
+        except FileNotFoundError:
+            raise ValueError(f"{source}: no such file") from None
+        except (OSError, UnicodeDecodeError) as e:
+            raise ValueError(f"{source}: cannot read: {e}") from None
+    try:
+        tree = yaml.safe_load(data)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise ValueError(f"{source}: malformed YAML{at}: {problem}") from None
+    if tree is None:
+        return ScenarioConfig()
+    if not isinstance(tree, dict):
+        raise ValueError(
+            f"{source}: expected a mapping of ScenarioConfig fields, got {_describe(tree)}"
+        )
+    try:
+        _check_node(tree, ScenarioConfig(), "")
+    except ValueError as e:
+        raise ValueError(f"{source}: {e}") from None
+    try:
+        return yaml_load_typed(schema=ScenarioConfig, data=data, defaults=ScenarioConfig())
+    except (RuntimeError, ValueError, TypeError) as e:  # Drake's long messages: first line
+        lines = str(e).strip().splitlines() or [type(e).__name__]
+        raise ValueError(f"{source}: {lines[0]}") from None

@@ -1,0 +1,249 @@
+"""The command line's contract: exit codes, one-line errors for bad input, --version, help."""
+
+from __future__ import annotations
+
+import importlib.metadata
+from pathlib import Path
+
+import pytest
+
+from geovs_drake import cli
+from geovs_drake.cli import EXIT_CODES, main
+from geovs_drake.simulation import SimulationResult
+
+
+def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _assert_one_line_error(err: str, *needles: str) -> None:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+
+
+BAD_CONFIGS = {
+    "unknown-key": ("colour: red\n", ["colour", "unknown field"]),
+    "unknown-nested-key": ("control:\n  dampening: [1, 1, 1, 1, 1, 1]\n", ["control.dampening"]),
+    "malformed-yaml": ("control: {damping: [1, 2\n", ["malformed YAML", "line"]),
+    "damping-not-a-list": (
+        "control:\n  damping: abc\n",
+        ["control.damping: expected a list of 6 numbers, got 'abc'"],
+    ),
+    "damping-five": ("control:\n  damping: [1, 1, 1, 1, 1]\n", ["control.damping", "6 numbers"]),
+    "damping-negative": (
+        "control:\n  damping: [1, 1, 1, 1, 1, -1]\n",
+        ["control.damping", "non-negative", "-1"],
+    ),
+    "duration-not-a-number": ("duration: soon\n", ["duration", "'soon'"]),
+    "duration-zero": ("duration: 0\n", ["duration", "> 0"]),
+    "integrator": (
+        "simulator:\n  integration_scheme: leapfrog\n",
+        ["simulator.integration_scheme", "'leapfrog'", "runge_kutta3"],
+    ),
+    "log-rate-zero": ("log_rate: 0\n", ["log_rate", "> 0", "0.0"]),
+    "log-rate-negative": ("log_rate: -5\n", ["log_rate", "-5"]),
+    "inertia-two": ("rig:\n  inertia_diagonal: [0.02, 0.02]\n", ["rig.inertia_diagonal", "3"]),
+    "inertia-zero": ("rig:\n  inertia_diagonal: [0.02, 0, 0.02]\n", ["rig.inertia_diagonal"]),
+    "root-a-list": ("- 1\n- 2\n", ["expected a mapping"]),
+}
+
+
+@pytest.mark.parametrize("name", list(BAD_CONFIGS))
+def test_simulate_bad_config_exits_2_with_one_line(name, tmp_path, capsys):
+    text, needles = BAD_CONFIGS[name]
+    path = tmp_path / "scenario.yaml"
+    path.write_text(text)
+    code, out, err = _run(["simulate", "--config", str(path)], capsys)
+    assert code == 2, err
+    assert out == ""
+    _assert_one_line_error(err, *needles)
+
+
+def test_simulate_missing_config_exits_2_with_one_line(tmp_path, capsys):
+    missing = tmp_path / "nope.yaml"
+    code, out, err = _run(["simulate", "--config", str(missing)], capsys)
+    assert code == 2 and out == ""
+    _assert_one_line_error(err, str(missing), "no such file")
+
+
+def test_simulate_good_config_overridden_by_options(tmp_path, capsys):
+    path = tmp_path / "scenario.yaml"
+    path.write_text("controller: kinematic\nduration: 0\nsimulator:\n  accuracy: 1e-6\n")
+    # The file's bad duration is overridden by --duration: the run goes ahead.
+    code, out, err = _run(["simulate", "--config", str(path), "--duration", "12"], capsys)
+    assert code == 0, err
+    assert out.startswith("kinematic: converged")
+
+
+def test_simulate_exit_0_when_converged(capsys):
+    code, out, err = _run(["simulate", "--controller", "kinematic", "--duration", "12"], capsys)
+    assert code == 0, err
+    assert out.startswith("kinematic: converged")
+
+
+@pytest.mark.parametrize(
+    ("argv", "status"),
+    [
+        (["--duration", "0.5"], "not_converged"),
+        (["--duration", "3", "--initial-velocity=0,0,0,12,0,0"], "left_domain"),
+    ],
+    ids=["not-converged", "left-domain"],
+)
+def test_simulate_exit_3_when_it_ran_and_did_not_converge(argv, status, capsys):
+    code, out, err = _run(["simulate", *argv], capsys)
+    assert code == 3, err
+    assert out.startswith(f"dynamic: {status} ")
+
+
+@pytest.mark.parametrize(
+    ("status", "code"),
+    [
+        ("converged", 0),
+        ("not_converged", 3),
+        ("left_domain", 3),
+        ("lost_visibility", 3),
+        ("non_finite", 3),
+    ],
+)
+def test_exit_code_of_every_status(status, code):
+    assert cli.exit_code_of(status) == code
+
+
+def test_simulate_exit_130_when_interrupted(monkeypatch, capsys):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "simulate", interrupted)
+    code, out, err = _run(["simulate", "--duration", "1"], capsys)
+    assert code == 130
+    _assert_one_line_error(err, "interrupted")
+
+
+def test_demo_exit_3_when_the_run_did_not_converge(monkeypatch, tmp_path, capsys):
+    import geovs_drake.demo
+
+    class _Result:
+        status = "left_domain"
+
+    def fake_run_demo(out: str, duration: float | None, meshcat: bool) -> SimulationResult:
+        return _Result()  # type: ignore[return-value]
+
+    monkeypatch.setattr(geovs_drake.demo, "run_demo", fake_run_demo)
+    code, _, err = _run(["demo", "--out", str(tmp_path / "d"), "--duration", "1"], capsys)
+    assert code == 3, err
+
+
+@pytest.mark.parametrize(
+    ("argv", "needles"),
+    [
+        (["--duration", "-1"], ["--duration", "-1"]),
+        (["--duration", "0"], ["--duration", "> 0"]),
+        (["--duration", "nan"], ["--duration", "nan"]),
+        (["--duration", "inf"], ["--duration", "inf"]),
+    ],
+    ids=["negative", "zero", "nan", "inf"],
+)
+def test_demo_bad_duration_exits_2_and_creates_nothing(argv, needles, tmp_path, capsys):
+    out_dir = tmp_path / "x"
+    code, out, err = _run(["demo", "--out", str(out_dir), *argv], capsys)
+    assert code == 2 and out == ""
+    _assert_one_line_error(err, *needles)
+    assert not out_dir.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_demo_out_an_existing_file_exits_2(tmp_path, capsys):
+    target = tmp_path / "results"
+    target.write_text("not a folder")
+    code, _, err = _run(["demo", "--out", str(target), "--duration", "1"], capsys)
+    assert code == 2
+    _assert_one_line_error(err, "--out", str(target), "not a directory")
+    assert target.read_text() == "not a folder"
+
+
+def test_demo_out_under_a_file_exits_2(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    code, _, err = _run(["demo", "--out", str(blocker / "x"), "--duration", "1"], capsys)
+    assert code == 2
+    _assert_one_line_error(err, "--out", str(blocker), "not a directory")
+    assert sorted(tmp_path.iterdir()) == [blocker]
+
+
+def test_demo_out_under_a_read_only_folder_exits_2(tmp_path, capsys):
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        if _can_write(locked):
+            pytest.skip("running as a user who can write anywhere (root)")
+        code, _, err = _run(["demo", "--out", str(locked / "x"), "--duration", "1"], capsys)
+        assert code == 2
+        _assert_one_line_error(err, "--out", "not writable")
+        assert list(locked.iterdir()) == []
+    finally:
+        locked.chmod(0o700)
+
+
+def _can_write(folder: Path) -> bool:
+    try:
+        (folder / "probe").write_text("")
+    except PermissionError:
+        return False
+    (folder / "probe").unlink()
+    return True
+
+
+def test_version_prints_the_installed_version(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert out.strip() == f"geovs-drake {importlib.metadata.version('geovs-drake')}"
+
+
+def _option_entries(help_text: str) -> dict[str, str]:
+    """Option -> its help, joined over continuation lines, from an ``options:`` block."""
+    block = help_text.split("options:\n")[1].split("\n\n")[0]
+    entries: dict[str, str] = {}
+    name = ""
+    for line in block.splitlines():
+        if line.startswith("  -"):
+            name = line.split()[0].rstrip(",")
+            entries[name] = line
+        else:
+            entries[name] += " " + line.strip()
+    return entries
+
+
+@pytest.mark.parametrize("command", ["simulate", "demo"])
+def test_help_shows_every_default_and_the_exit_codes(command, capsys):
+    with pytest.raises(SystemExit) as e:
+        main([command, "--help"])
+    assert e.value.code == 0
+    text = capsys.readouterr().out
+    entries = _option_entries(text)
+    assert "--duration" in entries and "--out" in entries if command == "demo" else True
+    for name, entry in entries.items():
+        if name != "-h":
+            assert "(default:" in entry, entry
+    assert "[s]" in entries["--duration"]
+    if command == "simulate":
+        for name in ("--initial", "--goal"):
+            assert "[m, rad]" in entries[name], name
+        assert "[rad/s, m/s]" in entries["--initial-velocity"]
+    table = text.split("exit codes:")[1]
+    for code in EXIT_CODES:
+        assert f"  {code} " in table, code
+
+
+def test_readme_lists_the_exit_codes():
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = readme.split("## Command line")[1].split("\n## ")[0]
+    for code in EXIT_CODES:
+        assert f"`{code}`" in section, code
