@@ -105,7 +105,11 @@ def test_occlusion_margin_definition():
         (dict(lam_min=0.0), r"need 0 < lam_min < lam_max < 1, got lam_min = 0.0"),
         (dict(lam_min=0.5, lam_max=0.4), r"need 0 < lam_min < lam_max < 1"),
         (dict(lam_max=1.0), r"need 0 < lam_min < lam_max < 1"),
-        (dict(fov_half_angle=0.3), r"need arcsin\(lam_max\) < fov_half_angle < pi/2"),
+        (
+            dict(fov_half_angle=0.3),
+            r"need arcsin\(lam_max\) < fov_half_angle < pi/2, got arcsin\(0.4\) = 0.411517 rad "
+            r"\(23.58 deg\) and fov_half_angle = 0.3 rad \(17.19 deg\)",
+        ),
         (dict(fov_half_angle=1.6), r"need arcsin\(lam_max\) < fov_half_angle < pi/2"),
         (dict(occlusion_margin=0.0), r"need 0 < occlusion_margin < 1, got 0.0"),
         (dict(occlusion_margin=1.0), r"need 0 < occlusion_margin < 1"),

@@ -88,7 +88,8 @@ class SafeDomain:
         if not math.asin(hi) < th < math.pi / 2:
             raise ValueError(
                 f"infeasible domain: need arcsin(lam_max) < fov_half_angle < pi/2, got "
-                f"arcsin({hi}) = {math.asin(hi):.6g} and fov_half_angle = {th:.6g}"
+                f"arcsin({hi}) = {math.asin(hi):.6g} rad ({math.degrees(math.asin(hi)):.4g} deg) "
+                f"and fov_half_angle = {th:.6g} rad ({math.degrees(th):.4g} deg)"
             )
         if not 0 < k < 1:
             raise ValueError(f"infeasible domain: need 0 < occlusion_margin < 1, got {k}")
