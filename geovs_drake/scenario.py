@@ -293,8 +293,31 @@ def _check_node(value: Any, default: Any, where: str) -> None:
         raise ValueError(f"{where}: expected {expected}, got {_describe(value)}")
 
 
+#: The PoseConfig fields of a ScenarioConfig, as paths.
+_POSE_FIELDS = (("target",), ("goal",), ("initial",), ("rig", "camera_offset"))
+
+
+def _complete_pose(tree: dict, path: tuple[str, ...]) -> None:
+    """A pose the file gives is the whole pose: what it leaves out of xyz / rpy is zero.
+
+    Why: Drake's loader fills a partial struct from the defaults, so a file giving
+    only ``initial: {xyz: ...}`` would quietly keep the default start's 2 rad roll.
+    """
+    node = tree
+    for key in path:
+        if not isinstance(node, dict) or key not in node:
+            return
+        node = node[key]
+    if isinstance(node, dict):
+        node.setdefault("xyz", [0.0, 0.0, 0.0])
+        node.setdefault("rpy", [0.0, 0.0, 0.0])
+
+
 def load_scenario(path: str | Path | None = None, data: str | None = None) -> ScenarioConfig:
     """A ScenarioConfig from a YAML file or string; unspecified fields keep defaults.
+
+    A pose (``target``, ``goal``, ``initial``, ``rig.camera_offset``) the file gives
+    is complete: its ``xyz`` or ``rpy``, if left out, is zero, not the default pose's.
 
     A missing file, malformed YAML, an unknown field or a value of the wrong type or
     length raises ValueError with one line naming the file and the field. The values
@@ -327,8 +350,12 @@ def load_scenario(path: str | Path | None = None, data: str | None = None) -> Sc
         _check_node(tree, ScenarioConfig(), "")
     except ValueError as e:
         raise ValueError(f"{source}: {e}") from None
+    for pose in _POSE_FIELDS:
+        _complete_pose(tree, pose)
     try:
-        return yaml_load_typed(schema=ScenarioConfig, data=data, defaults=ScenarioConfig())
+        return yaml_load_typed(
+            schema=ScenarioConfig, data=yaml.safe_dump(tree), defaults=ScenarioConfig()
+        )
     except (RuntimeError, ValueError, TypeError) as e:  # Drake's long messages: first line
         lines = str(e).strip().splitlines() or [type(e).__name__]
         raise ValueError(f"{source}: {lines[0]}") from None

@@ -182,6 +182,14 @@ def test_scenario_yaml_round_trip_and_partial_files(tmp_path):
     assert c3.goal == ScenarioConfig().goal
     with pytest.raises(ValueError, match="controller must be"):
         load_scenario(data="controller: pid\n").validate()
+    # A partial pose is the whole pose: rpy left out is zero, not the default start's roll.
+    c4 = load_scenario(
+        data="initial: {xyz: [0.05, 0.0, -0.7]}\nrig: {camera_offset: {rpy: [0, 0, 1]}}\n"
+    )
+    assert c4.initial.xyz == [0.05, 0.0, -0.7] and c4.initial.rpy == [0.0, 0.0, 0.0]
+    assert ScenarioConfig().initial.rpy != [0.0, 0.0, 0.0]
+    assert c4.rig.camera_offset.xyz == [0.0, 0.0, 0.0] and c4.rig.camera_offset.rpy == [0, 0, 1]
+    assert c4.goal == ScenarioConfig().goal  # a pose the file does not give keeps its default
 
 
 # ---------------------------------------------------------------------- CLI
