@@ -20,10 +20,10 @@ import importlib.metadata
 import json
 import math
 import sys
-import time
 from pathlib import Path
 from typing import NoReturn
 
+from geovs_drake.progress import Progress
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import StartOutsideDomain, simulate
 
@@ -202,46 +202,6 @@ class _SweepInputError(ValueError):
     """A bad ``sweep`` argument, found before anything runs."""
 
 
-class _Progress:
-    """Finished chunks on stderr: a tqdm bar on a terminal, else a line per chunk, at
-    most one every few seconds (and always the last), so a log gets no carriage-return flood."""
-
-    MIN_INTERVAL_S = 2.0
-
-    def __init__(self, starts: int, chunks: int) -> None:
-        self.starts, self.chunks, self.done, self.chunks_done = starts, chunks, 0, 0
-        self.start = time.perf_counter()
-        self.last_line = -math.inf
-        self.bar = None
-        if sys.stderr.isatty():
-            try:
-                from tqdm import tqdm
-            except ImportError:
-                tqdm = None
-            if tqdm is not None:
-                self.bar = tqdm(total=starts, unit="start", file=sys.stderr, desc="sweep")
-
-    def update(self, rows: int) -> None:
-        self.done += rows
-        self.chunks_done += 1
-        if self.bar is not None:
-            self.bar.update(rows)
-            return
-        now = time.perf_counter()
-        if now - self.last_line >= self.MIN_INTERVAL_S or self.chunks_done == self.chunks:
-            self.last_line = now
-            print(
-                f"geovs-drake sweep: {self.done}/{self.starts} starts "
-                f"({self.chunks_done}/{self.chunks} chunks) after {now - self.start:.1f} s",
-                file=sys.stderr,
-                flush=True,
-            )
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-
-
 def _sweep_checks(args: argparse.Namespace) -> None:
     """Every bad input in one line, before anything starts (exit code 2)."""
     for name in ("starts", "workers", "chunk"):
@@ -280,7 +240,7 @@ def _sweep(args: argparse.Namespace) -> int:
     X_BC, twists = sweep.sample_starts(config, args.starts, args.seed, velocity)
     out = Path(args.out)
     csv_path = out / "results.csv"
-    progress = _Progress(args.starts, -(-args.starts // args.chunk))
+    progress = Progress(args.starts, "starts", "geovs-drake sweep")
     stream = {}
 
     def on_chunk(rows: list[dict]) -> None:

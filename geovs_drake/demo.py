@@ -15,10 +15,10 @@ from __future__ import annotations
 import json
 import math
 import os
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from geovs_drake.progress import Progress
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 
 if TYPE_CHECKING:
@@ -56,18 +56,6 @@ def check_demo_args(out: str | Path, duration: float | None) -> None:
         raise ValueError(f"--out {out}: {parent} is not a directory")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise ValueError(f"--out {out}: cannot create it, {parent} is not writable")
-
-
-def _progress(total: float, description: str):
-    """A tqdm bar on stderr, advanced with the simulated time."""
-    from tqdm import tqdm
-
-    bar = tqdm(total=total, desc=description, unit="sim s", file=sys.stderr, leave=False)
-
-    def update(t: float) -> None:
-        bar.update(t - bar.n)
-
-    return bar, update
 
 
 def record_meshcat(config: ScenarioConfig, html_path: str | Path, progress=None):
@@ -113,7 +101,12 @@ def run_demo(
     config.validate()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    bar, update = _progress(config.duration, "dynamic servo")
+    # Percent of the horizon: integer counts (a float total shows rounding drift).
+    bar = Progress(100, "%", "dynamic servo")
+
+    def update(t: float) -> None:
+        bar.update_to(int(100 * t / config.duration + 1e-9))
+
     if meshcat:
         result = record_meshcat(config, out / "servo.html", progress=update)
     else:

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import importlib.metadata
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -247,3 +249,35 @@ def test_readme_lists_the_exit_codes():
     section = readme.split("## Command line")[1].split("\n## ")[0]
     for code in EXIT_CODES:
         assert f"`{code}`" in section, code
+
+
+def test_progress_off_a_terminal_prints_sparse_integer_lines(capsys):
+    """No carriage returns and no float drift in a log: whole counts, a line at most
+    every min_interval_s, and always the last."""
+    from geovs_drake.progress import Progress
+
+    p = Progress(30, "%", "dynamic servo", min_interval_s=3600.0)
+    for done in (5, 7, 12, 12, 29, 30):
+        p.update_to(done)
+    p.close()
+    err = capsys.readouterr().err
+    assert "\r" not in err
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("dynamic servo: 5/30 %") and lines[-1].startswith(
+        "dynamic servo: 30/30 %"
+    )
+    assert len(lines) == 2  # the first, then nothing for an hour but the last
+
+
+def test_demo_progress_is_sparse_in_a_log(tmp_path):
+    """`demo` with stderr to a file (not a TTY): plain progress lines, no tqdm bar."""
+    out = tmp_path / "demo"
+    run = subprocess.run(
+        [sys.executable, "-m", "geovs_drake.cli", "demo", "--out", str(out), "--duration", "2",
+         "--no-meshcat"],
+        capture_output=True,
+        text=True,
+    )  # fmt: skip
+    assert run.returncode == cli.EXIT_NOT_CONVERGED, run.stderr  # 2 s is too short
+    assert "\r" not in run.stderr
+    assert "dynamic servo: 100/100 %" in run.stderr

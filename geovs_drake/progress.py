@@ -1,0 +1,71 @@
+"""Progress on stderr: a tqdm bar on a terminal, sparse plain lines otherwise.
+
+Why not tqdm everywhere: written to a file or a CI log, its carriage returns
+pile up into one enormous line, and a float total shows drift such as
+``6.599999999999998/30.0``. Here counts are integers, and off a terminal a
+line is printed at most every few seconds, and always at the end.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+__all__ = ["Progress"]
+
+
+class Progress:
+    """Count ``total`` integer units of work, reported on stderr.
+
+    Args:
+        total: the units to do (e.g. starts, or percent of a simulated horizon).
+        unit: their name, for the report.
+        description: what is being done, e.g. ``"geovs-drake sweep"``.
+        min_interval_s: off a terminal, the least time between two lines.
+    """
+
+    def __init__(
+        self, total: int, unit: str, description: str, min_interval_s: float = 2.0
+    ) -> None:
+        self.total, self.unit, self.description = int(total), unit, description
+        self.done = 0
+        self.min_interval_s = min_interval_s
+        self._start = time.perf_counter()
+        self._last_line = -float("inf")
+        self._bar = None
+        if sys.stderr.isatty():
+            try:
+                from tqdm import tqdm
+            except ImportError:  # tqdm is optional: plain lines then
+                tqdm = None
+            if tqdm is not None:
+                self._bar = tqdm(
+                    total=self.total, unit=unit, desc=description, file=sys.stderr, leave=False
+                )
+
+    def update_to(self, done: int) -> None:
+        """Report that ``done`` units (an integer, not decreasing) are finished."""
+        done = min(int(done), self.total)
+        if done <= self.done:
+            return
+        if self._bar is not None:
+            self._bar.update(done - self.done)
+        self.done = done
+        if self._bar is None:
+            now = time.perf_counter()
+            if now - self._last_line >= self.min_interval_s or done == self.total:
+                self._last_line = now
+                print(
+                    f"{self.description}: {done}/{self.total} {self.unit} "
+                    f"after {now - self._start:.1f} s",
+                    file=sys.stderr,
+                    flush=True,
+                )
+
+    def update(self, units: int) -> None:
+        """Report ``units`` more finished units."""
+        self.update_to(self.done + units)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
