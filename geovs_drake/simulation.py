@@ -34,6 +34,7 @@ __all__ = [
     "camera_signals",
     "check_start",
     "energy_note",
+    "saddle_note",
     "make_simulator",
     "pose_error",
     "simulate",
@@ -63,6 +64,22 @@ def check_start(config: ScenarioConfig) -> None:
         NavigationFunction(config.domain.to_domain(), config.goal_features())
     except ValueError as e:
         raise StartOutsideDomain(f"goal invalid: {e}") from e
+
+
+#: A start or an unconverged end whose arrow is within this roll [rad] of the saddle's
+#: gets :func:`saddle_note`.
+SADDLE_NOTE_ANGLE_RAD = math.radians(3.0)
+
+
+def saddle_note(angle: float) -> str:
+    """Why a run near the navigation function's saddle may not converge, in words."""
+    where = "at" if math.degrees(angle) < 0.01 else f"{math.degrees(angle):.2g} deg from"
+    return (
+        f"note: the arrow is {where} the navigation function's "
+        "saddle (the goal with the arrow reversed); starts on the saddle's stable manifold, "
+        "a measure-zero set, go to the saddle, not the goal: a small change of the roll "
+        "converges"
+    )
 
 
 def energy_note(initial_energy: float, bound: float) -> str:
@@ -106,6 +123,7 @@ class SimulationResult:
     X_BC: np.ndarray  # (N, 4, 4) camera poses in the target frame
     energy: np.ndarray | None = None
     final_X_BC: RigidTransform = field(default_factory=RigidTransform)
+    saddle_note: str | None = None  # set when the start (or an unconverged end) is near the saddle
 
     @property
     def lyapunov(self) -> np.ndarray:
@@ -161,6 +179,8 @@ class SimulationResult:
         energy = ""
         if self.energy is not None:
             energy = f" | {energy_note(self.initial_energy, self.energy_bound)}"
+        if self.saddle_note:
+            energy += f" | {self.saddle_note}"
         return (
             f"{s['controller']}: {s['status']} | position error "
             f"{s['final_position_error_m']:.2e} m, rotation error "
@@ -190,6 +210,7 @@ class SimulationResult:
             "min_visibility": float(np.min(self.visibility)),
             "left_domain": self.left_domain,
             "lyapunov_monotone": self.lyapunov_monotone,
+            "near_saddle": self.saddle_note is not None,
             "max_lyapunov_increase": float(np.max(np.diff(self.lyapunov), initial=0.0)),
             "sim_time_s": self.sim_time_s,
             "wall_time_s": self.wall_time_s,
@@ -445,4 +466,13 @@ def simulate(
     )
     if result.energy_guarantee is False:
         result.message += f" ({energy_note(result.initial_energy, result.energy_bound)})"
+    nf = NavigationFunction(
+        config.domain.to_domain(), config.goal_features(), config.navigation.to_gains()
+    )
+    angle = float(nf.angle_to_saddle(config.initial_features()))
+    if status == "not_converged" and np.all(np.isfinite(result.image_features[-1])):
+        angle = min(angle, float(nf.angle_to_saddle(result.image_features[-1])))
+    if angle < SADDLE_NOTE_ANGLE_RAD:
+        result.saddle_note = saddle_note(angle)
+        result.message += f" ({result.saddle_note})"
     return result

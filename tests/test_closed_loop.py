@@ -161,6 +161,25 @@ def test_bad_integrator_configuration_stops_at_the_boundary_not_in_nan():
     assert np.all(np.isfinite(r.image_features)) and np.all(np.isfinite(r.phi))
 
 
+@pytest.mark.parametrize("roll,near", [(np.pi, True), (np.pi - 0.03, True), (2.0, False)])
+def test_a_start_near_the_saddle_gets_a_note(roll, near):
+    """Rolled pi about the optical axis, the start sits on the NF's saddle (the arrow
+    reversed): the run does not converge and says why; 1.7 deg off, it converges
+    with the note; far from it, no note."""
+    c = ScenarioConfig(initial=PoseConfig(xyz=[0.0, 0.0, -0.5], rpy=[0.0, 0.0, roll]))
+    c.duration = 6.0
+    r = simulate(c)
+    assert r.summary()["near_saddle"] is near
+    assert ("saddle" in r.message) is near and ("saddle" in r.one_line()) is near
+    if roll == np.pi:
+        assert r.status == "not_converged" and "is at the navigation function's saddle" in r.message
+        # Independent: the image reached is the saddle's (the goal with q2 reversed).
+        nf = NavigationFunction(c.domain.to_domain(), c.goal_features())
+        np.testing.assert_allclose(r.image_features[-1], nf.saddle().to_vector(), atol=1e-6)
+    else:
+        assert r.status == "converged"
+
+
 def test_start_outside_domain_raises_with_the_constraint():
     c = ScenarioConfig(initial=PoseConfig(xyz=[0.0, 0.0, -3.0]))
     with pytest.raises(StartOutsideDomain, match=r"lam_min margin = -0.01\d* < 0"):

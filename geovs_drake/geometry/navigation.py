@@ -425,3 +425,17 @@ class NavigationFunction:
 
     def saddle(self) -> ImageFeatures:
         return saddle_of(self._goal, self.domain)
+
+    def angle_to_saddle(self, y: ImageFeatures | np.ndarray) -> np.ndarray:
+        """How far [rad] the arrow's roll about q1 is from the saddle's, in [0, pi].
+
+        The saddle is the goal with the arrow reversed (the circle factor's
+        maximum); a roll within a few degrees of it starts near the saddle's
+        stable manifold, where the loop slows down or, exactly on it, stops at
+        the saddle.
+        """
+        c = model_coordinates(y, self.domain).circle
+        g = model_coordinates(self._goal, self.domain).circle
+        cx, cy = np.asarray(c[..., 0], dtype=float), np.asarray(c[..., 1], dtype=float)
+        sx, sy = -float(g[0]), -float(g[1])  # the saddle's circle point
+        return np.abs(np.arctan2(cx * sy - cy * sx, cx * sx + cy * sy))
