@@ -376,7 +376,7 @@ def camera_signals(diagram: Diagram, root_context, states: np.ndarray) -> dict[s
         visible = nu > 0
         y = np.where(visible, np.stack(np.broadcast_arrays(*out[1:14])), np.nan)
         margins = np.where(visible, np.stack(np.broadcast_arrays(*out[14:18])), nu)
-        phi = 1 - np.asarray(navigation(tuple(y), p_nav)[0])
+        phi = np.asarray(navigation(tuple(y), p_nav)[8])
     return dict(image_features=y.T, visibility=nu, margins=margins.T, phi=phi)
 
 

@@ -255,3 +255,22 @@ def test_pose_error_kernel_matches_rigid_transform_errors():
         dp, dr = pose_error(X_WC, X_WC_goal)
         assert math.sqrt(dp2) == pytest.approx(dp, rel=1e-9, abs=1e-15)
         assert 2 * math.asin(math.sqrt(dR2 / 8)) == pytest.approx(dr, rel=1e-6, abs=1e-14)
+
+
+def test_phi_keeps_its_digits_near_the_goal(batch):
+    """phi = 1 - clearance rounds to 0 within 1e-16 of the goal; the kernel's phi (the
+    telescoping sum of phi_of) does not, and both agree with the source formulas."""
+    from geovs_drake.geometry.navigation import phi_of
+
+    goal = camera_map(RigidTransform([0.0, 0.0, 0.5]), RHO)
+    p = batch["p_nav"]
+    for h in (1e-5, 1e-7, 1e-9):
+        X = RigidTransform(PoseConfig(xyz=[h, 0.0, -0.5], rpy=[0, 0, h]).to_rigid_transform())
+        y = camera_map(X.inverse(), RHO).to_vector()
+        out = kernels.navigation(y, p)
+        assert out[8] == pytest.approx(phi_of(tuple(y.tolist()), p, MATH), rel=1e-12)
+        assert out[8] > 0  # a pose off the goal is not at the minimum
+        assert out[8] == pytest.approx(1 - out[0], abs=5e-16)  # the same number, to rounding
+    # phi ~ (quadratic in h): at h = 1e-9 it is ~1e-18, where 1 - clearance is 0 or eps.
+    assert out[8] < 1e-15
+    assert 0 <= kernels.navigation(goal.to_vector(), p)[8] < 1e-30  # rounding squared

@@ -195,7 +195,7 @@ def sample_starts(
     if velocity == "none":
         return X_BC, twists
     p = loop_parameters(config)
-    phi0 = 1.0 - np.asarray(kernels.navigation(tuple(y.to_vector().T), p.navigation)[0])
+    phi0 = np.asarray(kernels.navigation(tuple(y.to_vector().T), p.navigation)[8])
     direction = rng.normal(size=(int(n), 6))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
     kinetic_unit = _kinetic_energy(config, p, X_BC, direction)

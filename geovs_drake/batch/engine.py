@@ -161,7 +161,7 @@ class BatchResult:
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _rhs(kinematic, x, out, p_cam, p_nav, p_ctrl, p_body):
-    """The loop's xdot into ``out``; returns (nu, margins, 1 - phi, kinetic energy) at x.
+    """The loop's xdot into ``out``; returns (nu, margins, phi, kinetic energy) at x.
 
     Dynamic: camera -> NF -> Eq. (45) force -> free rig. Kinematic: camera -> NF
     -> Tc^-1 (Eqs. 18-19) -> Eq. (17). One function for both, with a flag, so
@@ -175,16 +175,16 @@ def _rhs(kinematic, x, out, p_cam, p_nav, p_ctrl, p_body):
         xdot = _kinematic_body(x, _kinematic_velocity(y, nav[1:8], p_ctrl))
         for j in range(7):
             out[j] = xdot[j]
-        return cam[0], cam[14:18], nav[0], 0.0
+        return cam[0], cam[14:18], nav[8], 0.0
     force = _force(x, y, nav[1:8], p_ctrl)
     body = _free_body(x, force[6:12], p_body)
     for j in range(13):
         out[j] = body[j]
-    return cam[0], cam[14:18], nav[0], body[13]
+    return cam[0], cam[14:18], nav[8], body[13]
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _state_status(x, nu, margins, clearance):
+def _state_status(x, nu, margins, phi):
     """1 if x lies in D (with finite values), else 2 left_domain, 3 lost_visibility,
     4 non_finite: the checks of the safe-domain monitor, on one state."""
     for j in range(x.shape[0]):
@@ -193,7 +193,7 @@ def _state_status(x, nu, margins, clearance):
     if not nu > 0:
         return 3
     worst = min(margins[0], margins[1], margins[2], margins[3])
-    if not (math.isfinite(worst) and math.isfinite(clearance)):
+    if not (math.isfinite(worst) and math.isfinite(phi)):
         return 4
     if worst < 0:
         return 2
@@ -238,14 +238,14 @@ def _integrate(
         k2 = np.empty(dim)
         k3 = np.empty(dim)
         d = np.empty(dim)
-        nu, margins, clearance, kinetic = _rhs(kinematic, x, d, p_cam, p_nav, p_ctrl, p_body)
+        nu, margins, phi, kinetic = _rhs(kinematic, x, d, p_cam, p_nav, p_ctrl, p_body)
         t = 0.0
         h = h0
         inside_since = np.nan  # the first time after which the pose error stayed small
         previous = 0.0
         while True:
             # Check the accepted state x from the values its first stage computed.
-            status[i] = _state_status(x, nu, margins, clearance)
+            status[i] = _state_status(x, nu, margins, phi)
             if status[i] == 2:  # left D: the margins say by how much (meaningless if nu <= 0)
                 for j in range(4):
                     min_m[i, j] = min(min_m[i, j], margins[j])
@@ -254,7 +254,7 @@ def _integrate(
                 break
             for j in range(4):
                 min_m[i, j] = min(min_m[i, j], margins[j])
-            lyapunov = kinetic + k_p * (1.0 - clearance)
+            lyapunov = kinetic + k_p * phi
             if steps[i] == 0:
                 L0[i] = lyapunov
             else:
@@ -288,9 +288,7 @@ def _integrate(
                 _rhs(kinematic, xs, k3, p_cam, p_nav, p_ctrl, p_body)
                 for j in range(dim):
                     x_new[j] = x[j] + h * (2.0 / 9.0 * k1[j] + k2[j] / 3.0 + 4.0 / 9.0 * k3[j])
-                nu, margins, clearance, kinetic = _rhs(
-                    kinematic, x_new, d, p_cam, p_nav, p_ctrl, p_body
-                )
+                nu, margins, phi, kinetic = _rhs(kinematic, x_new, d, p_cam, p_nav, p_ctrl, p_body)
                 grow = 1.0
                 if adaptive:
                     err = 0.0
@@ -302,7 +300,7 @@ def _integrate(
                     # The exact flow of a start with E0 < k_p never leaves D: a step
                     # that does is rejected too, so a start leaves D only where the
                     # step size underflows at the boundary (then the check stops it).
-                    outside = _state_status(x_new, nu, margins, clearance) != 1
+                    outside = _state_status(x_new, nu, margins, phi) != 1
                     if err > accuracy or outside:
                         shrink = 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** (1 / 3)
                         h *= max(0.2, shrink)

@@ -74,11 +74,12 @@ def _camera_image(x, p):
 
 
 def _navigation(y, p):
-    """(1 - phi, dphi): the clearance and the differential along (xi, lambda_dot,
-    s_dot) of Eq. (13), dphi's s-part orthogonal to s."""
+    """(1 - phi, dphi, phi): the clearance (accurate near the boundary of D), the
+    differential along (xi, lambda_dot, s_dot) of Eq. (13) with its s-part orthogonal
+    to s, and phi (accurate near the goal)."""
     import sympy as sp
 
-    from geovs_drake.geometry.navigation import clearance_of
+    from geovs_drake.geometry.navigation import clearance_of, phi_of
 
     c = clearance_of(y, p, _sympy_ops())
     grad = [sp.diff(c, v) for v in y]
@@ -94,7 +95,8 @@ def _navigation(y, p):
     g_s = grad[10:13]
     s_dot_g = sum(si * gi for si, gi in zip(s, g_s, strict=True))
     directional += [g_s[k] - s[k] * s_dot_g for k in range(3)]
-    return [c] + [-d for d in directional]
+    # phi last, formed without 1 - clearance's cancellation near the goal.
+    return [c] + [-d for d in directional] + [phi_of(y, p, _sympy_ops())]
 
 
 def _servo_force(x, y, dphi, p):

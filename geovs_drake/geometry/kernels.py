@@ -9,7 +9,8 @@ source of every formula it composes:
   parameter vector, the visibility nu(H) (Eq. 5), the 13 components of
   y = c(H) (Eqs. 3-7) and the 4 margins of the safe domain (meaningful where
   nu > 0);
-* ``navigation(y, p) -> (1 - phi, *dphi)``: with ``p`` from
+* ``navigation(y, p) -> (1 - phi, *dphi, phi)``: 1 - phi accurate near the
+  boundary of D, phi accurate near the goal; ``p`` from
   :func:`~geovs_drake.geometry.navigation.navigation_parameters`;
 * ``servo_force(x, y, dphi, p) -> (*F_C, *tau_Ro_W, *f_W)``: Eq. (45)'s
   wrench in C and at the rig's origin in W, from the rig state and the

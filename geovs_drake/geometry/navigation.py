@@ -102,6 +102,7 @@ __all__ = [
     "NavigationFunction",
     "NavigationGains",
     "clearance_of",
+    "phi_of",
     "features_from_model",
     "model_coordinates",
     "model_coordinates_of",
@@ -206,27 +207,48 @@ def model_coordinates_of(y: tuple, domain_params: tuple, xp: Ops) -> tuple:
     )
 
 
-def _ball_clearance(g: object, r2: object, k: object) -> object:
-    """``1 - g / (g + k beta) = k beta / (g + k beta)``, beta = 1 - |w|^2: one
-    minus the ball's navigation function, without cancellation."""
+def _ball(g: object, r2: object, k: object) -> tuple[object, object]:
+    """``(phi_i, 1 - phi_i)`` of the ball's factor ``g / (g + k beta)``, beta = 1 - |w|^2,
+    each formed without cancellation: ``1 - phi_i = k beta / (g + k beta)``."""
     kb = k * (1 - r2)
-    return kb / (g + kb)
+    return g / (g + kb), kb / (g + kb)
 
 
-def clearance_of(y: tuple, params: tuple, xp: Ops) -> object:
-    """``1 - phi(y)`` (module docstring), with ``params`` from :func:`navigation_parameters`."""
+def _factors(y: tuple, params: tuple, xp: Ops) -> tuple:
+    """``((phi_i, 1 - phi_i) for the lambda, FOV, occlusion and circle factors)``.
+
+    The circle's ``1 - cos(a - a*)`` is ``|c - c*|^2 / 2`` for unit circle points:
+    formed that way it keeps its digits near the goal, where ``1 - cos`` loses them.
+    """
     k_lam, k_fov, k_occ, c_w = params[5:9]
     u0, wf0x, wf0y, wo0x, wo0y, c0x, c0y = params[9:16]
     u, wfx, wfy, wox, woy, cx, cy = model_coordinates_of(y, params[0:5], xp)
-    c_lam = _ball_clearance((u - u0) * (u - u0), u * u, k_lam)
-    c_fov = _ball_clearance(
+    lam = _ball((u - u0) * (u - u0), u * u, k_lam)
+    fov = _ball(
         (wfx - wf0x) * (wfx - wf0x) + (wfy - wf0y) * (wfy - wf0y), wfx * wfx + wfy * wfy, k_fov
     )
-    c_occ = _ball_clearance(
+    occ = _ball(
         (wox - wo0x) * (wox - wo0x) + (woy - wo0y) * (woy - wo0y), wox * wox + woy * woy, k_occ
     )
-    c_circle = 1 - c_w * (1 - (cx * c0x + cy * c0y)) / 2
-    return c_lam * c_fov * c_occ * c_circle
+    phi_circle = c_w * ((cx - c0x) * (cx - c0x) + (cy - c0y) * (cy - c0y)) / 4
+    return lam, fov, occ, (phi_circle, 1 - phi_circle)
+
+
+def clearance_of(y: tuple, params: tuple, xp: Ops) -> object:
+    """``1 - phi(y)`` (module docstring), with ``params`` from :func:`navigation_parameters`:
+    the product of the factors' ``1 - phi_i``, accurate near the boundary of D."""
+    (_, c1), (_, c2), (_, c3), (_, c4) = _factors(y, params, xp)
+    return c1 * c2 * c3 * c4
+
+
+def phi_of(y: tuple, params: tuple, xp: Ops) -> object:
+    """``phi(y)`` itself, accurate near the goal, where ``1 - clearance`` rounds to 0.
+
+    ``1 - c1 c2 c3 c4 = phi_1 + c1 phi_2 + c1 c2 phi_3 + c1 c2 c3 phi_4``
+    (telescoping), a sum of non-negative terms.
+    """
+    (p1, c1), (p2, c2), (p3, c3), (p4, _) = _factors(y, params, xp)
+    return p1 + c1 * (p2 + c2 * (p3 + c3 * p4))
 
 
 # --------------------------------------------------------------------------
@@ -270,7 +292,7 @@ def check_in_domain(comps: tuple, domain: SafeDomain) -> None:
             raise OutOfDomainError(f"y outside D: {name} margin = {value:.6g} < 0{where}")
 
 
-def _evaluate(y, goal, domain, gains, differential: bool, extend: bool = False):
+def _evaluate(y, goal, domain, gains, differential: bool, extend: bool = False, value=False):
     comps = validated_components(y)
     if not extend:
         check_in_domain(comps, domain)
@@ -278,7 +300,7 @@ def _evaluate(y, goal, domain, gains, differential: bool, extend: bool = False):
     xp = namespace(comps[9])
     if differential:
         return navigation_kernel(comps, params)
-    return clearance_of(comps, params, xp)
+    return phi_of(comps, params, xp) if value else clearance_of(comps, params, xp)
 
 
 def navigation_value(
@@ -297,7 +319,7 @@ def navigation_value(
     probes that straddle the boundary; the same holds for the differential
     and the clearance.
     """
-    return np.asarray(1 - _evaluate(y, goal, domain, gains, False, extend))
+    return np.asarray(_evaluate(y, goal, domain, gains, False, extend, value=True))
 
 
 def navigation_differential(
@@ -313,7 +335,7 @@ def navigation_differential(
     gradient of phi for the embedded Euclidean metric.
     """
     out = _evaluate(y, goal, domain, gains, True, extend)
-    return np.asarray(1 - out[0]), pack(out[1:])
+    return np.asarray(out[8]), pack(out[1:8])
 
 
 def navigation_clearance(

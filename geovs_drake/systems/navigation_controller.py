@@ -158,7 +158,7 @@ def NavigationController_(T):
 
         # ---------------------------------------------------------- outputs
         def _kernel(self, context) -> tuple | None:
-            """(1 - phi, *dphi) by the generated kernel, or None if y is not in I."""
+            """(1 - phi, *dphi, phi) by the generated kernel, or None if y is not in I."""
             y = self.image_features_input.Eval(context)
             values = values_or_none(y.tolist())
             if values is not None and image_violation(values) is not None:
@@ -167,11 +167,11 @@ def NavigationController_(T):
 
         def CalcDifferential(self, context, output) -> None:
             out = self._kernel(context)
-            output.SetFromVector([math.nan] * 7 if out is None else out[1:])
+            output.SetFromVector([math.nan] * 7 if out is None else out[1:8])
 
         def CalcValue(self, context, output) -> None:
             out = self._kernel(context)
-            output.SetFromVector([math.nan if out is None else 1 - out[0]])
+            output.SetFromVector([math.nan if out is None else out[8]])
 
     return Impl
 
