@@ -1,0 +1,111 @@
+"""Property-based tests (hypothesis): the maps' identities on generated inputs.
+
+Each property is an identity the geometry guarantees, checked on inputs
+hypothesis draws (and shrinks on failure): the camera map against Drake's
+RigidTransform algebra and its own inverse, the Jacobian against its closed-form
+inverse, the navigation function's range and the tangency of its differential,
+and the input checks' messages.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+
+from geovs_drake import (
+    DEFAULT_DOMAIN,
+    ImageFeatures,
+    NavigationFunction,
+    camera_map,
+    camera_map_inverse,
+    image_jacobian,
+    image_jacobian_inverse,
+)
+from geovs_drake.geometry.navigation import ModelCoordinates, features_from_model
+
+RHO = 0.1
+angles = st.floats(-math.pi, math.pi)
+unit = st.floats(-0.97, 0.97)
+SETTINGS = settings(max_examples=150, deadline=None)
+
+
+@st.composite
+def visible_poses(draw) -> RigidTransform:
+    """X_CB with the target 1.5 to 50 radii away and the marked point facing the
+    camera with some room (nu / rho > 0.05), where c^-1 is well conditioned."""
+    distance = RHO * math.exp(draw(st.floats(math.log(1.5), math.log(50.0))))
+    direction = np.array([draw(st.floats(-0.5, 0.5)), draw(st.floats(-0.5, 0.5)), 1.0])
+    d = distance * direction / np.linalg.norm(direction)
+    R = RollPitchYaw(draw(angles), draw(angles), draw(angles)).ToRotationMatrix()
+    X = RigidTransform(R, d)
+    r3 = R.matrix()[:, 2]
+    nu = (d - RHO * r3) @ r3
+    if not nu > 0.05 * RHO:
+        # Turn the sphere so its marked point faces the camera: r3 along d, any roll.
+        R = RotationMatrix.MakeFromOneVector(d, 2) @ RotationMatrix.MakeZRotation(draw(angles))
+        X = RigidTransform(R, d)
+    return X
+
+
+@st.composite
+def images_in_domain(draw) -> ImageFeatures:
+    circle = draw(angles)
+    m = ModelCoordinates(
+        np.array([draw(unit)]),
+        np.array([[draw(unit), draw(unit)]]) / math.sqrt(2),
+        np.array([[draw(unit), draw(unit)]]) / math.sqrt(2),
+        np.array([[math.cos(circle), math.sin(circle)]]),
+    )
+    return features_from_model(m, DEFAULT_DOMAIN)[0]
+
+
+@SETTINGS
+@given(visible_poses())
+def test_camera_map_round_trip_and_geometry(X_CB):
+    y = camera_map(X_CB, RHO)
+    # The image: s points at the centre, lambda = rho / |d|, q1 at the marked point.
+    d = X_CB.translation()
+    np.testing.assert_allclose(y.s, d / np.linalg.norm(d), atol=1e-14)
+    assert float(y.lam) == pytest.approx(RHO / np.linalg.norm(d), rel=1e-14)
+    b = X_CB @ np.array([0.0, 0.0, -RHO])
+    np.testing.assert_allclose(y.q1, b / np.linalg.norm(b), atol=1e-13)
+    np.testing.assert_allclose(y.Q.T @ y.Q, np.eye(3), atol=1e-13)
+    # c^-1 (Eq. 23) recovers the pose.
+    X = camera_map_inverse(y, RHO)
+    np.testing.assert_allclose(
+        X.GetAsMatrix4(), X_CB.GetAsMatrix4(), atol=1e-9 * max(1, np.linalg.norm(d))
+    )
+
+
+@SETTINGS
+@given(visible_poses())
+def test_jacobian_closed_form_inverse_is_a_left_inverse(X_CB):
+    y = camera_map(X_CB, RHO)
+    C = image_jacobian(y, RHO)
+    cond = np.linalg.cond(C)
+    err = np.max(np.abs(image_jacobian_inverse(y, RHO) @ C - np.eye(6)))
+    assert err < max(1e-10, 1e-14 * cond), (err, cond)
+
+
+@SETTINGS
+@given(images_in_domain())
+def test_phi_in_unit_interval_and_dphi_tangent(y):
+    nf = NavigationFunction(DEFAULT_DOMAIN, camera_map(RigidTransform([0.0, 0.0, 0.5]), RHO))
+    phi, dphi = nf.value_and_differential(y)
+    assert 0.0 <= float(phi) < 1.0
+    assert float(nf.clearance(y)) == pytest.approx(1 - float(phi), abs=1e-15)
+    assert abs(dphi[4:7] @ y.s) < 1e-12 * max(1.0, np.linalg.norm(dphi))
+    assert DEFAULT_DOMAIN.contains(y)
+
+
+@SETTINGS
+@given(st.one_of(st.floats(-10, 0), st.floats(1, 10), st.just(math.nan)))
+def test_lambda_outside_open_interval_is_named(lam):
+    v = camera_map(RigidTransform([0.0, 0.0, 0.5]), RHO).to_vector()
+    v[9] = lam
+    message = "lambda has a non-finite entry" if math.isnan(lam) else r"lambda outside \(0, 1\)"
+    with pytest.raises(ValueError, match=message):
+        image_jacobian(v, RHO)
