@@ -121,4 +121,9 @@ def run_demo(
     plot_navigation_slices(nf, out / "nf_slices.png")
     write_block_diagram(make_dynamic_servo_diagram(config, log=False), out / "block_diagram")
     print(result.one_line())
+    if meshcat:
+        # Drake's log line names a localhost URL that dies with this process; the
+        # recording is the standalone HTML file.
+        html = (out / "servo.html").resolve()
+        print(f"Meshcat recording: {html} (open it in a web browser; it needs no server)")
     return result

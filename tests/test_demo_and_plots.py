@@ -30,7 +30,11 @@ def test_demo_writes_every_result(tmp_path):
     )
     assert out.returncode == 0, out.stderr
     lines = out.stdout.strip().splitlines()
-    assert lines[-1].startswith("dynamic: converged")
+    assert lines[0].startswith("dynamic: converged")
+    # Where the recording is: the saved file, not Drake's localhost URL (dead at exit).
+    assert lines[1] == f"Meshcat recording: {(tmp_path / 'servo.html').resolve()} " + (
+        "(open it in a web browser; it needs no server)"
+    )
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["converged"] and not summary["left_domain"] and summary["lyapunov_monotone"]
     for name in ("image_view.png", "run.png", "nf_slices.png"):
