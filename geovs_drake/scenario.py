@@ -270,8 +270,10 @@ def _check_node(value: Any, default: Any, where: str) -> None:
             raise ValueError(f"{where}: expected a mapping of fields, got {_describe(value)}")
         unknown = [k for k in value if k not in fields]
         if unknown:
+            # repr() for a key that is no identifier: it may hold a newline or be empty.
+            key = unknown[0] if str(unknown[0]).isidentifier() else repr(unknown[0])
             raise ValueError(
-                f"{where + '.' if where else ''}{unknown[0]}: unknown field "
+                f"{where + '.' if where else ''}{key}: unknown field "
                 f"(known here: {', '.join(fields)})"
             )
         for key, item in value.items():

@@ -109,3 +109,60 @@ def test_lambda_outside_open_interval_is_named(lam):
     message = "lambda has a non-finite entry" if math.isnan(lam) else r"lambda outside \(0, 1\)"
     with pytest.raises(ValueError, match=message):
         image_jacobian(v, RHO)
+
+
+@SETTINGS
+@given(st.sampled_from(["u", "w_fov", "w_occ"]), angles, images_in_domain())
+def test_phi_is_one_on_each_face_of_D(face, angle, y):
+    """On the boundary of D (one model coordinate on its unit sphere) phi = 1."""
+    nf = NavigationFunction(DEFAULT_DOMAIN, camera_map(RigidTransform([0.0, 0.0, 0.5]), RHO))
+    m = nf_model(y)
+    if face == "u":
+        m = m._replace(u=np.array([math.copysign(1.0, angle)]))
+    else:
+        m = m._replace(**{face: np.array([[math.cos(angle), math.sin(angle)]])})
+    on_face = features_from_model(m, DEFAULT_DOMAIN)
+    # On the face to rounding (a margin of +-1e-17): evaluate the formula there as it is.
+    assert nf.value(on_face, extend=True).item() == pytest.approx(1.0, abs=1e-9)
+    assert np.min(DEFAULT_DOMAIN.margins(on_face)) == pytest.approx(0.0, abs=1e-12)
+
+
+def nf_model(y: ImageFeatures) -> ModelCoordinates:
+    from geovs_drake.geometry.navigation import model_coordinates
+
+    m = model_coordinates(ImageFeatures.from_vector(y.to_vector()[None]), DEFAULT_DOMAIN)
+    return ModelCoordinates(*(np.asarray(v, dtype=float) for v in m))
+
+
+yaml_scalars = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-5, 5),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=6),
+)
+yaml_values = st.recursive(
+    yaml_scalars,
+    lambda children: st.one_of(
+        st.lists(children, max_size=6), st.dictionaries(st.text(max_size=8), children, max_size=4)
+    ),
+    max_leaves=12,
+)
+FIELDS = ["radius", "goal", "initial", "domain", "rig", "control", "duration", "log_rate",
+          "simulator", "controller", "initial_velocity", "navigation", "target"]  # fmt: skip
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.dictionaries(st.sampled_from(FIELDS), yaml_values, max_size=4))
+def test_config_loader_loads_or_names_the_problem_in_one_line(tree):
+    """Random YAML: the loader (and validate) either accept it or raise a one-line
+    ValueError, never another exception."""
+    import yaml
+
+    from geovs_drake.scenario import load_scenario
+
+    text = yaml.safe_dump(tree)
+    try:
+        load_scenario(data=text).validate()
+    except ValueError as e:
+        assert "\n" not in str(e).strip(), str(e)
