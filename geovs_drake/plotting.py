@@ -98,8 +98,9 @@ def plot_navigation_slices(nf: NavigationFunction, path: str | Path | None = Non
     y = features_from_model(m, nf.domain)
     phi = nf.value(y).reshape(uu.shape)
     cs = ax.contourf(y.lam.reshape(uu.shape), np.degrees(aa), phi, levels=np.linspace(0, 1, 21))
-    fig.colorbar(cs, ax=ax)
-    ax.plot([float(nf.goal.lam)] * 2, [0, 180], "w*", ms=10)
+    fig.colorbar(cs, ax=ax, label="phi")
+    # The goal (roll 0) and the saddle (roll 180 deg, on the plot's edge: not clipped).
+    ax.plot([float(nf.goal.lam)] * 2, [0, 180], "w*", ms=10, clip_on=False, zorder=5)
     ax.set(xlabel="lambda", ylabel="roll [deg]", title="phi over (lambda, roll): min and saddle")
     # 2-D: the two discs' x coordinates.
     ax = axes[1, 2]
@@ -114,7 +115,7 @@ def plot_navigation_slices(nf: NavigationFunction, path: str | Path | None = Non
     y = features_from_model(m, nf.domain)
     phi = nf.value(y).reshape(g1.shape)
     cs = ax.contourf(g1, g2, phi, levels=np.linspace(0, 1, 21))
-    fig.colorbar(cs, ax=ax)
+    fig.colorbar(cs, ax=ax, label="phi")
     ax.set(xlabel="FOV disc coordinate w_fov,x", ylabel="occlusion disc coordinate w_occ,x")
     ax.set_title("phi over the two discs")
     for a in axes[0]:
@@ -162,7 +163,7 @@ def plot_image_view(result, path: str | Path | None = None, snapshots: int = 8):
     for k, i in enumerate(idx):
         c = cmap(k / max(1, len(idx) - 1))
         sil = _gnomonic(_silhouette(y.s[i], float(y.lam[i])))
-        ax.plot(sil[:, 0], sil[:, 1], color=c, lw=1.2, label=f"t = {result.times[i]:.1f} s")
+        ax.plot(sil[:, 0], sil[:, 1], color=c, lw=1.2, label=f"t = {result.times[i]:.3g} s")
         q1 = _gnomonic(y.q1[i][None])[0]
         tip = _gnomonic((y.q1[i] + 0.04 * y.q2[i])[None])[0]
         ax.annotate("", tip, q1, arrowprops=dict(arrowstyle="->", color=c, lw=1.5))

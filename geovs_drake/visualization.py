@@ -110,6 +110,16 @@ def add_goal_ghost(plant: MultibodyPlant, config: ScenarioConfig) -> None:
         )
 
 
-def draw_trail(meshcat: Meshcat, X_WC: np.ndarray, path: str = "/trail") -> None:
-    """The camera's trail, a polyline through the logged camera origins (N, 4, 4)."""
-    meshcat.SetLine(path, X_WC[:, :3, 3].T.copy(), line_width=3.0, rgba=Rgba(0.9, 0.4, 0.1, 1.0))
+def draw_trail(meshcat: Meshcat, X_WC: np.ndarray, path: str = "/trail", beads: int = 60) -> None:
+    """The camera's trail through the logged camera origins (N, 4, 4): a polyline and
+    ``beads`` small spheres along it.
+
+    Why the spheres: browsers draw WebGL lines 1 px wide whatever ``line_width``
+    says, which is hard to see; spheres keep their size.
+    """
+    points = X_WC[:, :3, 3]
+    colour = Rgba(0.9, 0.4, 0.1, 1.0)
+    meshcat.SetLine(f"{path}/line", points.T.copy(), line_width=3.0, rgba=colour)
+    for k, i in enumerate(np.unique(np.linspace(0, len(points) - 1, beads).astype(int))):
+        meshcat.SetObject(f"{path}/bead_{k}", Sphere(0.006), colour)
+        meshcat.SetTransform(f"{path}/bead_{k}", RigidTransform(points[i]))

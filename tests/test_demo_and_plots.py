@@ -5,6 +5,7 @@ import shutil
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from geovs_drake.diagrams import make_kinematic_servo_diagram
@@ -58,3 +59,48 @@ def test_block_diagram_svg_names_the_systems(tmp_path):
     svg = files[0].read_text()
     for name in ("kinematic_rigid_body", "spherical_camera", "kinematic_controller"):
         assert name in svg
+
+
+def test_plots_label_what_they_show():
+    """Distinct snapshot times in the image view's legend; labelled colour bars and an
+    unclipped saddle star in the NF slices."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from geovs_drake.geometry.navigation import NavigationFunction
+    from geovs_drake.plotting import plot_image_view, plot_navigation_slices
+    from geovs_drake.scenario import ScenarioConfig
+    from geovs_drake.simulation import simulate
+
+    config = ScenarioConfig(duration=3.0)
+    fig = plot_image_view(simulate(config))
+    labels = [
+        t.get_text() for t in fig.axes[0].get_legend().get_texts() if t.get_text()[:2] == "t "
+    ]
+    assert len(labels) == len(set(labels)) >= 5, labels
+    nf = NavigationFunction(config.domain.to_domain(), config.goal_features())
+    fig = plot_navigation_slices(nf)
+    bars = [ax for ax in fig.axes if ax.get_label() == "<colorbar>"]
+    assert len(bars) == 2 and all(ax.get_ylabel() == "phi" for ax in bars)
+    stars = [
+        line
+        for ax in fig.axes
+        for line in ax.get_lines()
+        if line.get_marker() == "*" and 180 in line.get_ydata()
+    ]
+    assert stars and not stars[0].get_clip_on()
+
+
+def test_meshcat_trail_has_beads_that_stay_visible():
+    """WebGL draws lines 1 px wide: the trail also has spheres along it."""
+    from pydrake.geometry import Meshcat
+
+    from geovs_drake.visualization import draw_trail
+
+    meshcat = Meshcat()
+    X = np.tile(np.eye(4), (200, 1, 1))
+    X[:, 0, 3] = np.linspace(0, 1, 200)
+    draw_trail(meshcat, X, beads=20)
+    assert meshcat.HasPath("/trail/line")
+    assert all(meshcat.HasPath(f"/trail/bead_{k}") for k in range(20))
+    assert not meshcat.HasPath("/trail/bead_20")
