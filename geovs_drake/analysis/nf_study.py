@@ -193,8 +193,16 @@ def _in_domain(nf: NavigationFunction, y: ImageFeatures) -> np.ndarray:
     return ok
 
 
+#: Below this clearance 1 - phi a point is on the boundary of D as far as doubles
+#: can tell: |F| underflows to 0 there, and a zero residual certifies nothing.
+_RESOLVABLE_CLEARANCE = 1e-100
+
+
 def _relative_residual(nf: NavigationFunction, y: ImageFeatures, F: np.ndarray) -> np.ndarray:
-    return np.linalg.norm(F, axis=-1) / np.maximum(nf.clearance(y, extend=True), 1e-300)
+    clearance = np.asarray(nf.clearance(y, extend=True), dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.linalg.norm(F, axis=-1) / clearance
+    return np.where(clearance > _RESOLVABLE_CLEARANCE, r, np.inf)
 
 
 @dataclass
