@@ -7,6 +7,7 @@ backend has been chosen.
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -197,9 +198,7 @@ def plot_run(result, path: str | Path | None = None):
     ax.plot(t, result.phi, label="phi")
     if result.energy is not None:
         ax.plot(t, result.energy, label="E = 1/2 nu^T M nu + k_p phi")
-    ax.set(
-        ylabel="Lyapunov", yscale="log", title=f"{result.config.controller} loop: {result.message}"
-    )
+    ax.set(ylabel="Lyapunov", yscale="log", title=f"{result.config.plant} loop: {result.message}")
     ax.legend()
     ax = axes[1]
     for k, name in enumerate(DomainMargins._fields):
@@ -233,7 +232,8 @@ def write_block_diagram(diagram, path_stem: str | Path, max_depth: int = 1) -> l
     if dot is None:
         print(
             "geovs-drake: skipping the block diagram: Graphviz's 'dot' is not installed "
-            "(Debian: apt-get install graphviz)"
+            "(Debian: apt-get install graphviz)",
+            file=sys.stderr,
         )
         return []
     source = diagram.GetGraphvizString(max_depth=max_depth)

@@ -31,7 +31,7 @@ def test_demo_writes_every_result(tmp_path):
     )
     assert out.returncode == 0, out.stderr
     lines = out.stdout.strip().splitlines()
-    assert lines[0].startswith("dynamic: converged")
+    assert lines[0].startswith("nf on the dynamic plant: converged")
     # Where the recording is: the saved file, not Drake's localhost URL (dead at exit).
     assert lines[1] == f"Meshcat recording: {(tmp_path / 'servo.html').resolve()} " + (
         "(open it in a web browser; it needs no server)"
@@ -49,7 +49,7 @@ def test_demo_writes_every_result(tmp_path):
 def test_block_diagram_is_skipped_with_a_message_without_dot(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(shutil, "which", lambda name: None)
     assert write_block_diagram(make_kinematic_servo_diagram(log=False), tmp_path / "d") == []
-    assert "skipping the block diagram" in capsys.readouterr().out
+    assert "skipping the block diagram" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
 
 
