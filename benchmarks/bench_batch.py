@@ -37,7 +37,7 @@ def main() -> None:
     parser.add_argument("--drake", type=int, default=20, help="starts for the Drake baseline")
     args = parser.parse_args()
     for plant in ("dynamic", "kinematic"):
-        config = ScenarioConfig(controller=plant, duration=args.duration)
+        config = ScenarioConfig(plant=plant, duration=args.duration)
         X_BC = starts(config, args.starts, seed=1)
         p = loop_parameters(config)
         run_batch(config, X_BC[:2], duration=0.1, parameters=p)  # load the compiled code

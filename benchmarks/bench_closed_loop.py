@@ -118,9 +118,7 @@ def framework_floor(config: ScenarioConfig) -> float:
 
 def real_time_factors(config: ScenarioConfig, repeat: int) -> dict[str, float]:
     build = (
-        make_dynamic_servo_diagram
-        if config.controller == "dynamic"
-        else make_kinematic_servo_diagram
+        make_dynamic_servo_diagram if config.plant == "dynamic" else make_kinematic_servo_diagram
     )
     out = {}
     out["simulate() (recorder)"] = max(
@@ -174,7 +172,7 @@ def main() -> None:
     )
 
     for controller in ("dynamic", "kinematic"):
-        c = ScenarioConfig(controller=controller)
+        c = ScenarioConfig(plant=controller)
         rates = real_time_factors(c, args.repeat)
         text = ", ".join(f"{k} {v:.0f}x" for k, v in rates.items())
         print(f"real-time factor, default {controller} scenario ({c.duration:.0f} s): {text}")

@@ -47,7 +47,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=123)
     args = parser.parse_args()
     for controller in ("dynamic", "kinematic"):
-        config = ScenarioConfig(controller=controller)
+        config = ScenarioConfig(plant=controller)
         starts = random_initial_poses(np.random.default_rng(args.seed), args.samples, config)
         texts = [yaml_dump_typed(c) for c in scenarios_from_starts(config, starts)]
         with ProcessPoolExecutor(2, mp_context=get_context("spawn")) as pool:

@@ -3,7 +3,7 @@
 Examples::
 
     geovs-drake simulate --json
-    geovs-drake simulate --controller kinematic --initial=-0.1,0.05,-0.7,0.1,0,1.2
+    geovs-drake simulate --plant kinematic --initial=-0.1,0.05,-0.7,0.1,0,1.2
     geovs-drake simulate --initial-velocity=-0.2,0,0.3,0.05,-0.1,0
     geovs-drake demo --out results
     geovs-drake sweep --starts 10000 --duration 10 --json
@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from geovs_drake.progress import Progress
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
+from geovs_drake.scenario import CONTROLLERS, PLANTS, PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import StartOutsideDomain, simulate
 
 __all__ = [
@@ -113,6 +113,8 @@ def _twist_arg(text: str) -> list[float]:
 
 def _config_from_args(args: argparse.Namespace) -> ScenarioConfig:
     config = load_scenario(args.config) if args.config else ScenarioConfig()
+    if args.plant:
+        config.plant = args.plant
     if args.controller:
         config.controller = args.controller
     if args.initial is not None:
@@ -140,9 +142,15 @@ def _add_scenario_args(p: argparse.ArgumentParser) -> None:
         "(default: none, the built-in scenario)",
     )
     p.add_argument(
+        "--plant",
+        choices=PLANTS,
+        help="dynamic: the MultibodyPlant free body driven by a wrench; kinematic: the "
+        f"camera's twist is commanded (default: the config's, else {d.plant})",
+    )
+    p.add_argument(
         "--controller",
-        choices=["kinematic", "dynamic"],
-        help=f"the loop (default: the config's, else {d.controller})",
+        choices=CONTROLLERS,
+        help=f"the control law (default: the config's, else {d.controller})",
     )
     p.add_argument(
         "--initial",
@@ -234,7 +242,7 @@ def _sweep(args: argparse.Namespace) -> int:
 
     _sweep_checks(args)
     config = load_scenario(args.config) if args.config else ScenarioConfig()
-    config.controller = args.plant
+    config.plant = args.plant
     config.validate()
     velocity = args.velocity or ("bounded" if args.plant == "dynamic" else "none")
     X_BC, twists = sweep.sample_starts(config, args.starts, args.seed, velocity)
@@ -312,9 +320,9 @@ def _add_sweep_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--plant",
-        choices=["kinematic", "dynamic"],
+        choices=PLANTS,
         default="dynamic",
-        help="the loop (sets the config's controller; default: dynamic)",
+        help="dynamic: the MultibodyPlant free body; kinematic: commanded twist (default: dynamic)",
     )
     p.add_argument(
         "--starts", type=int, default=1000, metavar="N", help="number of starts (default: 1000)"

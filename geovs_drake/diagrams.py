@@ -67,7 +67,7 @@ def initial_body_states(
     """
     X_BC = np.asarray(X_BC, dtype=float).reshape(-1, 4, 4)
     n = len(X_BC)
-    dynamic = config.controller == "dynamic"
+    dynamic = config.plant == "dynamic"
     if twists is not None and not dynamic and np.any(np.asarray(twists) != 0):
         raise ValueError(
             "an initial twist applies to the dynamic loop only (first-order kinematic)"

@@ -26,6 +26,8 @@ from geovs_drake.geometry.domain import SafeDomain
 from geovs_drake.geometry.navigation import NavigationGains
 
 __all__ = [
+    "CONTROLLERS",
+    "PLANTS",
     "ControlConfig",
     "DomainConfig",
     "NavigationGainsConfig",
@@ -34,6 +36,12 @@ __all__ = [
     "ScenarioConfig",
     "load_scenario",
 ]
+
+
+#: The plants a scenario can run on.
+PLANTS = ("dynamic", "kinematic")
+#: The control laws (``ScenarioConfig.controller``).
+CONTROLLERS = ("nf",)
 
 
 @dataclass
@@ -150,7 +158,11 @@ class ScenarioConfig:
     navigation: NavigationGainsConfig = field(default_factory=NavigationGainsConfig)
     rig: RigConfig = field(default_factory=RigConfig)
     control: ControlConfig = field(default_factory=ControlConfig)
-    controller: str = "dynamic"
+    #: The plant: "dynamic" (the MultibodyPlant free body of Appendix C, driven by a
+    #: wrench) or "kinematic" (the camera's body twist is commanded, Eqs. 17-19).
+    plant: str = "dynamic"
+    #: The control law: "nf", the navigation function of this project.
+    controller: str = "nf"
     duration: float = 30.0
     #: Samples per second of the logged signals.
     log_rate: float = 50.0
@@ -158,9 +170,16 @@ class ScenarioConfig:
 
     def validate(self) -> None:
         """Raise ValueError naming the first bad field and its value."""
-        if self.controller not in ("dynamic", "kinematic"):
+        if self.plant not in PLANTS:
+            raise ValueError(f"plant must be one of {', '.join(PLANTS)}, got {self.plant!r}")
+        if self.controller in PLANTS:
             raise ValueError(
-                f"controller must be 'dynamic' or 'kinematic', got {self.controller!r}"
+                f"controller {self.controller!r} names a plant: write plant: {self.controller} "
+                f"(the controller is the law, one of {', '.join(CONTROLLERS)})"
+            )
+        if self.controller not in CONTROLLERS:
+            raise ValueError(
+                f"controller must be one of {', '.join(CONTROLLERS)}, got {self.controller!r}"
             )
         if not (math.isfinite(self.radius) and self.radius > 0):
             raise ValueError(f"radius must be finite and > 0: radius = {self.radius}")
@@ -198,11 +217,11 @@ class ScenarioConfig:
                 "initial_velocity must be 6 finite numbers (Omega, V) in C [rad/s, m/s], "
                 f"got {self.initial_velocity!r}"
             )
-        if self.controller == "kinematic" and any(v != 0 for v in twist):
+        if self.plant == "kinematic" and any(v != 0 for v in twist):
             raise ValueError(
                 "initial_velocity applies to the dynamic loop only (the kinematic loop "
                 f"commands the camera's velocity): got initial_velocity = {twist} "
-                "with controller 'kinematic'"
+                "with plant 'kinematic'"
             )
         self.domain.to_domain()
         self.navigation.to_gains()

@@ -182,7 +182,7 @@ class SimulationResult:
         if self.saddle_note:
             energy += f" | {self.saddle_note}"
         return (
-            f"{s['controller']}: {s['status']} | position error "
+            f"{s['controller']} on the {s['plant']} plant: {s['status']} | position error "
             f"{s['final_position_error_m']:.2e} m, rotation error "
             f"{s['final_rotation_error_rad']:.2e} rad | min margins: "
             f"fov {s['min_fov_margin']:.3g}, occlusion {s['min_occlusion_margin']:.3g}, "
@@ -197,6 +197,7 @@ class SimulationResult:
         None for the kinematic loop, which has no energy."""
         dp, dr = self.final_errors
         out = {
+            "plant": self.config.plant,
             "controller": self.config.controller,
             "converged": self.converged,
             "status": self.status,
@@ -385,7 +386,7 @@ def simulate(
     meshcat=None,
     progress: Callable[[float], None] | None = None,
 ) -> SimulationResult:
-    """Simulate the configured loop (``config.controller``) for ``config.duration``.
+    """Simulate the configured loop (``config.plant``) for ``config.duration``.
 
     Raises StartOutsideDomain if the start is not in D. A run that leaves D
     stops early with ``status`` ``left_domain`` / ``lost_visibility``. The
@@ -399,7 +400,7 @@ def simulate(
     config = config or ScenarioConfig()
     config.validate()
     check_start(config)
-    dynamic = config.controller == "dynamic"
+    dynamic = config.plant == "dynamic"
     diagram = (
         make_dynamic_servo_diagram(config, meshcat=meshcat, log=False)
         if dynamic

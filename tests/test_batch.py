@@ -32,14 +32,12 @@ def _starts(config: ScenarioConfig, n: int, seed: int) -> np.ndarray:
 
 def _drake_state_at(config: ScenarioConfig, x0: np.ndarray, t: float) -> np.ndarray:
     build = (
-        make_dynamic_servo_diagram
-        if config.controller == "dynamic"
-        else make_kinematic_servo_diagram
+        make_dynamic_servo_diagram if config.plant == "dynamic" else make_kinematic_servo_diagram
     )
     truth = copy.deepcopy(config)
     # Tight: RK5 at 1e-10 for the dynamic loop; RK3 at 1e-9 for the kinematic one, where
     # Drake's RK5 crawls (its error control meets the NF's steep walls near the boundary).
-    dynamic = config.controller == "dynamic"
+    dynamic = config.plant == "dynamic"
     truth.simulator.integration_scheme = "runge_kutta5" if dynamic else "runge_kutta3"
     truth.simulator.accuracy = 1e-10 if dynamic else 1e-9
     simulator = Simulator(build(truth, log=False))
@@ -55,7 +53,7 @@ def _drake_state_at(config: ScenarioConfig, x0: np.ndarray, t: float) -> np.ndar
 def test_batch_states_at_one_second_match_the_drake_loop(controller, moving):
     """16 starts (dynamic: camera off the rig's centre of mass, anisotropic inertia):
     the states at t = 1 s agree to 1e-6, and so do the statuses."""
-    config = ScenarioConfig(controller=controller)
+    config = ScenarioConfig(plant=controller)
     if controller == "dynamic":
         config.rig.camera_offset = copy.deepcopy(OFFSET)
         config.rig.inertia_diagonal = [0.02, 0.03, 0.025]

@@ -75,17 +75,17 @@ def test_simulate_missing_config_exits_2_with_one_line(tmp_path, capsys):
 
 def test_simulate_good_config_overridden_by_options(tmp_path, capsys):
     path = tmp_path / "scenario.yaml"
-    path.write_text("controller: kinematic\nduration: 0\nsimulator:\n  accuracy: 1e-6\n")
+    path.write_text("plant: kinematic\nduration: 0\nsimulator:\n  accuracy: 1e-6\n")
     # The file's bad duration is overridden by --duration: the run goes ahead.
     code, out, err = _run(["simulate", "--config", str(path), "--duration", "12"], capsys)
     assert code == 0, err
-    assert out.startswith("kinematic: converged")
+    assert out.startswith("nf on the kinematic plant: converged")
 
 
 def test_simulate_exit_0_when_converged(capsys):
-    code, out, err = _run(["simulate", "--controller", "kinematic", "--duration", "12"], capsys)
+    code, out, err = _run(["simulate", "--plant", "kinematic", "--duration", "12"], capsys)
     assert code == 0, err
-    assert out.startswith("kinematic: converged")
+    assert out.startswith("nf on the kinematic plant: converged")
 
 
 @pytest.mark.parametrize(
@@ -99,7 +99,7 @@ def test_simulate_exit_0_when_converged(capsys):
 def test_simulate_exit_3_when_it_ran_and_did_not_converge(argv, status, capsys):
     code, out, err = _run(["simulate", *argv], capsys)
     assert code == 3, err
-    assert out.startswith(f"dynamic: {status} ")
+    assert out.startswith(f"nf on the dynamic plant: {status} ")
 
 
 @pytest.mark.parametrize(

@@ -109,7 +109,7 @@ def test_default_dynamic_run_converges_with_decreasing_energy(default_dynamic_ru
 def test_logs_match_drakes_own_loggers(controller):
     """simulate() logs by resampling its recorded steps; Drake's LogVectorOutput on
     the same diagram (which cuts the steps at each sample) is the truth."""
-    config = ScenarioConfig(controller=controller, duration=3.0)
+    config = ScenarioConfig(plant=controller, duration=3.0)
     config.simulator.accuracy = 1e-8
     r = simulate(config)
     build = make_dynamic_servo_diagram if controller == "dynamic" else make_kinematic_servo_diagram
@@ -132,7 +132,7 @@ def test_logs_match_drakes_own_loggers(controller):
 
 
 def test_kinematic_run_decreases_phi_and_converges():
-    r = simulate(ScenarioConfig(controller="kinematic", duration=15.0))
+    r = simulate(ScenarioConfig(plant="kinematic", duration=15.0))
     assert r.status == "converged", r.message
     assert r.energy is None
     assert np.max(np.diff(r.phi)) <= r.lyapunov_tolerance
@@ -196,11 +196,16 @@ def test_scenario_yaml_round_trip_and_partial_files(tmp_path):
     path.write_text(yaml_dump_typed(c))
     c2 = load_scenario(path)
     assert yaml_dump_typed(c2) == yaml_dump_typed(c)
-    c3 = load_scenario(data="controller: kinematic\nduration: 7.5\n")
-    assert c3.controller == "kinematic" and c3.duration == 7.5
+    c3 = load_scenario(data="plant: kinematic\nduration: 7.5\n")
+    assert c3.plant == "kinematic" and c3.duration == 7.5
     assert c3.goal == ScenarioConfig().goal
-    with pytest.raises(ValueError, match="controller must be"):
+    with pytest.raises(ValueError, match="controller must be one of nf.*, got 'pid'"):
         load_scenario(data="controller: pid\n").validate()
+    # The old meaning of `controller` (the plant) is refused with the new spelling.
+    with pytest.raises(ValueError, match="controller 'kinematic' names a plant: write plant"):
+        load_scenario(data="controller: kinematic\n").validate()
+    with pytest.raises(ValueError, match="plant must be one of dynamic, kinematic, got 'x'"):
+        load_scenario(data="plant: x\n").validate()
     # A partial pose is the whole pose: rpy left out is zero, not the default start's roll.
     c4 = load_scenario(
         data="initial: {xyz: [0.05, 0.0, -0.7]}\nrig: {camera_offset: {rpy: [0, 0, 1]}}\n"
@@ -258,10 +263,10 @@ def test_cli_json_has_every_field_and_is_true_to_the_run():
 
 
 def test_cli_one_line_and_kinematic():
-    out = _cli("simulate", "--controller", "kinematic", "--duration", "12")
+    out = _cli("simulate", "--plant", "kinematic", "--duration", "12")
     assert out.returncode == 0, out.stderr
     assert len(out.stdout.strip().splitlines()) == 1
-    assert out.stdout.startswith("kinematic: converged")
+    assert out.stdout.startswith("nf on the kinematic plant: converged")
 
 
 def test_cli_start_outside_domain_exits_2_with_one_line():
@@ -280,7 +285,7 @@ def test_monte_carlo_random_starts_converge_inside_domain(controller):
     """2000 seeded random starts in D through the batch engine (the Drake systems'
     kernels): all converge, none leaves D, the Lyapunov function never rises; and
     the first 10 through the Drake loop itself (processes) end the same way."""
-    config = ScenarioConfig(controller=controller, duration=12.0)
+    config = ScenarioConfig(plant=controller, duration=12.0)
     n = 2000
     starts = random_initial_poses(np.random.default_rng(2026), n, config, shrink=0.97)
     X_BC = np.stack([s.to_rigid_transform().GetAsMatrix4() for s in starts])
@@ -298,7 +303,7 @@ def test_monte_carlo_random_starts_converge_inside_domain(controller):
 
 
 def test_drake_monte_carlo_simulation_runs():
-    config = ScenarioConfig(controller="kinematic", duration=12.0)
+    config = ScenarioConfig(plant="kinematic", duration=12.0)
     config.simulator.accuracy = 1e-5
     out = drake_monte_carlo(config, num_samples=3, seed=5)
     assert len(out) == 3
@@ -418,7 +423,7 @@ def test_start_above_the_energy_bound_runs_and_says_the_guarantee_does_not_cover
 
 
 def test_kinematic_loop_rejects_an_initial_velocity_and_has_no_energy_fields():
-    c = ScenarioConfig(controller="kinematic", initial_velocity=[0.0, 0.0, 0.0, 0.1, 0.0, 0.0])
+    c = ScenarioConfig(plant="kinematic", initial_velocity=[0.0, 0.0, 0.0, 0.1, 0.0, 0.0])
     with pytest.raises(ValueError, match="initial_velocity applies to the dynamic loop only"):
         c.validate()
     with pytest.raises(ValueError, match="initial_velocity applies to the dynamic loop only"):
@@ -426,7 +431,7 @@ def test_kinematic_loop_rejects_an_initial_velocity_and_has_no_energy_fields():
     for bad in ([0.0] * 5, [0.0] * 5 + [float("nan")], ["a"] * 6):
         with pytest.raises(ValueError, match=r"initial_velocity must be 6 finite numbers.*got"):
             ScenarioConfig(initial_velocity=bad).validate()
-    s = simulate(ScenarioConfig(controller="kinematic", duration=2.0)).summary()
+    s = simulate(ScenarioConfig(plant="kinematic", duration=2.0)).summary()
     for key in ("initial_energy", "energy_bound", "energy_guarantee", "max_energy"):
         assert s[key] is None, key
     json.loads(json.dumps(s, allow_nan=False))
@@ -462,7 +467,7 @@ def test_cli_initial_velocity_json_round_trip():
         ["--initial-velocity=0,0,0,0.1,0"],
         ["--initial-velocity", "abc"],
         ["--initial-velocity", "-0.1,0,0,0,0,0"],
-        ["--controller", "kinematic", "--initial-velocity=0,0,0,0.1,0,0"],
+        ["--plant", "kinematic", "--initial-velocity=0,0,0,0.1,0,0"],
     ],
     ids=["five-numbers", "abc", "negative-without-equals", "kinematic"],
 )

@@ -149,7 +149,8 @@ yaml_values = st.recursive(
     max_leaves=12,
 )
 FIELDS = ["radius", "goal", "initial", "domain", "rig", "control", "duration", "log_rate",
-          "simulator", "controller", "initial_velocity", "navigation", "target"]  # fmt: skip
+          "simulator", "plant", "controller", "initial_velocity", "navigation",
+          "target"]  # fmt: skip
 
 
 @settings(max_examples=300, deadline=None)

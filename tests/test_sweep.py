@@ -123,7 +123,7 @@ def test_starts_lie_in_D_and_below_the_energy_bound():
     assert np.allclose(X_rest, expected, atol=1e-12) and not np.any(zero)
 
     kinematic = copy.deepcopy(config)
-    kinematic.controller = "kinematic"
+    kinematic.plant = "kinematic"
     with pytest.raises(sweep.SweepError, match="velocity 'bounded' needs the dynamic plant"):
         sweep.sample_starts(kinematic, 3, velocity="bounded")
 

@@ -98,14 +98,14 @@ class LinearizationResult:
         return float(np.max(self.eigenvalues.real))
 
 
-def closed_form_A(config: ScenarioConfig, controller: str | None = None) -> np.ndarray:
+def closed_form_A(config: ScenarioConfig, plant: str | None = None) -> np.ndarray:
     """The closed-form linearisation at the goal (module docstring)."""
-    controller = controller or config.controller
+    plant = plant or config.plant
     y = config.goal_features()
     nf = NavigationFunction(config.domain.to_domain(), y, config.navigation.to_gains())
     H = navigation_hessian(nf, y)
     Cc = _chart_jacobian(y, config.radius)
-    if controller == "kinematic":
+    if plant == "kinematic":
         return -config.control.kinematic_gain * np.linalg.solve(Cc, H @ Cc)
     K = config.control.potential_gain * Cc.T @ H @ Cc
     Ad = _adjoint(config.X_RC)
@@ -129,12 +129,12 @@ def config_at_goal(config: ScenarioConfig) -> ScenarioConfig:
 
 
 def linearize_at_goal(
-    config: ScenarioConfig | None = None, controller: str | None = None
+    config: ScenarioConfig | None = None, plant: str | None = None
 ) -> LinearizationResult:
     """Drake's ``Linearize`` of the whole closed loop at the goal, reduced to minimal form."""
     config = config_at_goal(config or ScenarioConfig())
-    controller = controller or config.controller
-    if controller == "dynamic":
+    plant = plant or config.plant
+    if plant == "dynamic":
         diagram = make_dynamic_servo_diagram(config, log=False)
     else:
         diagram = make_kinematic_servo_diagram(config, log=False)
@@ -148,7 +148,7 @@ def linearize_at_goal(
     A_drake = lin.A()
     x0 = context.get_continuous_state_vector().CopyToVector()
     q = x0[0:4]
-    if controller == "dynamic":
+    if plant == "dynamic":
         X_RC = config.X_RC
         X_WR = config.X_WB @ config.X_BC_goal @ X_RC.inverse()
         R_WR = X_WR.rotation().matrix()
@@ -171,7 +171,7 @@ def linearize_at_goal(
         A_drake=A_drake,
         T=T,
         A=A,
-        A_closed=closed_form_A(config, controller),
+        A_closed=closed_form_A(config, plant),
         eigenvalues=np.sort_complex(np.linalg.eigvals(A)),
         quaternion_eigenvalue=complex(e_q @ A_drake @ e_q),
         invariance_residual=float(

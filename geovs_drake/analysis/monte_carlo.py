@@ -50,14 +50,14 @@ def random_initial_poses(
 
 
 def scenarios_from_starts(
-    config: ScenarioConfig, starts: Iterable[PoseConfig], controller: str | None = None
+    config: ScenarioConfig, starts: Iterable[PoseConfig], plant: str | None = None
 ) -> list[ScenarioConfig]:
     out = []
     for pose in starts:
         c = copy.deepcopy(config)
         c.initial = pose
-        if controller is not None:
-            c.controller = controller
+        if plant is not None:
+            c.plant = plant
         out.append(c)
     return out
 
@@ -96,11 +96,7 @@ def drake_monte_carlo(
         c = copy.deepcopy(config)
         c.initial = random_initial_poses(rng, 1, config, shrink)[0]
         starts.append(c.initial)
-        build = (
-            make_dynamic_servo_diagram
-            if c.controller == "dynamic"
-            else make_kinematic_servo_diagram
-        )
+        build = make_dynamic_servo_diagram if c.plant == "dynamic" else make_kinematic_servo_diagram
         simulator, _ = make_simulator(build(c, log=False), c)
         return simulator
 
@@ -111,7 +107,7 @@ def drake_monte_carlo(
         ctx = camera.GetMyContextFromRoot(context)
         margins = camera.domain_margins_output.Eval(ctx)
         x = context.get_continuous_state_vector().CopyToVector()
-        X_BC = camera_pose_in_target(config, x, config.controller == "dynamic")
+        X_BC = camera_pose_in_target(config, x, config.plant == "dynamic")
         dp, dr = pose_error(X_BC, config.X_BC_goal)
         outputs.append(
             dict(position_error_m=dp, rotation_error_rad=dr, min_margin=float(min(margins)))

@@ -181,11 +181,11 @@ def sample_starts(
         raise SweepError(f"the number of starts must be an integer >= 1: n = {n!r}")
     if velocity not in VELOCITIES:
         raise SweepError(f"velocity must be one of {VELOCITIES}: velocity = {velocity!r}")
-    dynamic = config.controller == "dynamic"
+    dynamic = config.plant == "dynamic"
     if velocity != "none" and not dynamic:
         raise SweepError(
             f"velocity {velocity!r} needs the dynamic plant (the kinematic loop is first order "
-            f"and starts at rest): controller = {config.controller!r}"
+            f"and starts at rest): controller = {config.plant!r}"
         )
     rng = np.random.default_rng(seed)
     y = random_features_in_domain(rng, int(n), config.domain.to_domain(), shrink=SHRINK)
@@ -288,7 +288,7 @@ def _batch_chunk(
 
 def _drake_row(config: ScenarioConfig, k_p: float, index: int, X_BC, twist) -> dict:
     """One start through simulate(): the same columns as the batch engine's."""
-    dynamic = config.controller == "dynamic"
+    dynamic = config.plant == "dynamic"
     c = copy.deepcopy(config)
     c.initial = PoseConfig.from_rigid_transform(RigidTransform(X_BC))
     c.initial_velocity = [float(v) for v in twist] if dynamic else [0.0] * 6
@@ -408,7 +408,7 @@ def run_sweep(
     chunk: int = 1000,
     on_chunk: Callable[[list[dict]], None] | None = None,
 ) -> SweepResult:
-    """Run ``config``'s loop (``config.controller``) from each start, in chunks on Dask.
+    """Run ``config``'s loop (``config.plant``) from each start, in chunks on Dask.
 
     Args:
         config: the scenario; its ``initial``, ``initial_velocity`` and ``duration``
@@ -432,7 +432,7 @@ def run_sweep(
     """
     config.validate()
     X_BC, twists = _check_settings(X_BC, twists, duration, engine, workers, chunk)
-    dynamic = config.controller == "dynamic"
+    dynamic = config.plant == "dynamic"
     if not dynamic and np.any(twists != 0):
         raise SweepError("initial twists apply to the dynamic plant only (kinematic: at rest)")
     text = yaml_dump_typed(config)
@@ -476,7 +476,7 @@ def run_sweep(
     rows.sort(key=lambda r: r["start"])
     result = SweepResult(
         rows=rows,
-        plant=config.controller,
+        plant=config.plant,
         engine=engine,
         workers=int(workers),
         chunk=int(chunk),

@@ -97,8 +97,8 @@ class LoopParameters:
 
 
 def loop_parameters(config: ScenarioConfig) -> LoopParameters:
-    """The parameter vectors of the systems of ``config``'s diagram (``config.controller``)."""
-    dynamic = config.controller == "dynamic"
+    """The parameter vectors of the systems of ``config``'s diagram (``config.plant``)."""
+    dynamic = config.plant == "dynamic"
     build = make_dynamic_servo_diagram if dynamic else make_kinematic_servo_diagram
     diagram = build(config, log=False)
     root = diagram.CreateDefaultContext()
@@ -112,7 +112,7 @@ def loop_parameters(config: ScenarioConfig) -> LoopParameters:
     X_WC_goal = config.X_WB @ config.X_BC_goal
     goal = np.concatenate([X_WC_goal.rotation().matrix().ravel(), X_WC_goal.translation()])
     return LoopParameters(
-        plant=config.controller,
+        plant=config.plant,
         camera=camera,
         navigation=np.array(nav.navigation_parameters(nav.GetMyContextFromRoot(root))),
         controller=params("image_jacobian_force" if dynamic else "kinematic_controller"),
@@ -342,7 +342,7 @@ def run_batch(
     """Integrate ``config``'s loop from N starts at once (module docstring).
 
     Args:
-        config: the scenario; ``config.controller`` picks the plant.
+        config: the scenario; ``config.plant`` picks the plant.
         X_BC: initial camera poses in the target frame, (N, 4, 4).
         twists: initial camera body twists (Omega, V) in C, (N, 6) (dynamic only).
         duration: the horizon [s], ``config.duration`` by default.
