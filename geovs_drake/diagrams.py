@@ -3,7 +3,13 @@
 Subsystem names (for ``diagram.GetSubsystemByName``): ``plant``,
 ``scene_graph``, ``spherical_camera``, ``navigation_controller``,
 ``image_jacobian_force`` (dynamic), ``kinematic_controller`` and
-``kinematic_rigid_body`` (kinematic), and, with ``log=True`` (the default),
+``kinematic_rigid_body`` (kinematic). A law other than the NF
+(``config.controller``, registered in :data:`TWIST_CONTROLLERS`) commands a
+camera twist: its system is ``controller`` (output port ``camera_velocity``),
+driving the kinematic body directly or the rig through
+``velocity_tracking_force`` (dynamic); the ``navigation_controller`` stays in
+the diagram to report phi on D, unconnected to the actuation. With
+``log=True`` (the default),
 Drake's ``LogVectorOutput`` loggers ``log_image_features``, ``log_phi``,
 ``log_margins``, ``log_visibility``, ``log_body_state`` / ``log_body_pose`` at
 ``config.log_rate``. :func:`geovs_drake.simulation.simulate` builds with
@@ -13,12 +19,14 @@ every integrator step at each sample time.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.multibody.tree import RotationalInertia, SpatialInertia
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Demultiplexer, LogVectorOutput
 from pydrake.visualization import AddFrameTriadIllustration
 
@@ -31,11 +39,13 @@ from geovs_drake.systems import (
     KinematicRigidBody,
     NavigationController,
     SphericalCamera,
+    VelocityTrackingForce,
 )
 from geovs_drake.visualization import add_camera_geometry, add_goal_ghost, add_target_geometry
 
 __all__ = [
     "RIG_BODY_NAME",
+    "TWIST_CONTROLLERS",
     "initial_body_states",
     "initial_rig_pose",
     "initial_rig_state",
@@ -44,6 +54,31 @@ __all__ = [
 ]
 
 RIG_BODY_NAME = "camera_rig"
+
+#: A law that commands the camera's body twist: ``factory(builder, config, camera)``
+#: adds its system (and any sources it needs) to ``builder``, connects every input
+#: but the ones it wants from the camera, and returns the system, whose output port
+#: ``camera_velocity`` is (Omega, V) in C. The builder then connects the system's
+#: ``image_features`` input (if it has one) to the camera's y. Keyed by
+#: ``ScenarioConfig.controller``; the NF ("nf") is built in.
+TwistControllerFactory = Callable[[DiagramBuilder, ScenarioConfig, SphericalCamera], LeafSystem]
+TWIST_CONTROLLERS: dict[str, TwistControllerFactory] = {}
+
+
+def _add_twist_controller(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:
+    """The registered law of ``config.controller``, named ``controller`` and connected to y."""
+    try:
+        factory = TWIST_CONTROLLERS[config.controller]
+    except KeyError:
+        raise ValueError(
+            f"controller {config.controller!r} has no diagram (registered: nf, "
+            f"{', '.join(sorted(TWIST_CONTROLLERS))})"
+        ) from None
+    law = factory(builder, config, camera)
+    law.set_name("controller")
+    if law.HasInputPort("image_features"):
+        builder.Connect(camera.image_features_output, law.GetInputPort("image_features"))
+    return law
 
 
 def initial_rig_pose(config: ScenarioConfig) -> RigidTransform:
@@ -163,17 +198,25 @@ def make_dynamic_servo_diagram(
     builder.Connect(plant.get_state_output_port(), demux.get_input_port())
     camera, nav = _camera_and_navigation(builder, config, X_RC)
     builder.Connect(demux.get_output_port(0), camera.body_pose_input)
-    force = builder.AddNamedSystem(
-        "image_jacobian_force",
-        ImageJacobianForce(
-            radius=config.radius,
-            potential_gain=config.control.potential_gain,
-            damping=np.asarray(config.control.damping, dtype=float),
-            X_RC=X_RC,
-        ),
-    )
-    builder.Connect(camera.image_features_output, force.image_features_input)
-    builder.Connect(nav.dphi_output, force.dphi_input)
+    if config.controller == "nf":
+        force = builder.AddNamedSystem(
+            "image_jacobian_force",
+            ImageJacobianForce(
+                radius=config.radius,
+                potential_gain=config.control.potential_gain,
+                damping=np.asarray(config.control.damping, dtype=float),
+                X_RC=X_RC,
+            ),
+        )
+        builder.Connect(camera.image_features_output, force.image_features_input)
+        builder.Connect(nav.dphi_output, force.dphi_input)
+    else:
+        law = _add_twist_controller(builder, config, camera)
+        force = builder.AddNamedSystem(
+            "velocity_tracking_force",
+            VelocityTrackingForce(gains=config.control.tracking_gains, X_RC=X_RC),
+        )
+        builder.Connect(law.GetOutputPort("camera_velocity"), force.camera_velocity_command_input)
     builder.Connect(plant.get_state_output_port(), force.body_state_input)
     builder.Connect(
         force.generalized_force_output, plant.get_applied_generalized_force_input_port()
@@ -196,7 +239,8 @@ def make_dynamic_servo_diagram(
 def make_kinematic_servo_diagram(config: ScenarioConfig | None = None, log: bool = True) -> Diagram:
     """The kinematic loop of Eqs. (17)-(19): camera map, NF, Tc^-1, integrated on SE(3).
 
-    The kinematic body *is* the camera frame (X_RC = identity).
+    The kinematic body *is* the camera frame (X_RC = identity). With a law other
+    than the NF (``config.controller``), that law's commanded twist drives the body.
     """
     config = config or ScenarioConfig()
     config.validate()
@@ -206,13 +250,17 @@ def make_kinematic_servo_diagram(config: ScenarioConfig | None = None, log: bool
     )
     camera, nav = _camera_and_navigation(builder, config, RigidTransform())
     builder.Connect(body.body_pose_output, camera.body_pose_input)
-    controller = builder.AddNamedSystem(
-        "kinematic_controller",
-        KinematicController(radius=config.radius, gain=config.control.kinematic_gain),
-    )
-    builder.Connect(camera.image_features_output, controller.image_features_input)
-    builder.Connect(nav.dphi_output, controller.dphi_input)
-    builder.Connect(controller.camera_velocity_output, body.camera_velocity_input)
+    if config.controller == "nf":
+        controller = builder.AddNamedSystem(
+            "kinematic_controller",
+            KinematicController(radius=config.radius, gain=config.control.kinematic_gain),
+        )
+        builder.Connect(camera.image_features_output, controller.image_features_input)
+        builder.Connect(nav.dphi_output, controller.dphi_input)
+        builder.Connect(controller.camera_velocity_output, body.camera_velocity_input)
+    else:
+        law = _add_twist_controller(builder, config, camera)
+        builder.Connect(law.GetOutputPort("camera_velocity"), body.camera_velocity_input)
     if log:
         _add_loggers(builder, camera, nav, config.log_rate)
         LogVectorOutput(

@@ -194,7 +194,8 @@ class SimulationResult:
     def summary(self) -> dict:
         """The run as JSON-ready values. The energy fields (``initial_energy``,
         ``energy_bound`` = k_p, ``energy_guarantee`` = E0 < k_p, ``max_energy``) are
-        None for the kinematic loop, which has no energy."""
+        None for the kinematic loop, which has no energy, and for laws other than
+        the NF, whose energy is not k_p phi."""
         dp, dr = self.final_errors
         out = {
             "plant": self.config.plant,
@@ -430,7 +431,8 @@ def simulate(
     times, states = monitor.resample(config.log_rate)
     signals = camera_signals(diagram, root, states)
     energy = None
-    if dynamic:
+    nf_law = config.controller == "nf"
+    if dynamic and nf_law:
         # Drake's own kinetic energy of the free body, plus the potential k_p phi.
         plant = diagram.GetSubsystemByName("plant")
         pctx = plant.CreateDefaultContext()
@@ -467,6 +469,8 @@ def simulate(
     )
     if result.energy_guarantee is False:
         result.message += f" ({energy_note(result.initial_energy, result.energy_bound)})"
+    if not nf_law:  # the energy and the saddle belong to the NF's law
+        return result
     nf = NavigationFunction(
         config.domain.to_domain(), config.goal_features(), config.navigation.to_gains()
     )

@@ -479,3 +479,50 @@ def test_cli_bad_initial_velocity_exits_2_with_one_line(args):
     assert len(lines) == 1, out.stderr
     assert "initial-velocity" in lines[0] or "initial_velocity" in lines[0]
     assert "Traceback" not in out.stderr
+
+
+def _constant_twist_law(twist):
+    """A registered test law: (Omega, V) = const, so the truth is analytic."""
+    from pydrake.systems.framework import LeafSystem
+
+    class ConstantTwist(LeafSystem):
+        def __init__(self):
+            super().__init__()
+            self.DeclareVectorInputPort("image_features", 13)
+            self.DeclareVectorOutputPort(
+                "camera_velocity", 6, lambda context, out: out.SetFromVector(twist)
+            )
+
+    return lambda builder, config, camera: builder.AddSystem(ConstantTwist())
+
+
+@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+def test_twist_law_registry_drives_both_plants(plant, monkeypatch):
+    """A law from TWIST_CONTROLLERS runs the kinematic body directly and the rig
+    through VelocityTrackingForce: a roll rate w about the optical axis from the
+    goal gives X_BC(t) = X_BC* RotZ(w t) (kinematic) or RotZ(w (t - tau (1 -
+    e^{-t/tau}))), tau = I_z / B_z (dynamic, first-order lag from rest)."""
+    from pydrake.math import RotationMatrix
+
+    import geovs_drake.diagrams as diagrams
+    import geovs_drake.scenario as scenario
+
+    w = 0.5
+    monkeypatch.setattr(scenario, "CONTROLLERS", (*scenario.CONTROLLERS, "test_roll"))
+    monkeypatch.setitem(
+        diagrams.TWIST_CONTROLLERS, "test_roll", _constant_twist_law(np.array([0, 0, w, 0, 0, 0]))
+    )
+    config = ScenarioConfig(plant=plant, controller="test_roll", duration=1.0)
+    config.initial = PoseConfig(list(config.goal.xyz), list(config.goal.rpy))
+    result = simulate(config)
+    assert result.status == "not_converged" and result.energy is None
+    t = result.sim_time_s
+    angle = w * t
+    if plant == "dynamic":
+        tau = config.rig.inertia_diagonal[2] / config.control.tracking_gains[2]
+        angle = w * (t - tau * (1 - np.exp(-t / tau)))
+    expected = config.X_BC_goal.rotation() @ RotationMatrix.MakeZRotation(angle)
+    np.testing.assert_allclose(result.final_X_BC.rotation().matrix(), expected.matrix(), atol=1e-6)
+    np.testing.assert_allclose(
+        result.final_X_BC.translation(), config.X_BC_goal.translation(), atol=1e-9
+    )

@@ -16,6 +16,7 @@ from geovs_drake.systems import (
     KinematicRigidBody,
     NavigationController,
     SphericalCamera,
+    VelocityTrackingForce,
 )
 from geovs_drake.systems.kinematic_rigid_body import pose_state
 
@@ -204,9 +205,50 @@ def test_kinematic_rigid_body_integrates_body_velocity():
     assert body.ToAutoDiffXd() is not None
 
 
-@pytest.mark.parametrize("system", [SphericalCamera, NavigationController, ImageJacobianForce])
-def test_docstrings_list_ports(system):
-    s = system(goal=GOAL) if system is NavigationController else system()
+def test_velocity_tracking_force_wrench_and_power():
+    """F_C = B (nu_cmd - nu) with nu from Drake's own frame velocity; the plant's
+    generalized force has the same power on every generalized velocity."""
+    rng = np.random.default_rng(5)
+    gains = np.array([0.4, 0.5, 0.6, 7.0, 8.0, 9.0])
+    force = VelocityTrackingForce(gains=gains, X_RC=X_RC)
+    ctx = force.CreateDefaultContext()
+    for _ in range(10):
+        q = pose_state(_rig_pose_looking_at_target(rng))
+        x = np.concatenate([q, rng.normal(size=6)])
+        command = rng.normal(size=6)
+        force.body_state_input.FixValue(ctx, x)
+        force.camera_velocity_command_input.FixValue(ctx, command)
+        F_C = force.wrench_C_output.Eval(ctx)
+        np.testing.assert_allclose(F_C, gains * (command - _drake_camera_velocity(x)), atol=1e-12)
+        tau = force.generalized_force_output.Eval(ctx)
+        for v in np.eye(6):
+            V = _drake_camera_velocity(np.concatenate([q, v]))
+            assert tau @ v == pytest.approx(F_C @ V, abs=1e-12)
+    # The same numbers in AutoDiffXd, with the derivative along the command = B.
+    force_ad = force.ToAutoDiffXd()
+    ctx_ad = force_ad.CreateDefaultContext()
+    force_ad.body_state_input.FixValue(ctx_ad, x.astype(object) * AutoDiffXd(1.0))
+    force_ad.camera_velocity_command_input.FixValue(ctx_ad, InitializeAutoDiff(command).ravel())
+    F_ad = force_ad.wrench_C_output.Eval(ctx_ad)
+    np.testing.assert_allclose(_values(F_ad), F_C, atol=1e-12)
+    np.testing.assert_allclose(ExtractGradient(np.asarray(F_ad)), np.diag(gains), atol=1e-12)
+    assert force.ToSymbolic() is not None
+    with pytest.raises(ValueError, match="tracking gains must be 6 finite numbers > 0"):
+        VelocityTrackingForce(gains=[1, 1, 1, 1, 1, 0])
+
+
+def _default_instance(name: str):
+    import geovs_drake.systems as systems
+
+    cls = getattr(systems, name)
+    return cls(goal=GOAL) if name == "NavigationController" else cls()
+
+
+@pytest.mark.parametrize(
+    "name", [n for n in __import__("geovs_drake.systems").systems.__all__ if not n.endswith("_")]
+)
+def test_docstrings_list_ports(name):
+    s = _default_instance(name)
     doc = type(s).__doc__
     assert ".. pydrake_system::" in doc
     for i in range(s.num_input_ports()):

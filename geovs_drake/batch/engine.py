@@ -97,7 +97,15 @@ class LoopParameters:
 
 
 def loop_parameters(config: ScenarioConfig) -> LoopParameters:
-    """The parameter vectors of the systems of ``config``'s diagram (``config.plant``)."""
+    """The parameter vectors of the systems of ``config``'s diagram (``config.plant``).
+
+    The engine runs the NF's loops only: another law raises ValueError.
+    """
+    if config.controller != "nf":
+        raise ValueError(
+            f"the batch engine runs the NF's loops only: controller = {config.controller!r} "
+            "(use simulate() or the Drake engine for other laws)"
+        )
     dynamic = config.plant == "dynamic"
     build = make_dynamic_servo_diagram if dynamic else make_kinematic_servo_diagram
     diagram = build(config, log=False)

@@ -118,6 +118,26 @@ def _servo_force(x, y, dphi, p):
     return list(F_C) + list(wrench_to_rig(F_C, R_WR, R_WC, p[17:20]))
 
 
+def _tracking_force(x, twist, p):
+    """(F_C, tau_Ro_W, f_W): the wrench F_C = B (twist - (Omega, V)) that tracks a commanded
+    body twist, and the same wrench at the rig's origin in W; p = [B (6), R_RC (9), p_RC (3)]
+    (VelocityTrackingForce)."""
+    from geovs_drake.geometry.rigid import (
+        camera_body_velocity,
+        matmul,
+        quaternion_to_rotation,
+        wrench_to_rig,
+    )
+    from geovs_drake.geometry.servo import tracking_wrench
+
+    xp = _sympy_ops()
+    R_WR = quaternion_to_rotation(x[0:4], xp)
+    R_WC = matmul(R_WR, p[6:15])
+    V_C = camera_body_velocity(R_WR, R_WC, x[7:10], x[10:13], p[15:18])
+    F_C = tracking_wrench(twist, V_C, p[0:6])
+    return list(F_C) + list(wrench_to_rig(F_C, R_WR, R_WC, p[15:18]))
+
+
 def _kinematic_velocity(y, dphi, p):
     """(Omega, V) = k Tc^-1 dphi of Eqs. (15), (18)-(19) (KinematicController)."""
     from geovs_drake.geometry.servo import kinematic_velocity
@@ -157,6 +177,12 @@ KERNELS = (
         (("x", 13), ("y", 13), ("dphi", 7), ("p", 20)),
         _servo_force,
         _servo_force.__doc__,
+    ),
+    Kernel(
+        "tracking_force",
+        (("x", 13), ("twist", 6), ("p", 18)),
+        _tracking_force,
+        _tracking_force.__doc__,
     ),
     Kernel(
         "kinematic_velocity",

@@ -15,6 +15,9 @@ source of every formula it composes:
 * ``servo_force(x, y, dphi, p) -> (*F_C, *tau_Ro_W, *f_W)``: Eq. (45)'s
   wrench in C and at the rig's origin in W, from the rig state and the
   :class:`~geovs_drake.systems.ImageJacobianForce` parameter vector;
+* ``tracking_force(x, twist, p) -> (*F_C, *tau_Ro_W, *f_W)``: the wrench
+  ``B (twist - (Omega, V))`` that tracks a commanded body twist, in C and at the
+  rig's origin in W, ``p = [B (6), R_RC (9), p_RC (3)]``;
 * ``kinematic_velocity(y, dphi, p) -> (Omega, V)``: ``k Tc^-1 dphi`` (Eqs. 15,
   18-19), ``p = [rho, k]``;
 * ``free_body(x, F, p) -> (*xdot, kinetic energy)``: the free rig under the
@@ -49,6 +52,7 @@ __all__ = [
     "navigation",
     "pose_error",
     "servo_force",
+    "tracking_force",
 ]
 
 try:
@@ -100,6 +104,7 @@ def for_scalar_type(kernel: Callable, T: type) -> Callable:
 camera_image = _dispatch("camera_image")
 navigation = _dispatch("navigation")
 servo_force = _dispatch("servo_force")
+tracking_force = _dispatch("tracking_force")
 kinematic_velocity = _dispatch("kinematic_velocity")
 free_body = _dispatch("free_body")
 kinematic_body = _dispatch("kinematic_body")

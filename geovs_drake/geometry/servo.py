@@ -1,7 +1,9 @@
 """The two servo laws, in scalar style on named components (any number type).
 
 * the dynamic law of Eq. (45), ``F = k_p C(y)^T dphi - B (Omega, V)``;
-* the kinematic law of Eqs. (18)-(19), ``(Omega, V) = k Tc^-1 dphi``.
+* the kinematic law of Eqs. (18)-(19), ``(Omega, V) = k Tc^-1 dphi``;
+* the velocity-tracking wrench ``F = B (nu_cmd - nu)`` that runs any law which
+  commands a body twist (the baselines, path following) on the dynamic plant.
 
 The Drake systems run them through the generated kernels of
 :mod:`geovs_drake.geometry.kernels`; this is their one source.
@@ -16,7 +18,7 @@ from geovs_drake.geometry.camera import (
     jacobian_transpose_times,
 )
 
-__all__ = ["kinematic_velocity", "servo_wrench"]
+__all__ = ["kinematic_velocity", "servo_wrench", "tracking_wrench"]
 
 
 def servo_wrench(
@@ -50,3 +52,17 @@ def kinematic_velocity(y: tuple, dphi: tuple, radius: object, gain: object, xp: 
     since grad phi lies in the range of C.
     """
     return tuple(gain * u for u in jacobian_inverse_times(y, radius, dphi, xp))
+
+
+def tracking_wrench(V_cmd: tuple, V_C: tuple, gains: tuple) -> tuple:
+    """``F_C = B (nu_cmd - nu)``: the wrench on the camera that tracks a commanded twist.
+
+    ``nu = (Omega, V)`` is the camera's body velocity in C (Eq. 16's sign) and
+    ``gains`` the diagonal of B (rotational first) [N m s, N s/m]. On a free
+    body of mass m it is a first-order lag ``m nudot = B (nu_cmd - nu)`` per
+    axis (exactly so when C sits at the centre of mass, up to the gyroscopic
+    term otherwise), with time constants m / B_i. It is the one actuation
+    every twist-commanding law shares on the dynamic plant, so that a
+    comparison between laws is a comparison of the laws.
+    """
+    return tuple(b * (c - v) for b, c, v in zip(gains, V_cmd, V_C, strict=True))

@@ -8,6 +8,10 @@ from geovs_drake.systems.navigation_controller import (
     NavigationController_,
 )
 from geovs_drake.systems.spherical_camera import SphericalCamera, SphericalCamera_
+from geovs_drake.systems.velocity_tracking_force import (
+    VelocityTrackingForce,
+    VelocityTrackingForce_,
+)
 
 __all__ = [
     "ImageJacobianForce",
@@ -20,4 +24,6 @@ __all__ = [
     "NavigationController_",
     "SphericalCamera",
     "SphericalCamera_",
+    "VelocityTrackingForce",
+    "VelocityTrackingForce_",
 ]

@@ -350,6 +350,73 @@ def servo_force(x, y, dphi, p):
     )
 
 
+def tracking_force(x, twist, p):
+    """(F_C, tau_Ro_W, f_W): the wrench F_C = B (twist - (Omega, V)) that tracks a commanded body twist, and the same wrench at the rig's origin in W; p = [B (6), R_RC (9), p_RC (3)] (VelocityTrackingForce)."""
+    x0, x1, x2, x3, _, _, _, x7, x8, x9, x10, x11, x12 = x
+    twist0, twist1, twist2, twist3, twist4, twist5 = twist
+    p0, p1, p2, p3, p4, p5, p6, p7, p8, p9, p10, p11, p12, p13, p14, p15, p16, p17 = p
+    t0 = (x1*x1)
+    t1 = (x2*x2)
+    t2 = (x3*x3)
+    t3 = (1/((t0 + t1 + t2 + (x0*x0))))
+    t4 = 2*t3
+    t5 = t4*x0
+    t6 = t5*x2
+    t7 = t4*x1
+    t8 = t6 + t7*x3
+    t9 = t5*x3
+    t10 = 2*t3*x1*x2 - t9
+    t11 = t1*t4
+    t12 = t2*t4 - 1
+    t13 = -t11 - t12
+    t14 = p12*t8 + p6*t13 + p9*t10
+    t15 = t5*x1
+    t16 = -t15 + 2*t3*x2*x3
+    t17 = t7*x2 + t9
+    t18 = t0*t4
+    t19 = -t12 - t18
+    t20 = p12*t16 + p6*t17 + p9*t19
+    t21 = 2*t3*x1*x3 - t6
+    t22 = t15 + t4*x2*x3
+    t23 = -t11 - t18 + 1
+    t24 = p12*t23 + p6*t21 + p9*t22
+    t25 = p0*(-t14*x7 - t20*x8 - t24*x9 + twist0)
+    t26 = p10*t10 + p13*t8 + p7*t13
+    t27 = p10*t19 + p13*t16 + p7*t17
+    t28 = p10*t22 + p13*t23 + p7*t21
+    t29 = p1*(-t26*x7 - t27*x8 - t28*x9 + twist1)
+    t30 = p11*t10 + p14*t8 + p8*t13
+    t31 = p11*t19 + p14*t16 + p8*t17
+    t32 = p11*t22 + p14*t23 + p8*t21
+    t33 = p2*(-t30*x7 - t31*x8 - t32*x9 + twist2)
+    t34 = p15*t21 + p16*t22 + p17*t23
+    t35 = p15*t17 + p16*t19 + p17*t16
+    t36 = t34*x8 - t35*x9 + x10
+    t37 = p15*t13 + p16*t10 + p17*t8
+    t38 = -t34*x7 + t37*x9 + x11
+    t39 = t35*x7 - t37*x8 + x12
+    t40 = p3*(-t14*t36 - t20*t38 - t24*t39 + twist3)
+    t41 = p4*(-t26*t36 - t27*t38 - t28*t39 + twist4)
+    t42 = p5*(-t30*t36 - t31*t38 - t32*t39 + twist5)
+    t43 = t24*t40 + t28*t41 + t32*t42
+    t44 = t20*t40 + t27*t41 + t31*t42
+    t45 = t14*t40 + t26*t41 + t30*t42
+    return (
+        t25,
+        t29,
+        t33,
+        t40,
+        t41,
+        t42,
+        t14*t25 + t26*t29 + t30*t33 - t34*t44 + t35*t43,
+        t20*t25 + t27*t29 + t31*t33 + t34*t45 - t37*t43,
+        t24*t25 + t28*t29 + t32*t33 - t35*t45 + t37*t44,
+        t45,
+        t44,
+        t43,
+    )
+
+
 def kinematic_velocity(y, dphi, p):
     """(Omega, V) = k Tc^-1 dphi of Eqs. (15), (18)-(19) (KinematicController)."""
     y0, y1, y2, y3, y4, y5, y6, y7, y8, y9, y10, y11, y12 = y
