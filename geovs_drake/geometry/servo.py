@@ -2,6 +2,8 @@
 
 * the dynamic law of Eq. (45), ``F = k_p C(y)^T dphi - B (Omega, V)``;
 * the kinematic law of Eqs. (18)-(19), ``(Omega, V) = k Tc^-1 dphi``;
+* the path follower of Eq. (18), ``(Omega, V) = -Tc^-1 ydot_cmd`` with the
+  commanded image velocity of :func:`~geovs_drake.geometry.image_path.tracking_rate`;
 * the velocity-tracking wrench ``F = B (nu_cmd - nu)`` that runs any law which
   commands a body twist (the baselines, path following) on the dynamic plant.
 
@@ -17,8 +19,9 @@ from geovs_drake.geometry.camera import (
     jacobian_rows,
     jacobian_transpose_times,
 )
+from geovs_drake.geometry.image_path import tracking_rate
 
-__all__ = ["kinematic_velocity", "servo_wrench", "tracking_wrench"]
+__all__ = ["kinematic_velocity", "path_following_velocity", "servo_wrench", "tracking_wrench"]
 
 
 def servo_wrench(
@@ -52,6 +55,24 @@ def kinematic_velocity(y: tuple, dphi: tuple, radius: object, gain: object, xp: 
     since grad phi lies in the range of C.
     """
     return tuple(gain * u for u in jacobian_inverse_times(y, radius, dphi, xp))
+
+
+def path_following_velocity(
+    y: tuple, y_d: tuple, ydot_d: tuple, radius: object, gain: object, xp: Ops
+) -> tuple:
+    """Eq. (18): ``(Omega, V) = -Tc^-1 ydot_cmd``, following a planned image path y_d(t).
+
+    ``ydot_d`` is the time derivative of the 13-vector y_d; ``ydot_cmd`` is
+    :func:`~geovs_drake.geometry.image_path.tracking_rate` (``ydot_d`` carried
+    to y, plus ``gain`` times the log-map error; ``gain = 0`` is Eq. 18 as
+    written, open loop). The sign is that of :func:`kinematic_velocity`: the
+    camera's body velocity is minus the right-trivialised velocity of H
+    (Eq. 16), so on the kinematic plant ``ydot = -C (Omega, V) = ydot_cmd``
+    exactly (ydot_cmd lies in the range of C: its s-part is orthogonal to s).
+    ``radius`` is the controller's model of rho.
+    """
+    rate = tracking_rate(y, y_d, ydot_d, gain, xp)
+    return tuple(-u for u in jacobian_inverse_times(y, radius, rate, xp))
 
 
 def tracking_wrench(V_cmd: tuple, V_C: tuple, gains: tuple) -> tuple:

@@ -7,6 +7,10 @@ from geovs_drake.systems.navigation_controller import (
     NavigationController,
     NavigationController_,
 )
+from geovs_drake.systems.path_following_controller import (
+    PathFollowingController,
+    PathFollowingController_,
+)
 from geovs_drake.systems.spherical_camera import SphericalCamera, SphericalCamera_
 from geovs_drake.systems.velocity_tracking_force import (
     VelocityTrackingForce,
@@ -22,6 +26,8 @@ __all__ = [
     "KinematicRigidBody_",
     "NavigationController",
     "NavigationController_",
+    "PathFollowingController",
+    "PathFollowingController_",
     "SphericalCamera",
     "SphericalCamera_",
     "VelocityTrackingForce",
