@@ -24,7 +24,14 @@ from pathlib import Path
 from typing import NoReturn
 
 from geovs_drake.progress import Progress
-from geovs_drake.scenario import CONTROLLERS, PLANTS, PoseConfig, ScenarioConfig, load_scenario
+from geovs_drake.scenario import (
+    CONTROLLERS,
+    MOUNTS,
+    PLANTS,
+    PoseConfig,
+    ScenarioConfig,
+    load_scenario,
+)
 from geovs_drake.simulation import StartOutsideDomain, simulate
 
 __all__ = [
@@ -125,6 +132,7 @@ def _config_from_args(args: argparse.Namespace) -> ScenarioConfig:
         config.goal = args.goal
     if args.duration is not None:
         config.duration = args.duration
+    _apply_path_and_mount_args(args, config)
     config.validate()
     return config
 
@@ -182,6 +190,42 @@ def _add_scenario_args(p: argparse.ArgumentParser) -> None:
         metavar="T",
         help=f"simulated time [s] (default: the config's, else {d.duration:g})",
     )
+
+
+# ---- path following (--controller path) and the fixed camera (--mount): issue 12
+def _add_path_and_mount_args(p: argparse.ArgumentParser) -> None:
+    d = ScenarioConfig()
+    p.add_argument(
+        "--mount",
+        choices=MOUNTS,
+        help="hand: the camera rides on the driven body (eye-in-hand); fixed: the camera is "
+        "fixed in the world and the target sphere is driven (eye-to-hand, G = H^-1 of Eq. 16) "
+        f"(default: the config's, else {d.mount})",
+    )
+    p.add_argument(
+        "--path-duration",
+        type=float,
+        metavar="T",
+        help="with --controller path: the planned image path's duration [s] "
+        f"(default: the config's, else {d.path.duration:g})",
+    )
+    p.add_argument(
+        "--path-feedback",
+        type=float,
+        metavar="GAIN",
+        help="with --controller path: the gain k [1/s] of the log-map feedback added to the "
+        "feed-forward of Eq. (18); 0 is Eq. (18) as written, open loop "
+        f"(default: the config's, else {d.path.feedback_gain:g})",
+    )
+
+
+def _apply_path_and_mount_args(args: argparse.Namespace, config: ScenarioConfig) -> None:
+    if args.mount is not None:
+        config.mount = args.mount
+    if args.path_duration is not None:
+        config.path.duration = args.path_duration
+    if args.path_feedback is not None:
+        config.path.feedback_gain = args.path_feedback
 
 
 def _simulate(args: argparse.Namespace) -> int:
@@ -401,6 +445,7 @@ def main(argv: list[str] | None = None) -> int:
         formatter_class=formatter,
     )
     _add_scenario_args(sim)
+    _add_path_and_mount_args(sim)
     sim.add_argument(
         "--json", action="store_true", help="print one JSON object (default: one line of text)"
     )

@@ -27,10 +27,12 @@ from geovs_drake.geometry.navigation import NavigationGains
 
 __all__ = [
     "CONTROLLERS",
+    "MOUNTS",
     "PLANTS",
     "ControlConfig",
     "DomainConfig",
     "NavigationGainsConfig",
+    "PathConfig",
     "PoseConfig",
     "RigConfig",
     "ScenarioConfig",
@@ -42,6 +44,10 @@ __all__ = [
 PLANTS = ("dynamic", "kinematic")
 #: The control laws (``ScenarioConfig.controller``).
 CONTROLLERS = ("nf",)
+
+CONTROLLERS += ("path",)  # following a planned image path, Eq. (18)
+#: Where the camera is: on the moving rig (eye-in-hand) or fixed in the world.
+MOUNTS = ("hand", "fixed")
 
 
 @dataclass
@@ -118,6 +124,24 @@ class ControlConfig:
     tracking_gains: list[float] = field(default_factory=lambda: [0.4, 0.4, 0.4, 8.0, 8.0, 8.0])
 
 
+@dataclass
+class PathConfig:
+    """The path follower (``controller: path``, Sec. 4, Eq. 18).
+
+    The planner plans y_d(t) from y(0) to y* in ``duration`` seconds (geodesic
+    in I, quintic time law; if that leaves D and ``fallback``, the NF's
+    gradient flow). ``feedback_gain`` k [1/s] adds ``k log_y(y_d)`` to the
+    feed-forward; 0 is Eq. (18) as written, open loop. ``radius_scale`` is the
+    radius the controller assumes, relative to the true ``radius`` (1: an exact
+    model; 1.1: rho off by 10%, a model error).
+    """
+
+    duration: float = 8.0
+    feedback_gain: float = 2.0
+    fallback: bool = True
+    radius_scale: float = 1.0
+
+
 def _finite_numbers(values, n: int) -> list[float] | None:
     """``values`` as n finite floats, or None if it is not that."""
     try:
@@ -167,8 +191,14 @@ class ScenarioConfig:
     #: The plant: "dynamic" (the MultibodyPlant free body of Appendix C, driven by a
     #: wrench) or "kinematic" (the camera's body twist is commanded, Eqs. 17-19).
     plant: str = "dynamic"
-    #: The control law: "nf", the navigation function of this project.
+    #: The control law: "nf", the navigation function of this project; "path",
+    #: following a planned image path (Eq. 18, ``path`` below).
     controller: str = "nf"
+    #: "hand": the camera rides on the driven body (eye-in-hand); "fixed": the
+    #: camera is fixed in the world and the target sphere is the driven body
+    #: (eye-to-hand, G = H^-1 of Eq. 16).
+    mount: str = "hand"
+    path: PathConfig = field(default_factory=PathConfig)
     duration: float = 30.0
     #: Samples per second of the logged signals.
     log_rate: float = 50.0
@@ -186,6 +216,22 @@ class ScenarioConfig:
         if self.controller not in CONTROLLERS:
             raise ValueError(
                 f"controller must be one of {', '.join(CONTROLLERS)}, got {self.controller!r}"
+            )
+        if self.mount not in MOUNTS:
+            raise ValueError(f"mount must be one of {', '.join(MOUNTS)}, got {self.mount!r}")
+        if not (math.isfinite(self.path.duration) and self.path.duration > 0):
+            raise ValueError(
+                f"path.duration must be finite and > 0 [s]: path.duration = {self.path.duration}"
+            )
+        if not (math.isfinite(self.path.feedback_gain) and self.path.feedback_gain >= 0):
+            raise ValueError(
+                "path.feedback_gain must be finite and >= 0 [1/s]: "
+                f"path.feedback_gain = {self.path.feedback_gain}"
+            )
+        if not (math.isfinite(self.path.radius_scale) and self.path.radius_scale > 0):
+            raise ValueError(
+                "path.radius_scale must be finite and > 0: "
+                f"path.radius_scale = {self.path.radius_scale}"
             )
         if not (math.isfinite(self.radius) and self.radius > 0):
             raise ValueError(f"radius must be finite and > 0: radius = {self.radius}")

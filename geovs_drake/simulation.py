@@ -14,14 +14,13 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Diagram, EventStatus
 from pydrake.trajectories import PiecewisePolynomial
 
-from geovs_drake.diagrams import (
-    initial_rig_state,
-    make_dynamic_servo_diagram,
-    make_kinematic_servo_diagram,
-)
+from geovs_drake.diagrams import fixed_camera_pose, initial_rig_state, make_servo_diagram
+from geovs_drake.geometry._ops import MATH, NUMPY
 from geovs_drake.geometry.domain import DomainMargins
 from geovs_drake.geometry.kernels import camera_image, for_scalar_type, navigation
 from geovs_drake.geometry.navigation import NavigationFunction
+from geovs_drake.geometry.rigid import fixed_camera_relative_pose
+from geovs_drake.planning import plan_for_scenario
 from geovs_drake.scenario import ScenarioConfig
 
 __all__ = [
@@ -225,6 +224,19 @@ class SimulationResult:
         return out
 
 
+def _fixed_camera_of(diagram: Diagram) -> tuple[tuple, tuple] | None:
+    """``(q_WC, p_WC)`` of a fixed-camera diagram's camera, or None (eye-in-hand).
+
+    In the fixed-camera loop the body state is the target's; the camera system
+    reads the relative pose the ``fixed_camera_mount`` forms from it.
+    """
+    if not diagram.HasSubsystemNamed("fixed_camera_mount"):
+        return None
+    mount = diagram.GetSubsystemByName("fixed_camera_mount")
+    p = mount.CreateDefaultContext().get_numeric_parameter(0).CopyToVector()
+    return tuple(p[12:16].tolist()), tuple(p[9:12].tolist())
+
+
 class SafeDomainMonitor:
     """The simulator monitor: stops a run that leaves D, and records every step.
 
@@ -247,6 +259,7 @@ class SafeDomainMonitor:
         self._record = record
         self._reason: dict[str, str] = {}
         self._params_of: tuple = (None, None)
+        self._fixed_camera = _fixed_camera_of(diagram)
         self.times: list[float] = []
         self.states: list[np.ndarray] = []
 
@@ -274,7 +287,10 @@ class SafeDomainMonitor:
             # A live read-only view of the camera's parameters in this context.
             camera_context = self._camera.GetMyContextFromRoot(root_context)
             self._params_of = (root_context, camera_context.get_numeric_parameter(0).get_value())
-        out = _camera_kernel(x[0:7], self._params_of[1])
+        pose = x[0:7]
+        if self._fixed_camera is not None:  # the state is the target's: G = X_WB^-1 X_WC
+            pose = fixed_camera_relative_pose(tuple(pose.tolist()), *self._fixed_camera, MATH)
+        out = _camera_kernel(pose, self._params_of[1])
         if out[0] > 0 and out[14] > 0 and out[15] > 0 and out[16] > 0 and out[17] > 0:
             return EventStatus.Succeeded()
         t = root_context.get_time()
@@ -340,9 +356,12 @@ def make_simulator(
 
 
 def camera_pose_in_target(config: ScenarioConfig, x: np.ndarray, dynamic: bool) -> RigidTransform:
-    """X_BC from a state whose first 7 entries are X_WR (dynamic) or X_WC (kinematic)."""
+    """X_BC from a state whose first 7 entries are X_WR (dynamic) or X_WC (kinematic),
+    or, for ``mount: fixed``, the target's X_WB (then X_BC = X_WB^-1 X_WC)."""
     q = np.asarray(x[0:4], dtype=float)
     X_W = RigidTransform(RotationMatrix(Quaternion(q / np.linalg.norm(q))), x[4:7])
+    if config.mount == "fixed":
+        return X_W.inverse() @ fixed_camera_pose(config)
     X_RC = config.X_RC if dynamic else RigidTransform()
     return config.X_WB.inverse() @ X_W @ X_RC
 
@@ -372,6 +391,9 @@ def camera_signals(diagram: Diagram, root_context, states: np.ndarray) -> dict[s
     p_cam = camera.GetMyContextFromRoot(root_context).get_numeric_parameter(0).CopyToVector()
     p_nav = nav.navigation_parameters(nav.GetMyContextFromRoot(root_context))
     x = tuple(np.asarray(states, dtype=float)[:, :7].T)
+    fixed = _fixed_camera_of(diagram)
+    if fixed is not None:  # the target's states: the camera reads G = X_WB^-1 X_WC
+        x = fixed_camera_relative_pose(x, *fixed, NUMPY)
     with np.errstate(invalid="ignore", divide="ignore"):
         out = camera_image(x, p_cam)
         nu = np.asarray(out[0], dtype=float)
@@ -402,11 +424,7 @@ def simulate(
     config.validate()
     check_start(config)
     dynamic = config.plant == "dynamic"
-    diagram = (
-        make_dynamic_servo_diagram(config, meshcat=meshcat, log=False)
-        if dynamic
-        else make_kinematic_servo_diagram(config, log=False)
-    )
+    diagram = make_servo_diagram(config, meshcat=meshcat, log=False)
     simulator, monitor = make_simulator(diagram, config, record=True)
     root = simulator.get_mutable_context()
     if meshcat is not None:
@@ -469,6 +487,8 @@ def simulate(
     )
     if result.energy_guarantee is False:
         result.message += f" ({energy_note(result.initial_energy, result.energy_bound)})"
+    if config.controller == "path":  # what the planner found (cached: the diagram's plan)
+        result.message += f" (plan: {plan_for_scenario(config).message})"
     if not nf_law:  # the energy and the saddle belong to the NF's law
         return result
     nf = NavigationFunction(

@@ -60,21 +60,35 @@ def fov_cone_obj(
     return path
 
 
-def add_target_geometry(plant: MultibodyPlant, config: ScenarioConfig) -> None:
-    """The target sphere, its marked point b and its arrow a, fixed in the world."""
-    world = plant.world_body()
+def add_target_geometry(
+    plant: MultibodyPlant,
+    config: ScenarioConfig,
+    body: RigidBody | None = None,
+    X_WB: RigidTransform | None = None,
+    alpha: float = 1.0,
+    prefix: str = "",
+) -> None:
+    """The target sphere, its marked point b and its arrow a.
+
+    Fixed in the world at ``X_WB`` (default ``config.X_WB``), or, with ``body``,
+    on that body with B its body frame (the fixed-camera loop's moving
+    target). ``alpha`` < 1 and a ``prefix`` draw a ghost (the target's goal).
+    """
     rho = config.radius
-    X_WB = config.X_WB
-    plant.RegisterVisualGeometry(world, X_WB, Sphere(rho), "target_sphere", [0.85, 0.85, 0.9, 0.9])
+    frame_body = plant.world_body() if body is None else body
+    X = RigidTransform() if body is not None else (config.X_WB if X_WB is None else X_WB)
+    plant.RegisterVisualGeometry(
+        frame_body, X, Sphere(rho), f"{prefix}target_sphere", [0.85, 0.85, 0.9, 0.9 * alpha]
+    )
     X_Bb = RigidTransform([0.0, 0.0, -rho])
     plant.RegisterVisualGeometry(
-        world, X_WB @ X_Bb, Sphere(0.12 * rho), "marked_point", [0.9, 0.1, 0.1, 1.0]
+        frame_body, X @ X_Bb, Sphere(0.12 * rho), f"{prefix}marked_point", [0.9, 0.1, 0.1, alpha]
     )
     length = 0.6 * rho
     # A cylinder's axis is its z; Rx(-pi/2) turns it onto the arrow a_B = e2.
     X_Ba = RigidTransform(RollPitchYaw(-np.pi / 2, 0, 0), [0.0, 0.5 * length, -1.02 * rho])
     plant.RegisterVisualGeometry(
-        world, X_WB @ X_Ba, Cylinder(0.05 * rho, length), "arrow", [0.1, 0.6, 0.1, 1.0]
+        frame_body, X @ X_Ba, Cylinder(0.05 * rho, length), f"{prefix}arrow", [0.1, 0.6, 0.1, alpha]
     )
 
 

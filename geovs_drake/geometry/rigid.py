@@ -21,11 +21,17 @@ __all__ = [
     "kinetic_energy",
     "apply_transpose",
     "camera_body_velocity",
+    "fixed_camera_relative_pose",
+    "camera_state_in_target",
     "cross",
     "matmul",
+    "quaternion_multiply",
     "quaternion_to_rotation",
     "rig_velocity",
     "target_in_camera",
+    "target_twist_from_camera",
+    "target_wrench_from_camera",
+    "transpose",
     "wrench_to_rig",
 ]
 
@@ -211,3 +217,104 @@ def wrench_to_rig(F_C: tuple, R_WR: tuple, R_WC: tuple, p_RC: tuple) -> tuple:
     # tau_Ro = tau_Co + p_RoCo x f.
     shift = cross(apply(R_WR, p_RC), f_W)
     return (tau_W[0] + shift[0], tau_W[1] + shift[1], tau_W[2] + shift[2]) + f_W
+
+
+# --------------------------------------------------------------------------
+# The fixed camera (eye-to-hand): the target is the moving body, G = H^-1 (Eq. 16)
+# --------------------------------------------------------------------------
+def quaternion_multiply(a: tuple, b: tuple) -> tuple:
+    """The Hamilton product ``a (x) b`` of quaternions ``(w, x, y, z)``: R(a b) = R(a) R(b)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
+def fixed_camera_relative_pose(x: tuple, q_WC: tuple, p_WC: tuple, xp: Ops) -> tuple:
+    """``G = X_BC = X_WB^-1 X_WC`` as ``[q_BC, p_BC]`` from the target's pose ``x = [q_WB, p_WB]``.
+
+    The camera C is fixed in W at ``(q_WC, p_WC)`` (unit quaternion). ``q_BC =
+    q_WB^-1 (x) q_WC`` with ``q_WB`` normalised first (as MultibodyPlant does),
+    ``p_BC = R_WB^T (p_WC - p_WB)``. This is the pose the eye-in-hand camera
+    system reads as its rig pose when the target frame B is taken as the world
+    (X_WB = X_RC = identity there): one camera map, ``H = G^-1``.
+    """
+    qw, qx, qy, qz = x[0:4]
+    n = xp.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    q_BW = (qw / n, -qx / n, -qy / n, -qz / n)
+    R_WB = quaternion_to_rotation(x[0:4], xp)
+    r = (p_WC[0] - x[4], p_WC[1] - x[5], p_WC[2] - x[6])
+    return quaternion_multiply(q_BW, q_WC) + apply_transpose(R_WB, r)
+
+
+def camera_state_in_target(x: tuple, q_WC: tuple, p_WC: tuple, xp: Ops) -> tuple:
+    """The fixed camera's motion relative to the free target, as a free-body state.
+
+    ``x`` is the target's MultibodyPlant state ``[q_WB, p_WB, w_WB_W, v_WBo_W]``.
+    Returns ``[q_BC, p_BC, w_BC_B, v_BCo_B]``: the camera's pose in B
+    (:func:`fixed_camera_relative_pose`) and its velocity relative to B, expressed
+    in B, in the layout of a rig state whose world is B and whose camera sits
+    at the rig's origin. Since C is fixed in W, ``w_BC = -w_WB`` and
+    ``d/dt p_BC = -R_WB^T (v_WBo + w_WB x (p_WC - p_WB))``; from this state
+    :func:`camera_body_velocity` gives ``(Omega, V) = G^-1 Gdot`` (Eq. 16),
+    so the eye-in-hand systems read it unchanged.
+    """
+    R_WB = quaternion_to_rotation(x[0:4], xp)
+    w = x[7:10]
+    r = (p_WC[0] - x[4], p_WC[1] - x[5], p_WC[2] - x[6])
+    wxr = cross(w, r)
+    v = (x[10] + wxr[0], x[11] + wxr[1], x[12] + wxr[2])
+    w_B = apply_transpose(R_WB, w)
+    v_B = apply_transpose(R_WB, v)
+    return (
+        fixed_camera_relative_pose(x[0:7], q_WC, p_WC, xp)
+        + (-w_B[0], -w_B[1], -w_B[2])
+        + (-v_B[0], -v_B[1], -v_B[2])
+    )
+
+
+def target_wrench_from_camera(F_C: tuple, x: tuple, R_WC: tuple, p_WC: tuple) -> tuple:
+    """The wrench on the free target, ``[tau_Bo_W, f_W]``, for a camera wrench F_C.
+
+    ``F_C`` (torque about Co, force; in C) is what an eye-in-hand law would apply
+    to the camera. With the camera fixed, the actuator applies the reaction
+    ``-F_C`` at Co to the target instead: by Eq. (16) the camera's velocity
+    relative to the target, ``(Omega, V) = G^-1 Gdot``, is minus the target's
+    relative to the camera, ``(omega, v) = Hdot H^-1`` (its spatial twist at
+    Co, in C, C being inertial), so ``(-F_C) . (omega, v) = F_C . (Omega, V)``:
+    the target receives exactly the power the camera would. With Eq. (45)'s
+    F_C, ``1/2 nu^T M nu + k_p phi`` (M the target's inertia) decreases at the
+    rate ``(Omega, V)^T B (Omega, V)``, Appendix C's argument. The torque is
+    shifted to the target's origin Bo and both are expressed in W, the
+    plant's generalized force of a quaternion floating body.
+    """
+    tau = apply(R_WC, F_C[0:3])
+    f = apply(R_WC, F_C[3:6])
+    shift = cross((p_WC[0] - x[4], p_WC[1] - x[5], p_WC[2] - x[6]), f)
+    return (-tau[0] - shift[0], -tau[1] - shift[1], -tau[2] - shift[2], -f[0], -f[1], -f[2])
+
+
+def target_twist_from_camera(twist_C: tuple, x: tuple, R_WC: tuple, p_WC: tuple, xp: Ops) -> tuple:
+    """The target's body twist (in B, at Bo) that gives the fixed camera the body twist
+    ``(Omega, V) = G^-1 Gdot`` relative to it (Eq. 16); ``x = [q_WB, p_WB]``.
+
+    ``H^-1 Hdot = G d/dt(G^-1) = -Ad_G (Omega, V)`` with ``G = X_BC``, and with
+    C fixed ``H^-1 Hdot = X_WB^-1 d/dt X_WB`` is the target's body twist:
+    ``(-R_BC Omega, -(R_BC V + p_BC x R_BC Omega))``.
+    """
+    R_WB = quaternion_to_rotation(x[0:4], xp)
+    R_BC = matmul(transpose(R_WB), R_WC)
+    p_BC = apply_transpose(R_WB, (p_WC[0] - x[4], p_WC[1] - x[5], p_WC[2] - x[6]))
+    w = apply(R_BC, twist_C[0:3])
+    v = apply(R_BC, twist_C[3:6])
+    pxw = cross(p_BC, w)
+    return (-w[0], -w[1], -w[2], -v[0] - pxw[0], -v[1] - pxw[1], -v[2] - pxw[2])
+
+
+def transpose(R: tuple) -> tuple:
+    """R^T (row-major 9-tuples)."""
+    return (R[0], R[3], R[6], R[1], R[4], R[7], R[2], R[5], R[8])

@@ -1,5 +1,10 @@
 """The servo's Drake systems, one LeafSystem per module, all TemplateSystems."""
 
+from geovs_drake.systems.fixed_camera_kinematic_mount import (
+    FixedCameraKinematicMount,
+    FixedCameraKinematicMount_,
+)
+from geovs_drake.systems.fixed_camera_mount import FixedCameraMount, FixedCameraMount_
 from geovs_drake.systems.image_jacobian_force import ImageJacobianForce, ImageJacobianForce_
 from geovs_drake.systems.kinematic_controller import KinematicController, KinematicController_
 from geovs_drake.systems.kinematic_rigid_body import KinematicRigidBody, KinematicRigidBody_
@@ -18,6 +23,10 @@ from geovs_drake.systems.velocity_tracking_force import (
 )
 
 __all__ = [
+    "FixedCameraKinematicMount",
+    "FixedCameraKinematicMount_",
+    "FixedCameraMount",
+    "FixedCameraMount_",
     "ImageJacobianForce",
     "ImageJacobianForce_",
     "KinematicController",
