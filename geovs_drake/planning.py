@@ -63,6 +63,7 @@ __all__ = [
     "check_path",
     "gradient_flow_knots",
     "image_path_through",
+    "path_margins",
     "plan_for_scenario",
     "plan_path",
     "time_law",
@@ -197,6 +198,13 @@ def _sample_margins(domain: SafeDomain, Y: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(m), m, -np.inf)
 
 
+def path_margins(trajectory: Trajectory, domain: SafeDomain, times: np.ndarray) -> np.ndarray:
+    """The (N, 4) margins of D (``fov, lam_min, lam_max, occlusion``) along a timed path;
+    a sample outside I reads its (negative) silhouette margin as its occlusion margin."""
+    Y = trajectory.vector_values(np.asarray(times, dtype=float)).T
+    return _sample_margins(domain, Y)
+
+
 def check_path(
     trajectory: Trajectory, domain: SafeDomain, samples: int = 2001
 ) -> tuple[float, PathExit | None, np.ndarray]:
@@ -291,9 +299,10 @@ class PathPlan:
 
     ``trajectory`` is the 13-row ``PathParameterizedTrajectory`` (its
     ``EvalDerivative(t, 1)`` is dy_d/dt); ``kind`` is "geodesic" or
-    "gradient_flow"; ``geodesic_exit`` says where and when the geodesic left D
-    (None if it did not); ``min_margin`` is the smallest margin of D along the
-    returned path.
+    "gradient_flow"; ``geodesic`` is the timed geodesic from y(0) to y* (the
+    trajectory itself when ``kind`` is "geodesic"), ``geodesic_exit`` where and
+    when it left D (None if it did not); ``min_margin`` is the smallest margin
+    of D along the returned path.
     """
 
     trajectory: Trajectory
@@ -302,6 +311,7 @@ class PathPlan:
     kind: str
     knots: int
     min_margin: float
+    geodesic: Trajectory
     geodesic_exit: PathExit | None
     message: str
 
@@ -342,7 +352,7 @@ def plan_path(
     min_margin, exit_, _ = check_path(trajectory, domain, samples)
     if exit_ is None:
         return PathPlan(
-            trajectory, duration, length, "geodesic", 2, min_margin, None,
+            trajectory, duration, length, "geodesic", 2, min_margin, trajectory, None,
             f"the geodesic path stays in D (min margin {min_margin:.3g})",
         )  # fmt: skip
     said = f"the geodesic path {exit_.describe()}"
@@ -350,12 +360,13 @@ def plan_path(
         raise PathPlanningError(said + "; no navigation function to fall back on")
     knots = gradient_flow_knots(nf, start)
     path, length = image_path_through(knots)
+    geodesic = trajectory
     trajectory = PathParameterizedTrajectory(path, time_law(duration, length))
     min_margin, flow_exit, _ = check_path(trajectory, domain, max(samples, 20 * len(knots.lam)))
     if flow_exit is not None:
         raise PathPlanningError(f"{said}; the gradient-flow path {flow_exit.describe()} too")
     return PathPlan(
-        trajectory, duration, length, "gradient_flow", len(knots.lam), min_margin, exit_,
+        trajectory, duration, length, "gradient_flow", len(knots.lam), min_margin, geodesic, exit_,
         f"{said}: following the NF's gradient flow instead ({len(knots.lam)} knots, "
         f"min margin {min_margin:.3g})",
     )  # fmt: skip

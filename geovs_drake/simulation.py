@@ -181,7 +181,8 @@ class SimulationResult:
         if self.saddle_note:
             energy += f" | {self.saddle_note}"
         return (
-            f"{s['controller']} on the {s['plant']} plant: {s['status']} | position error "
+            f"{s['controller']} on the {s['plant']} plant"
+            f"{', camera fixed' if s['mount'] == 'fixed' else ''}: {s['status']} | position error "
             f"{s['final_position_error_m']:.2e} m, rotation error "
             f"{s['final_rotation_error_rad']:.2e} rad | min margins: "
             f"fov {s['min_fov_margin']:.3g}, occlusion {s['min_occlusion_margin']:.3g}, "
@@ -199,6 +200,7 @@ class SimulationResult:
         out = {
             "plant": self.config.plant,
             "controller": self.config.controller,
+            "mount": self.config.mount,
             "converged": self.converged,
             "status": self.status,
             "message": self.message,

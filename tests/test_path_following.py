@@ -267,7 +267,7 @@ def test_feedback_shrinks_each_geodesic_error_as_exp_minus_k_t():
     desired, _ = plan.desired(times)
     d = image_distance(ImageFeatures.from_vector(Y), ImageFeatures.from_vector(desired))
     assert np.all(d[0] > 1e-3)
-    np.testing.assert_allclose(d, d[0] * np.exp(-k * times)[:, None], rtol=1e-5, atol=1e-10)
+    np.testing.assert_allclose(d, d[0] * np.exp(-k * times)[:, None], rtol=1e-6, atol=1e-12)
 
 
 def test_model_error_open_loop_drifts_feedback_tracks():

@@ -150,7 +150,7 @@ yaml_values = st.recursive(
 )
 FIELDS = ["radius", "goal", "initial", "domain", "rig", "control", "duration", "log_rate",
           "simulator", "plant", "controller", "initial_velocity", "navigation",
-          "target"]  # fmt: skip
+          "target", "mount", "path"]  # fmt: skip
 
 
 @settings(max_examples=300, deadline=None)
