@@ -186,3 +186,14 @@ def test_fixed_camera_scene_has_a_still_camera_and_a_moving_sphere():
     assert result.status == "not_converged"  # 0.5 s: under way
     with pytest.raises(ValueError, match="meshcat needs the dynamic plant"):
         make_fixed_camera_diagram(ScenarioConfig(mount="fixed", plant="kinematic"), meshcat)
+
+
+def test_tools_built_for_the_eye_in_hand_loop_refuse_the_fixed_camera():
+    from geovs_drake.analysis.linearization import linearize_at_goal
+    from geovs_drake.batch.engine import loop_parameters
+
+    config = ScenarioConfig(mount="fixed")
+    with pytest.raises(ValueError, match="batch engine runs the eye-in-hand loops only"):
+        loop_parameters(config)
+    with pytest.raises(ValueError, match="closed form is the eye-in-hand loop's"):
+        linearize_at_goal(config)

@@ -134,6 +134,10 @@ def linearize_at_goal(
     """Drake's ``Linearize`` of the whole closed loop at the goal, reduced to minimal form."""
     config = config_at_goal(config or ScenarioConfig())
     plant = plant or config.plant
+    if config.mount != "hand":
+        raise ValueError(
+            f"linearize_at_goal's closed form is the eye-in-hand loop's: mount = {config.mount!r}"
+        )
     if plant == "dynamic":
         diagram = make_dynamic_servo_diagram(config, log=False)
     else:

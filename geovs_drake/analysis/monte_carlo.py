@@ -27,7 +27,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.analysis import MonteCarloSimulation
 
 from geovs_drake.analysis.nf_study import random_features_in_domain
-from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
+from geovs_drake.diagrams import make_servo_diagram
 from geovs_drake.geometry.camera import camera_map_inverse
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import camera_pose_in_target, make_simulator, pose_error, simulate
@@ -96,8 +96,7 @@ def drake_monte_carlo(
         c = copy.deepcopy(config)
         c.initial = random_initial_poses(rng, 1, config, shrink)[0]
         starts.append(c.initial)
-        build = make_dynamic_servo_diagram if c.plant == "dynamic" else make_kinematic_servo_diagram
-        simulator, _ = make_simulator(build(c, log=False), c)
+        simulator, _ = make_simulator(make_servo_diagram(c, log=False), c)
         return simulator
 
     outputs: list[dict] = []

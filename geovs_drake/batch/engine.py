@@ -106,6 +106,11 @@ def loop_parameters(config: ScenarioConfig) -> LoopParameters:
             f"the batch engine runs the NF's loops only: controller = {config.controller!r} "
             "(use simulate() or the Drake engine for other laws)"
         )
+    if config.mount != "hand":
+        raise ValueError(
+            f"the batch engine runs the eye-in-hand loops only: mount = {config.mount!r} "
+            "(use simulate() for the fixed camera)"
+        )
     dynamic = config.plant == "dynamic"
     build = make_dynamic_servo_diagram if dynamic else make_kinematic_servo_diagram
     diagram = build(config, log=False)
