@@ -152,6 +152,11 @@ def test_path_following_controller_system_matches_formula_and_autodiff():
         law.desired_image_input.FixValue(ctx, desired - e)
         minus = law.camera_velocity_output.Eval(ctx).copy()
         np.testing.assert_allclose(J[:, j], (plus - minus) / (2 * h), atol=2e-6)
+    # Outside I (a trial stage past the limb, here lambda > 1) or NaN: NaN, no exception.
+    for bad in (np.concatenate([y.to_vector()[:9], [1.5], y.s]), np.full(13, np.nan)):
+        law.image_features_input.FixValue(ctx, bad)
+        assert np.all(np.isnan(law.camera_velocity_output.Eval(ctx)))
+        assert np.all(np.isnan(law.image_error_output.Eval(ctx)))
     with pytest.raises(ValueError, match="feedback gain must be finite and >= 0"):
         PathFollowingController(gain=-1.0)
 

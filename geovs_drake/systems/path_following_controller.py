@@ -8,9 +8,10 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry._ops import namespace
+from geovs_drake.geometry.camera import image_violation
 from geovs_drake.geometry.image_path import image_error
 from geovs_drake.geometry.servo import path_following_velocity
-from geovs_drake.systems._common import inputs_and_parameters, read
+from geovs_drake.systems._common import inputs_and_parameters, read, values_or_none
 
 __all__ = ["PathFollowingController", "PathFollowingController_", "check_path_gains"]
 
@@ -61,8 +62,9 @@ def PathFollowingController_(T):
 
         One numeric parameter vector ``[rho, k]``: the radius the controller
         assumes (it may differ from the true one, for model-error studies) and
-        the feedback gain k [1/s]. Like the other laws it reads y unchecked: a
-        NaN image (an invisible pose) gives NaN outputs.
+        the feedback gain k [1/s]. An image outside I (an integrator's trial
+        stage past the limb, or NaN from an invisible pose) gives NaN outputs,
+        never an exception (see :mod:`geovs_drake.systems._common`).
         """
 
         def _construct(self, radius: float = 0.1, gain: float = 0.0, converter=None):
@@ -96,20 +98,32 @@ def PathFollowingController_(T):
             p = context.get_mutable_numeric_parameter(self._params_index)
             p.SetAtIndex(_RADIUS, check_path_gains(radius, 0.0)[0])
 
-        def _inputs(self, context) -> tuple[list, list, list]:
+        def _inputs(self, context) -> tuple[list, list, list] | None:
+            """``(y, y_d, dy_d/dt)``, or None if y is not in I."""
             y = self.image_features_input.Eval(context).tolist()
+            values = values_or_none(y)
+            if values is not None and image_violation(values) is not None:
+                return None
             desired = self.desired_image_input.Eval(context).tolist()
             return y, desired[0:13], desired[13:26]
 
         def CalcCameraVelocity(self, context, output) -> None:
-            y, y_d, ydot_d = self._inputs(context)
+            inputs = self._inputs(context)
+            if inputs is None:
+                output.SetFromVector([math.nan] * 6)
+                return
+            y, y_d, ydot_d = inputs
             p = read(context, self._params_index)
             output.SetFromVector(
                 path_following_velocity(y, y_d, ydot_d, p[_RADIUS], p[_GAIN], namespace(y[0]))
             )
 
         def CalcImageError(self, context, output) -> None:
-            y, y_d, _ = self._inputs(context)
+            inputs = self._inputs(context)
+            if inputs is None:
+                output.SetFromVector([math.nan] * 7)
+                return
+            y, y_d, _ = inputs
             output.SetFromVector(image_error(y, y_d, namespace(y[0])))
 
     return Impl
