@@ -8,8 +8,11 @@ Subsystem names (for ``diagram.GetSubsystemByName``): ``plant``,
 camera twist: its system is ``controller`` (output port ``camera_velocity``),
 driving the kinematic body directly or the rig through
 ``velocity_tracking_force`` (dynamic); the ``navigation_controller`` stays in
-the diagram to report phi on D, unconnected to the actuation. With
-``log=True`` (the default),
+the diagram to report phi on D, unconnected to the actuation. ``controller:
+path`` adds ``desired_image``, the planned y_d(t) as a ``TrajectorySource``. The
+fixed-camera loop (:func:`make_fixed_camera_diagram`) has the same names plus
+``fixed_camera_mount``; its ``plant`` (or ``kinematic_rigid_body``) carries the
+target sphere. With ``log=True`` (the default),
 Drake's ``LogVectorOutput`` loggers ``log_image_features``, ``log_phi``,
 ``log_margins``, ``log_visibility``, ``log_body_state`` / ``log_body_pose`` at
 ``config.log_rate``. :func:`geovs_drake.simulation.simulate` builds with
