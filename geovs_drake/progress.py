@@ -64,5 +64,6 @@ class Progress:
         self.update_to(self.done + units)
 
     def close(self) -> None:
+        """Close the terminal's bar, if any (plain lines need nothing)."""
         if self._bar is not None:
             self._bar.close()
