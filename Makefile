@@ -43,7 +43,7 @@ test: $(STAMP) system-deps
 # The API reference into docs/_build/html; a warning (a broken docstring, an
 # undocumented public object, a module on no page) fails the build.
 docs: $(STAMP)
-	$(BIN)/python -m sphinx -W --keep-going -q -b html docs docs/_build/html
+	$(BIN)/python -m sphinx -E -W --keep-going -q -b html docs docs/_build/html
 	@echo "API reference: docs/_build/html/index.html"
 
 # Build the sdist and wheel, install the wheel in fresh venvs outside the checkout
