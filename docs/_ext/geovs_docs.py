@@ -4,6 +4,8 @@
   notes), else a short note saying it is not written yet.
 * ``.. cli-help:: [COMMAND]``: the ``--help`` text of ``geovs-drake [COMMAND]``,
   from the parser itself (:func:`geovs_drake.cli.build_parser`).
+* napoleon reads Google-style sections everywhere but in attribute, data and
+  property docstrings, whose first line is prose here, not ``type: text``.
 * The reference stays complete: a public function, class, method or property
   without a docstring, or a public module that no page documents, is a warning
   (an error under ``-W``).
@@ -227,8 +229,32 @@ def _merge(app: Sphinx, env, docnames, other) -> None:
         ours.setdefault(key, set()).update(values)
 
 
+def _napoleon_except_attributes(app, what, name, obj, options, lines) -> None:
+    """napoleon, except on attributes, data and properties: it reads their first line
+    ``X: text`` as "type X" (``q1: Q's first column`` would show type q1); ours are
+    prose."""
+    from sphinx.ext.napoleon import _process_docstring
+
+    if what not in ("attribute", "data", "property"):
+        _process_docstring(app, what, name, obj, options, lines)
+
+
+def _reroute_napoleon(app: Sphinx) -> None:
+    from sphinx.errors import ExtensionError
+    from sphinx.ext.napoleon import _process_docstring
+
+    listeners = app.events.listeners.get("autodoc-process-docstring", [])
+    ours = [listener for listener in listeners if listener.handler is _process_docstring]
+    if len(ours) != 1:
+        raise ExtensionError("geovs_docs: napoleon's docstring handler not found")
+    app.disconnect(ours[0].id)
+    app.connect("autodoc-process-docstring", _napoleon_except_attributes)
+
+
 def setup(app: Sphinx) -> ExtensionMetadata:
     app.setup_extension("sphinx.ext.autodoc")
+    app.setup_extension("sphinx.ext.napoleon")
+    _reroute_napoleon(app)
     app.add_directive("optional-include", OptionalInclude)
     app.add_directive("cli-help", CliHelp)
     app.add_directive("leafsystem", LeafSystemDirective)
