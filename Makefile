@@ -1,18 +1,20 @@
 # The two commands a fresh machine needs: `make demo` and `make test`.
-# Both create .venv, install the package with its test and notebook extras,
+# Both create .venv, install the package with its all, test and docs extras,
 # and install Debian's graphviz for the block diagrams when they can (root
 # with apt-get); otherwise the block diagram is skipped with a message.
+# `make test` = lint, `make docs` (API reference, warnings are errors), pytest with
+# the notebooks, and `make wheel-check` (the wheel installed outside the checkout).
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint format bench clean venv system-deps
+.PHONY: demo test lint format bench clean venv system-deps docs wheel-check
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[test,notebooks]"
+	$(BIN)/python -m pip install --quiet -e ".[all,test,docs]"
 	touch $(STAMP)
 
 venv: $(STAMP)
@@ -34,7 +36,20 @@ demo: $(STAMP) system-deps
 test: $(STAMP) system-deps
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(MAKE) --no-print-directory docs
 	GEOVS_FAST=1 $(BIN)/python -m pytest --nbmake -q
+	$(MAKE) --no-print-directory wheel-check
+
+# The API reference into docs/_build/html; a warning (a broken docstring, an
+# undocumented public object, a module on no page) fails the build.
+docs: $(STAMP)
+	$(BIN)/python -m sphinx -E -W --keep-going -q -b html docs docs/_build/html
+	@echo "API reference: docs/_build/html/index.html"
+
+# Build the sdist and wheel, install the wheel in fresh venvs outside the checkout
+# (no extras, then [all]) and run the CLI there (tools/check_wheel.py).
+wheel-check: $(STAMP)
+	$(BIN)/python -m pytest -q -rA -m wheel tests/test_wheel.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
@@ -51,4 +66,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/time_to_converge.py
 
 clean:
-	rm -rf $(VENV) results .pytest_cache
+	rm -rf $(VENV) results .pytest_cache docs/_build build dist

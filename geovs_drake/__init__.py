@@ -14,6 +14,10 @@ from geovs_drake.geometry.domain import DEFAULT_DOMAIN, DomainMargins, SafeDomai
 from geovs_drake.geometry.navigation import NavigationFunction, NavigationGains
 from geovs_drake.geometry.so3 import hat, so3_exp, vee
 
+#: The package's version: the one place it is written (pyproject.toml reads it,
+#: ``geovs-drake --version`` shows it; CHANGELOG.md says what each version added).
+__version__ = "0.1.0"
+
 __all__ = [
     "DEFAULT_DOMAIN",
     "DomainMargins",

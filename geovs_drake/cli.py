@@ -9,20 +9,23 @@ Examples::
     geovs-drake sweep --starts 10000 --duration 10 --json
     geovs-drake sweep --scheduler tcp://host:8786 --starts 100000
 
-Exit codes: see ``EXIT_CODES`` (shown by ``geovs-drake --help``).
+Exit codes: see ``EXIT_CODES`` (shown by ``geovs-drake --help``). A command that
+needs an extra that is not installed says so in one line, e.g. ``geovs-drake sweep
+needs dask[distributed]: pip install "geovs-drake[sweep]"``, and exits with 2.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
-import importlib.metadata
 import json
 import math
 import sys
 from pathlib import Path
 from typing import NoReturn
 
+from geovs_drake import __version__
+from geovs_drake._optional import MissingExtra
 from geovs_drake.progress import Progress
 from geovs_drake.scenario import (
     CONTROLLERS,
@@ -40,6 +43,7 @@ __all__ = [
     "EXIT_CONVERGED",
     "EXIT_INTERRUPTED",
     "EXIT_NOT_CONVERGED",
+    "build_parser",
     "exit_code_of",
     "main",
 ]
@@ -52,8 +56,8 @@ EXIT_INTERRUPTED = 130
 #: The exit codes of every command, in one place (``--help`` and the README show them).
 EXIT_CODES: dict[int, str] = {
     EXIT_CONVERGED: "ran and converged (simulate, demo); the table finished (sweep)",
-    EXIT_BAD_INPUT: "bad input: an argument, the --config file, a start outside D\n"
-    "(one line on stderr, nothing run)",
+    EXIT_BAD_INPUT: "bad input: an argument, the --config file, a start outside D,\n"
+    "or a missing extra (one line on stderr, nothing run)",
     EXIT_NOT_CONVERGED: "ran and did not converge (simulate, demo): status not_converged,\n"
     "left_domain, lost_visibility or non_finite",
     EXIT_INTERRUPTED: "interrupted (Ctrl-C)",
@@ -72,13 +76,6 @@ def _exit_codes_epilog() -> str:
 def exit_code_of(status: str) -> int:
     """The exit code of a run that finished with ``status``: 0 converged, else 3."""
     return EXIT_CONVERGED if status == "converged" else EXIT_NOT_CONVERGED
-
-
-def _version() -> str:
-    try:
-        return importlib.metadata.version("geovs-drake")
-    except importlib.metadata.PackageNotFoundError:
-        return "unknown (not installed)"
 
 
 class _OneLineParser(argparse.ArgumentParser):
@@ -332,8 +329,6 @@ def _sweep(args: argparse.Namespace) -> int:
     if result.rows:
         try:
             sweep.plot_sweep(result, out)
-        except ImportError:
-            print("geovs-drake: matplotlib is not installed: plots skipped", file=sys.stderr)
         except KeyboardInterrupt:  # the rows and the summary are written already
             print("geovs-drake: interrupted while plotting: plots skipped", file=sys.stderr)
             code = EXIT_INTERRUPTED
@@ -427,7 +422,8 @@ def _add_sweep_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as one JSON line")
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """The ``geovs-drake`` argument parser: its subcommands and their options."""
     epilog = _exit_codes_epilog()
     formatter = _EpilogTableFormatter
     parser = _OneLineParser(
@@ -436,7 +432,7 @@ def main(argv: list[str] | None = None) -> int:
         epilog=epilog,
         formatter_class=formatter,
     )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     sim = sub.add_parser(
         "simulate",
@@ -487,11 +483,23 @@ def main(argv: list[str] | None = None) -> int:
     )
     _add_sweep_args(sw)
     sw.set_defaults(func=_sweep)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``geovs-drake`` with ``argv`` (default ``sys.argv[1:]``); return the exit code.
+
+    Bad input (an argument, the ``--config`` file, a start outside D) and a missing
+    extra are one line on stderr and exit code 2; see :data:`EXIT_CODES`.
+    """
+    args = build_parser().parse_args(argv)
     try:
         return args.func(args)
     except ValueError as e:  # bad configuration: one clear line, no traceback
         print(f"geovs-drake: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except MissingExtra as e:  # e.g. geovs-drake demo needs matplotlib: pip install ...
+        print(e.message(f"geovs-drake {args.command}"), file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("geovs-drake: interrupted", file=sys.stderr)

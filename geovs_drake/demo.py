@@ -31,6 +31,9 @@ HARD_START = PoseConfig(xyz=[0.18, -0.12, -0.85], rpy=[0.12, -0.15, 2.8])
 
 
 def demo_config(duration: float | None = None) -> ScenarioConfig:
+    """The demo's scenario: the default one from :data:`HARD_START`, run for ``duration`` [s]
+    (default: the scenario's).
+    """
     config = ScenarioConfig(initial=HARD_START)
     if duration is not None:
         config.duration = duration

@@ -34,14 +34,11 @@ class Progress:
         self._last_line = -float("inf")
         self._bar = None
         if sys.stderr.isatty():
-            try:
-                from tqdm import tqdm
-            except ImportError:  # tqdm is optional: plain lines then
-                tqdm = None
-            if tqdm is not None:
-                self._bar = tqdm(
-                    total=self.total, unit=unit, desc=description, file=sys.stderr, leave=False
-                )
+            from tqdm import tqdm  # a core dependency, imported only for a terminal
+
+            self._bar = tqdm(
+                total=self.total, unit=unit, desc=description, file=sys.stderr, leave=False
+            )
 
     def update_to(self, done: int) -> None:
         """Report that ``done`` units (an integer, not decreasing) are finished."""
@@ -67,5 +64,6 @@ class Progress:
         self.update_to(self.done + units)
 
     def close(self) -> None:
+        """Close the terminal's bar, if any (plain lines need nothing)."""
         if self._bar is not None:
             self._bar.close()

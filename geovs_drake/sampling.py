@@ -17,6 +17,7 @@ __all__ = [
 
 
 def random_unit_vectors(rng: np.random.Generator, n: int) -> np.ndarray:
+    """n unit vectors uniform on the sphere, shape (n, 3)."""
     v = rng.normal(size=(n, 3))
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 

@@ -58,6 +58,7 @@ class PoseConfig:
     rpy: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
 
     def to_rigid_transform(self) -> RigidTransform:
+        """The pose as a RigidTransform; ValueError for a wrong length or a non-finite entry."""
         if len(self.xyz) != 3 or len(self.rpy) != 3:
             raise ValueError(f"a pose needs 3 xyz and 3 rpy numbers, got {self.xyz}, {self.rpy}")
         values = list(self.xyz) + list(self.rpy)
@@ -67,6 +68,7 @@ class PoseConfig:
 
     @staticmethod
     def from_rigid_transform(X: RigidTransform) -> "PoseConfig":
+        """The PoseConfig of a RigidTransform (translation and RollPitchYaw)."""
         return PoseConfig(
             xyz=[float(v) for v in X.translation()],
             rpy=[float(v) for v in RollPitchYaw(X.rotation()).vector()],
@@ -75,12 +77,20 @@ class PoseConfig:
 
 @dataclass
 class DomainConfig:
+    """The safe domain D: the field of view's half-angle [deg], the bounds on
+    ``lambda = rho / |p_CB|`` (distance from ``radius / lam_max`` to ``radius / lam_min``),
+    and the occlusion margin kappa in (0, 1) (see :class:`~geovs_drake.geometry.domain.SafeDomain`).
+    """
+
     fov_half_angle_deg: float = 35.0
     lam_min: float = 0.05
     lam_max: float = 0.4
     occlusion_margin: float = 0.1
 
     def to_domain(self) -> SafeDomain:
+        """The :class:`~geovs_drake.geometry.domain.SafeDomain` (degrees to radians); ValueError
+        if it is empty.
+        """
         return SafeDomain(
             math.radians(self.fov_half_angle_deg), self.lam_min, self.lam_max, self.occlusion_margin
         )
@@ -88,12 +98,18 @@ class DomainConfig:
 
 @dataclass
 class NavigationGainsConfig:
+    """The navigation function's shape: the gains of its lambda, field-of-view and
+    occlusion factors and the circle factor's weight (the saddle's value of phi), see
+    :class:`~geovs_drake.geometry.navigation.NavigationGains`.
+    """
+
     k_lam: float = 4.0
     k_fov: float = 2.0
     k_occ: float = 8.0
     circle_weight: float = 0.9
 
     def to_gains(self) -> NavigationGains:
+        """The :class:`~geovs_drake.geometry.navigation.NavigationGains`."""
         return NavigationGains(self.k_lam, self.k_fov, self.k_occ, self.circle_weight)
 
 
@@ -164,6 +180,12 @@ def _default_simulator() -> SimulatorConfig:
 
 @dataclass
 class ScenarioConfig:
+    """A scenario: the target, the goal and start, D, the navigation function, the
+    rig, the gains, the plant and law, and the simulator (defaults: the project's
+    default scenario, see the module docstring). Load one from YAML with
+    :func:`load_scenario`; :meth:`validate` checks the values.
+    """
+
     radius: float = 0.1
     #: X_WB, the target sphere in the world: 1 m up, its z axis (towards the
     #: camera's goal, from the marked point's side) along -x of the world and its
@@ -287,18 +309,22 @@ class ScenarioConfig:
     # Derived quantities, in the names the code uses.
     @property
     def X_WB(self) -> RigidTransform:
+        """X_WB, the target sphere's pose in the world."""
         return self.target.to_rigid_transform()
 
     @property
     def X_BC_goal(self) -> RigidTransform:
+        """X_BC*, the goal camera pose in the target frame."""
         return self.goal.to_rigid_transform()
 
     @property
     def X_BC_initial(self) -> RigidTransform:
+        """X_BC(0), the initial camera pose in the target frame."""
         return self.initial.to_rigid_transform()
 
     @property
     def X_RC(self) -> RigidTransform:
+        """X_RC, the camera frame's pose on the rig."""
         return self.rig.camera_offset.to_rigid_transform()
 
     def goal_features(self) -> ImageFeatures:
@@ -306,6 +332,7 @@ class ScenarioConfig:
         return camera_map(self.X_BC_goal.inverse(), self.radius)
 
     def initial_features(self) -> ImageFeatures:
+        """y(0) = c((X_BC(0))^-1), the initial image."""
         return camera_map(self.X_BC_initial.inverse(), self.radius)
 
 

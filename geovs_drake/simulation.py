@@ -137,6 +137,9 @@ class SimulationResult:
 
     @property
     def lyapunov_monotone(self) -> bool:
+        """The Lyapunov function (energy, or phi on the kinematic loop) never rose by more
+        than :attr:`lyapunov_tolerance` between two samples.
+        """
         L = self.lyapunov
         return bool(len(L) < 2 or np.max(np.diff(L)) <= self.lyapunov_tolerance)
 
@@ -159,14 +162,19 @@ class SimulationResult:
 
     @property
     def final_errors(self) -> tuple[float, float]:
+        """``(position [m], rotation [rad])`` errors of the final pose from the goal."""
         return pose_error(self.final_X_BC, self.config.X_BC_goal)
 
     @property
     def left_domain(self) -> bool:
+        """The run stopped because it left D or lost sight of the marked point."""
         return self.status in ("left_domain", "lost_visibility")
 
     @property
     def converged(self) -> bool:
+        """Stayed in D and ended within :data:`CONVERGENCE_POSITION_M` and
+        :data:`CONVERGENCE_ROTATION_RAD` of the goal.
+        """
         dp, dr = self.final_errors
         return (
             not self.left_domain and dp <= CONVERGENCE_POSITION_M and dr <= CONVERGENCE_ROTATION_RAD
@@ -266,6 +274,7 @@ class SafeDomainMonitor:
         self.states: list[np.ndarray] = []
 
     def termination(self) -> tuple[str, str]:
+        """``(status, message)`` of the last termination, ``(, )`` if none."""
         return self._reason.get("status", ""), self._reason.get("message", "")
 
     def _stop(self, status: str, message: str) -> EventStatus:

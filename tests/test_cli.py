@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.metadata
 import subprocess
 import sys
 from pathlib import Path
@@ -201,12 +200,24 @@ def _can_write(folder: Path) -> bool:
     return True
 
 
-def test_version_prints_the_installed_version(capsys):
+def test_version_prints_the_package_version(capsys):
+    """--version shows geovs_drake.__version__, the one place the version is written:
+    pyproject.toml reads it (the wheel check compares the installed metadata)."""
+    import tomllib
+
+    import geovs_drake
+
     with pytest.raises(SystemExit) as e:
         main(["--version"])
     assert e.value.code == 0
     out = capsys.readouterr().out
-    assert out.strip() == f"geovs-drake {importlib.metadata.version('geovs-drake')}"
+    assert out.strip() == f"geovs-drake {geovs_drake.__version__}"
+    project = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
+    assert "version" not in project["project"] and "version" in project["project"]["dynamic"]
+    attr = project["tool"]["setuptools"]["dynamic"]["version"]["attr"]
+    assert attr == "geovs_drake.__version__"
+    changelog = (Path(__file__).resolve().parents[1] / "CHANGELOG.md").read_text()
+    assert f"## {geovs_drake.__version__}" in changelog
 
 
 def _option_entries(help_text: str) -> dict[str, str]:

@@ -23,6 +23,14 @@ __all__ = ["BasinMap", "roll_distance_map"]
 
 @dataclass
 class BasinMap:
+    """A basin map: the batch engine's result on a roll x distance grid of starts.
+
+    Attributes:
+        rolls: the rolls about the optical axis, (n_roll,) [rad].
+        distances: the distances from the sphere's centre, (n_distance,) [m].
+        result: one start per grid point, row-major: roll index, then distance index.
+    """
+
     rolls: np.ndarray  # (n_roll,) [rad]
     distances: np.ndarray  # (n_distance,) [m]
     result: BatchResult  # starts in row-major order: roll index, then distance index

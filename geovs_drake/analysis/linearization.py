@@ -85,6 +85,18 @@ def _quaternion_tangent(q: np.ndarray) -> np.ndarray:
 
 @dataclass
 class LinearizationResult:
+    """The closed loop linearised at the goal, in Drake's state and in minimal coordinates.
+
+    Attributes:
+        A_drake: Drake's ``Linearize`` A in its own state (13 dynamic, 7 kinematic).
+        T: minimal coordinates -> Drake state perturbation.
+        A: the minimal model ``T^+ A_drake T`` (12 dynamic, 6 kinematic).
+        A_closed: the closed form (:func:`closed_form_A`) in the same coordinates.
+        eigenvalues: of ``A``, sorted by real part.
+        quaternion_eigenvalue: of ``A_drake`` along the quaternion's norm.
+        invariance_residual: ``|A_drake T - T A| / |A_drake|``: T's span is invariant.
+    """
+
     A_drake: np.ndarray  # Drake's A in its own state (13 or 7)
     T: np.ndarray  # minimal coordinates -> Drake state perturbation
     A: np.ndarray  # minimal model T^+ A_drake T (12 or 6)
@@ -95,6 +107,7 @@ class LinearizationResult:
 
     @property
     def max_real_part(self) -> float:
+        """The largest real part of the eigenvalues: < 0 for a stable goal."""
         return float(np.max(self.eigenvalues.real))
 
 

@@ -52,6 +52,7 @@ def random_initial_poses(
 def scenarios_from_starts(
     config: ScenarioConfig, starts: Iterable[PoseConfig], plant: str | None = None
 ) -> list[ScenarioConfig]:
+    """A copy of ``config`` per start pose X_BC (and ``plant`` if given), in order."""
     out = []
     for pose in starts:
         c = copy.deepcopy(config)

@@ -107,6 +107,17 @@ def chart_hessian(nf: NavigationFunction, y: ImageFeatures, h: float = 1e-6) -> 
 
 @dataclass
 class DescentResult:
+    """The end of :func:`gradient_descent` from a batch of starts.
+
+    Attributes:
+        y: the final images.
+        phi: phi at the final images.
+        grad_norm: ``|dphi|`` there.
+        iterations: the iterations run.
+        phi_monotone: phi never rose along any path.
+        rejected_outside: candidate steps rejected because they left D.
+    """
+
     y: ImageFeatures
     phi: np.ndarray
     grad_norm: np.ndarray
@@ -207,6 +218,14 @@ def _relative_residual(nf: NavigationFunction, y: ImageFeatures, F: np.ndarray) 
 
 @dataclass
 class CriticalPoint:
+    """A critical point of phi found by :func:`critical_point_search`.
+
+    Attributes:
+        y: the image.
+        phi: phi there.
+        hessian_eigenvalues: the eigenvalues of the chart Hessian there.
+    """
+
     y: ImageFeatures
     phi: float
     hessian_eigenvalues: np.ndarray

@@ -38,6 +38,7 @@ import numpy as np
 from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RigidTransform
 
+from geovs_drake._optional import require
 from geovs_drake.analysis.nf_study import random_features_in_domain
 from geovs_drake.batch import STATUS_NAMES, LoopParameters, loop_parameters, run_batch
 from geovs_drake.diagrams import initial_body_states
@@ -427,8 +428,10 @@ def run_sweep(
         on_chunk: called with each finished chunk's rows, in the order chunks finish.
 
     Returns the rows sorted by start index. Raises :class:`SweepError` for bad
-    settings or an unreachable scheduler, and :class:`SweepInterrupted` (with the
-    finished rows) on Ctrl-C, after closing the client and the cluster.
+    settings or an unreachable scheduler, :class:`SweepInterrupted` (with the
+    finished rows) on Ctrl-C, after closing the client and the cluster, and
+    :class:`~geovs_drake._optional.MissingExtra` when Dask is needed (``workers`` > 1
+    or a ``scheduler``) but not installed (the ``sweep`` extra), before anything runs.
     """
     config.validate()
     X_BC, twists = _check_settings(X_BC, twists, duration, engine, workers, chunk)
@@ -455,8 +458,9 @@ def run_sweep(
         except KeyboardInterrupt:
             interrupted = True
     else:
-        from distributed import as_completed
-
+        distributed = require(
+            "distributed", "sweep", "run_sweep on Dask", package="dask[distributed]"
+        )
         client, cluster = _connect(scheduler, workers)
         try:
             futures = [
@@ -465,7 +469,7 @@ def run_sweep(
                 )
                 for a, b in bounds
             ]
-            for future in as_completed(futures):
+            for future in distributed.as_completed(futures):
                 finished(future.result())
         except KeyboardInterrupt:
             interrupted = True
@@ -568,7 +572,6 @@ def plot_sweep(result: SweepResult, out_dir) -> list[str]:
     X_BC, which at the goal's orientation is the roll about the optical axis (the hard
     direction: near pi the arrow points the wrong way, the NF's saddle). Failed starts
     (neither converged nor still on the way) and the 20 slowest are marked.
-    Raises ImportError without matplotlib.
     """
     from pathlib import Path
 

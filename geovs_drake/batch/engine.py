@@ -158,6 +158,7 @@ class BatchResult:
 
     @property
     def status(self) -> np.ndarray:
+        """Each start's status name (``converged``, ``not_converged``, ...)."""
         return np.array(self.names)[self.status_code]
 
     @property
@@ -169,6 +170,7 @@ class BatchResult:
         return self.max_lyapunov_rise <= tol * np.maximum(1.0, np.abs(self.initial_lyapunov))
 
     def counts(self) -> dict[str, int]:
+        """The number of starts per status."""
         return {name: int(np.sum(self.status_code == k)) for k, name in enumerate(self.names)}
 
 

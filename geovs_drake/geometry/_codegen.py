@@ -162,7 +162,7 @@ def _kinematic_body(x, twist):
 
 
 def _pose_error(x, p):
-    """(|p_WC - p_WC*|^2, |R_WC - R_WC*|_F^2) from the rig pose x = [q_WR, p_WR] and
+    """``(|p_WC - p_WC*|^2, |R_WC - R_WC*|_F^2)`` from the rig pose x = [q_WR, p_WR] and
     p = [R_RC (9), p_RC (3), R_WC* (9), p_WC* (3)]."""
     from geovs_drake.geometry.rigid import camera_pose_error
 

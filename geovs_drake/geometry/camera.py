@@ -151,7 +151,7 @@ def jacobian_rows(y: tuple, rho: object, xp: Ops) -> tuple:
     """C(y) of Eq. (14) as 7 rows of 6 entries.
 
     ``(xi, lambda_dot, s_dot) = C(y) (omega, v)`` for the right-trivialised
-    velocity of X_CB (Eq. 11); beta = |b| of Eq. (21) (the errata: Eq. 41 is
+    velocity of X_CB (Eq. 11); ``beta = |b|`` of Eq. (21) (the errata: Eq. 41 is
     misprinted) and ``delta = (s.q2) / sqrt(lambda^2 - sin^2 phi)``.
     """
     q1x, q1y, q1z, q2x, q2y, q2z, q3x, q3y, q3z, lam, sx, sy, sz = y
@@ -373,18 +373,22 @@ class ImageFeatures:
 
     @property
     def q1(self) -> np.ndarray:
+        """q1, the unit vector towards the marked point (Eq. 6): Q's first column."""
         return self.Q[..., :, 0]
 
     @property
     def q2(self) -> np.ndarray:
+        """q2, the arrow's direction orthogonal to q1 (Eq. 7): Q's second column."""
         return self.Q[..., :, 1]
 
     @property
     def q3(self) -> np.ndarray:
+        """q3 = q1 x q2: Q's third column."""
         return self.Q[..., :, 2]
 
     @property
     def batch_shape(self) -> tuple[int, ...]:
+        """The shape of the batch, ``()`` for one image."""
         return np.shape(self.lam)
 
     def to_vector(self) -> np.ndarray:
@@ -409,6 +413,7 @@ class ImageFeatures:
 
     @staticmethod
     def from_components(y: tuple) -> ImageFeatures:
+        """From the 13 named components of :meth:`components`."""
         return ImageFeatures.from_vector(pack(y))
 
     def __getitem__(self, index: object) -> ImageFeatures:
@@ -556,7 +561,7 @@ def image_jacobian(y: ImageFeatures | np.ndarray, radius: object) -> np.ndarray:
     """C(y) of Eq. (14), shape (..., 7, 6).
 
     Maps the right-trivialised velocity ``(omega, v)`` of ``X_CB`` (Eq. 11) to
-    ``(xi, lambda_dot, s_dot)`` (Eqs. 12-13). beta = |b| of Eq. (21).
+    ``(xi, lambda_dot, s_dot)`` (Eqs. 12-13). ``beta = |b|`` of Eq. (21).
     """
     _check_radius(radius)
     comps = validated_components(y)

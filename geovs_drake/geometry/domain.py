@@ -60,7 +60,7 @@ class SafeDomain:
     Args:
         fov_half_angle: theta, the FOV cone's half-angle [rad], in
             ``(arcsin(lam_max), pi/2)`` so the nearest allowed sphere fits.
-        lam_min, lam_max: bounds on lambda = rho / |d|, ``0 < lam_min < lam_max < 1``.
+        lam_min, lam_max: bounds on ``lambda = rho / |d|``, ``0 < lam_min < lam_max < 1``.
         occlusion_margin: kappa in (0, 1), the fraction of the visible cap's
             cosine width kept between the marked point and the limb.
     """

@@ -148,6 +148,7 @@ class NavigationGains:
 
     @property
     def params(self) -> tuple[float, float, float, float]:
+        """``(k_lam, k_fov, k_occ, circle_weight)``, the kernels' layout."""
         return (self.k_lam, self.k_fov, self.k_occ, self.circle_weight)
 
 
@@ -410,6 +411,7 @@ class NavigationFunction:
 
     @property
     def goal(self) -> ImageFeatures:
+        """y*, the goal image; setting it checks that it is in the interior of D."""
         return self._goal
 
     @goal.setter
@@ -434,11 +436,15 @@ class NavigationFunction:
         return navigation_value(y, self._goal, self.domain, self.gains, extend)
 
     def differential(self, y: ImageFeatures | np.ndarray, extend: bool = False) -> np.ndarray:
+        """dphi(y), the 7-vector along ``(xi, lambda_dot, s_dot)`` with its s-part orthogonal to s
+        (also grad phi in the embedded metric); raises outside D unless ``extend``.
+        """
         return navigation_differential(y, self._goal, self.domain, self.gains, extend)[1]
 
     def value_and_differential(
         self, y: ImageFeatures | np.ndarray, extend: bool = False
     ) -> tuple[np.ndarray, np.ndarray]:
+        """``(phi(y), dphi(y))`` in one evaluation (see :meth:`value`, :meth:`differential`)."""
         return navigation_differential(y, self._goal, self.domain, self.gains, extend)
 
     def clearance(self, y: ImageFeatures | np.ndarray, extend: bool = False) -> np.ndarray:
@@ -446,6 +452,7 @@ class NavigationFunction:
         return navigation_clearance(y, self._goal, self.domain, self.gains, extend)
 
     def saddle(self) -> ImageFeatures:
+        """The index-1 saddle of phi: the goal image with the arrow reversed (:func:`saddle_of`)."""
         return saddle_of(self._goal, self.domain)
 
     def angle_to_saddle(self, y: ImageFeatures | np.ndarray) -> np.ndarray:

@@ -110,9 +110,15 @@ def ImageJacobianForce_(T):
             v.SetFromVector(full)
 
         def set_damping(self, context, damping: np.ndarray) -> None:
+            """Set the damping B, diagonal on (Omega, V), rotational first, in ``context``;
+            ValueError unless 6 finite non-negative numbers.
+            """
             self._set(context, _DAMPING, _check_damping(damping))
 
         def set_potential_gain(self, context, gain: float) -> None:
+            """Set k_p, the potential's gain (``k_p phi`` [J]), in ``context``; ValueError
+            unless finite and > 0.
+            """
             if not (math.isfinite(gain) and gain > 0):
                 raise ValueError(f"potential gain must be finite and > 0, got {gain}")
             self._set(context, _GAIN, gain)

@@ -67,6 +67,7 @@ def KinematicRigidBody_(T):
             Impl._construct(self, *other._defaults, converter=converter)
 
         def set_pose(self, context, X_WC: RigidTransform) -> None:
+            """Set the state to the camera pose X_WC in ``context``."""
             context.SetContinuousState(pose_state(X_WC))
 
         def CalcBodyPose(self, context, output) -> None:

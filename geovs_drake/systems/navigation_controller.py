@@ -139,21 +139,27 @@ def NavigationController_(T):
             return NavigationFunction(self.domain(context), self.goal(context), self.gains(context))
 
         def domain(self, context) -> SafeDomain:
+            """The safe domain D in ``context``."""
             return SafeDomain(*self._values(context)[_DOMAIN])
 
         def gains(self, context) -> NavigationGains:
+            """The navigation function's gains in ``context``."""
             return NavigationGains(*self._values(context)[_GAINS])
 
         def goal(self, context) -> np.ndarray:
+            """y*, the goal image as the 13-vector ``[q1, q2, q3, lambda, s]``, in ``context``."""
             return np.array(self._values(context)[_GOAL])
 
         def set_goal(self, context, goal: ImageFeatures | np.ndarray) -> None:
+            """Set y* in ``context``; ValueError unless it lies in the interior of D."""
             self._set(context, goal, self.domain(context), self.gains(context))
 
         def set_domain(self, context, domain: SafeDomain) -> None:
+            """Set D in ``context``; ValueError unless the goal lies in its interior."""
             self._set(context, self.goal(context), domain, self.gains(context))
 
         def set_gains(self, context, gains: NavigationGains) -> None:
+            """Set the navigation function's gains in ``context``."""
             self._set(context, self.goal(context), self.domain(context), gains)
 
         # ---------------------------------------------------------- outputs

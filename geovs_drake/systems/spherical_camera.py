@@ -118,23 +118,29 @@ def SphericalCamera_(T):
             v.SetFromVector(full)
 
         def radius(self, context) -> object:
+            """rho [m], the target sphere's radius, in ``context``."""
             return context.get_numeric_parameter(self._params_index).GetAtIndex(_RADIUS)
 
         def set_radius(self, context, radius: float) -> None:
+            """Set rho [m] in ``context``; ValueError unless finite and > 0."""
             if not (math.isfinite(radius) and radius > 0):
                 raise ValueError(f"radius must be finite and > 0: radius = {radius}")
             self._set(context, _RADIUS, radius)
 
         def set_target_pose(self, context, X_WB: RigidTransform) -> None:
+            """Set X_WB, the target sphere's pose in the world, in ``context``."""
             self._set(context, _X_WB, pose_to_param(X_WB))
 
         def set_camera_offset(self, context, X_RC: RigidTransform) -> None:
+            """Set X_RC, the camera frame's pose on the rig, in ``context``."""
             self._set(context, _X_RC, pose_to_param(X_RC))
 
         def set_domain(self, context, domain: SafeDomain) -> None:
+            """Set the safe domain D whose margins ``domain_margins`` reports, in ``context``."""
             self._set(context, _DOMAIN, domain_to_param(domain))
 
         def domain(self, context) -> SafeDomain:
+            """The safe domain D in ``context``."""
             return SafeDomain(*floats(read(context, self._params_index)[_DOMAIN]))
 
         def pose_terms(self, context) -> tuple:

@@ -556,7 +556,7 @@ def kinematic_body(x, twist):
 
 
 def pose_error(x, p):
-    """(|p_WC - p_WC*|^2, |R_WC - R_WC*|_F^2) from the rig pose x = [q_WR, p_WR] and p = [R_RC (9), p_RC (3), R_WC* (9), p_WC* (3)]."""
+    """``(|p_WC - p_WC*|^2, |R_WC - R_WC*|_F^2)`` from the rig pose x = [q_WR, p_WR] and p = [R_RC (9), p_RC (3), R_WC* (9), p_WC* (3)]."""
     x0, x1, x2, x3, x4, x5, x6 = x
     p0, p1, p2, p3, p4, p5, p6, p7, p8, p9, p10, p11, p12, p13, p14, p15, p16, p17, p18, p19, p20, p21, p22, p23 = p
     t0 = (x1*x1)

@@ -1,0 +1,63 @@
+"""The API reference's port diagrams say what the systems declare (Drake's port
+names are the truth), and the docs extension rejects a malformed block."""
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+from geovs_drake import systems
+from geovs_drake.scenario import ScenarioConfig
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "docs" / "_ext"))
+pydrake_system = pytest.importorskip("pydrake_system")  # needs sphinx (the docs extra)
+
+BLOCK = re.compile(r"\.\. pydrake_system::\n\n((?:[ \t]+\S.*\n)+)")
+
+
+def _instances():
+    goal = ScenarioConfig().goal_features()
+    return {
+        "SphericalCamera": systems.SphericalCamera(),
+        "NavigationController": systems.NavigationController(goal),
+        "ImageJacobianForce": systems.ImageJacobianForce(),
+        "KinematicController": systems.KinematicController(),
+        "KinematicRigidBody": systems.KinematicRigidBody(),
+    }
+
+
+@pytest.mark.parametrize("name", list(_instances()))
+def test_port_block_lists_the_declared_ports_in_order(name):
+    system = _instances()[name]
+    doc = type(system).__doc__
+    blocks = BLOCK.findall(doc)
+    assert len(blocks) == 1, f"{name}: expected one '.. pydrake_system::' block"
+    title, inputs, outputs = pydrake_system.parse_block(blocks[0])
+    assert title == name
+    declared_in = [system.get_input_port(i).get_name() for i in range(system.num_input_ports())]
+    declared_out = [system.get_output_port(i).get_name() for i in range(system.num_output_ports())]
+    assert inputs == declared_in
+    assert outputs == declared_out
+
+
+def test_every_system_in_the_package_is_checked():
+    public = {n for n in systems.__all__ if not n.endswith("_")}
+    assert public == set(_instances())
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        ("name: X\ninputs:\n- a\n", "unknown keys ['inputs']"),
+        ("input_ports:\n- a\n", "'name' must be"),
+        ("name: X\noutput_ports: y\n", "'output_ports' must be a list"),
+        ("- a\n- b\n", "expected a mapping"),
+        ("name: [X\n", "malformed YAML"),
+    ],
+)
+def test_malformed_block_is_one_clear_error(text, needle):
+    with pytest.raises(ValueError, match=re.escape(needle)):
+        pydrake_system.parse_block(text)
