@@ -174,6 +174,7 @@ class PathExit:
     worst_value: float  # ... and that margin's value (< 0)
 
     def describe(self) -> str:
+        """Where and when the path leaves D, in one sentence."""
         back = (
             f"back in D at t = {self.back_in_time:.3g} s"
             if self.back_in_time is not None

@@ -45,6 +45,7 @@ class TrackingRun:
 
     @property
     def times(self) -> np.ndarray:
+        """The log's sample times [s]."""
         return self.result.times
 
     @property

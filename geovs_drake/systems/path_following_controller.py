@@ -91,10 +91,12 @@ def PathFollowingController_(T):
             Impl._construct(self, *other._defaults, converter=converter)
 
         def set_gain(self, context, gain: float) -> None:
+            """Set the feedback gain k [1/s] (0: Eq. 18 open loop); validated."""
             p = context.get_mutable_numeric_parameter(self._params_index)
             p.SetAtIndex(_GAIN, check_path_gains(1.0, gain)[1])
 
         def set_radius(self, context, radius: float) -> None:
+            """Set the law's model of the radius rho [m]; validated."""
             p = context.get_mutable_numeric_parameter(self._params_index)
             p.SetAtIndex(_RADIUS, check_path_gains(radius, 0.0)[0])
 

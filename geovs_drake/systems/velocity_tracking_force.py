@@ -95,6 +95,7 @@ def VelocityTrackingForce_(T):
             Impl._construct(self, *other._defaults, converter=converter)
 
         def set_gains(self, context, gains: np.ndarray) -> None:
+            """Set the diagonal of B (rotational first); validated."""
             v = context.get_mutable_numeric_parameter(self._params_index)
             full = v.CopyToVector()
             full[_GAINS] = check_tracking_gains(gains)
