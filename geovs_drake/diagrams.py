@@ -34,11 +34,14 @@ from geovs_drake.geometry._ops import NUMPY
 from geovs_drake.geometry.rigid import matmul, quaternion_to_rotation, rig_velocity
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems import (
+    IbvsController,
     ImageJacobianForce,
     KinematicController,
     KinematicRigidBody,
     NavigationController,
+    PbvsController,
     SphericalCamera,
+    SphericalFeatureController,
     VelocityTrackingForce,
 )
 from geovs_drake.visualization import add_camera_geometry, add_goal_ghost, add_target_geometry
@@ -62,7 +65,40 @@ RIG_BODY_NAME = "camera_rig"
 #: ``image_features`` input (if it has one) to the camera's y. Keyed by
 #: ``ScenarioConfig.controller``; the NF ("nf") is built in.
 TwistControllerFactory = Callable[[DiagramBuilder, ScenarioConfig, SphericalCamera], LeafSystem]
-TWIST_CONTROLLERS: dict[str, TwistControllerFactory] = {}
+
+
+def _ibvs(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:
+    return builder.AddSystem(
+        IbvsController(
+            goal=config.goal_features(),
+            radius=config.radius,
+            gain=config.control.baseline_gain,
+            depth=config.control.ibvs_depth,
+        )
+    )
+
+
+def _pbvs(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:
+    return builder.AddSystem(
+        PbvsController(
+            goal=config.goal_features(), radius=config.radius, gain=config.control.baseline_gain
+        )
+    )
+
+
+def _spherical(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:
+    return builder.AddSystem(
+        SphericalFeatureController(
+            goal=config.goal_features(), radius=config.radius, gain=config.control.baseline_gain
+        )
+    )
+
+
+TWIST_CONTROLLERS: dict[str, TwistControllerFactory] = {
+    "ibvs": _ibvs,
+    "pbvs": _pbvs,
+    "spherical": _spherical,
+}
 
 
 def _add_twist_controller(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:

@@ -1,5 +1,6 @@
 """The servo's Drake systems, one LeafSystem per module, all TemplateSystems."""
 
+from geovs_drake.systems.ibvs_controller import IbvsController, IbvsController_
 from geovs_drake.systems.image_jacobian_force import ImageJacobianForce, ImageJacobianForce_
 from geovs_drake.systems.kinematic_controller import KinematicController, KinematicController_
 from geovs_drake.systems.kinematic_rigid_body import KinematicRigidBody, KinematicRigidBody_
@@ -7,13 +8,20 @@ from geovs_drake.systems.navigation_controller import (
     NavigationController,
     NavigationController_,
 )
+from geovs_drake.systems.pbvs_controller import PbvsController, PbvsController_
 from geovs_drake.systems.spherical_camera import SphericalCamera, SphericalCamera_
+from geovs_drake.systems.spherical_feature_controller import (
+    SphericalFeatureController,
+    SphericalFeatureController_,
+)
 from geovs_drake.systems.velocity_tracking_force import (
     VelocityTrackingForce,
     VelocityTrackingForce_,
 )
 
 __all__ = [
+    "IbvsController",
+    "IbvsController_",
     "ImageJacobianForce",
     "ImageJacobianForce_",
     "KinematicController",
@@ -22,8 +30,12 @@ __all__ = [
     "KinematicRigidBody_",
     "NavigationController",
     "NavigationController_",
+    "PbvsController",
+    "PbvsController_",
     "SphericalCamera",
     "SphericalCamera_",
+    "SphericalFeatureController",
+    "SphericalFeatureController_",
     "VelocityTrackingForce",
     "VelocityTrackingForce_",
 ]
