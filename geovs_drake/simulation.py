@@ -524,11 +524,17 @@ def simulate(
     if meshcat is not None:
         diagram.ForcedPublish(root)
     status, message = "completed", ""
-    simulator.Initialize()  # also loads the compiled kernels: not part of the timing
+    # Initialize() also loads the compiled kernels: not part of the timing. Its
+    # monitor call may already stop the run (a law's feature point out of view at
+    # t = 0); AdvanceTo would otherwise take one step regardless.
+    initial = simulator.Initialize()
+    stopped = initial.reason() == initial.ReturnReason.kReachedTerminationCondition
     start = time.perf_counter()
     failure = None
     try:
-        if progress is None:
+        if stopped:
+            pass
+        elif progress is None:
             simulator.AdvanceTo(config.duration)
         else:
             chunk = config.duration / 100
