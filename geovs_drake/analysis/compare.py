@@ -58,6 +58,7 @@ __all__ = [
     "plot_compare",
     "run_case",
     "run_compare",
+    "status_matrix",
     "suite_cases",
     "summarize",
     "write_tables",
@@ -292,9 +293,36 @@ def markdown_table(rows: Sequence[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def status_matrix(rows: Sequence[dict]) -> str:
+    """Scenarios x laws as a markdown table: the time to converge, or how the run ended
+    (``left D (face, t)`` naming the margin that went negative, ``lost view (t)``,
+    ``not converged``, ``non_finite (t)``)."""
+    laws = list(dict.fromkeys(r["law"] for r in rows))
+    scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
+    cells = {}
+    for r in rows:
+        status, t = r["status"], r["sim_time_s"]
+        if status == "converged":
+            text = f"{r['t_converged_s']:.1f} s"
+        elif status == "left_domain" and "margin" in r["message"]:
+            face = r["message"].split(":", 1)[1].split("margin")[0].strip()
+            text = f"left D ({face}, {t:.2f} s)"
+        elif status == "lost_visibility":
+            text = f"lost view ({t:.2f} s)"
+        elif status == "not_converged":
+            text = "not converged"
+        else:
+            text = f"{status} ({t:.2g} s)"
+        cells[r["scenario"], r["law"]] = text
+    lines = ["| scenario | " + " | ".join(laws) + " |", "|---|" + "---|" * len(laws)]
+    for name in scenarios:
+        lines.append(f"| {name} | " + " | ".join(cells.get((name, law), "") for law in laws) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def write_tables(result: CompareResult, out_dir: str | Path) -> tuple[Path, Path]:
-    """``DIR/table.md`` (the table, then each stopped run's message) and ``DIR/table.csv``
-    (every field of :data:`ROW_FIELDS`)."""
+    """``DIR/table.md`` (:func:`status_matrix`, the table, then the message of each run
+    that did not converge) and ``DIR/table.csv`` (every field of :data:`ROW_FIELDS`)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     md = out / "table.md"
@@ -306,6 +334,9 @@ def write_tables(result: CompareResult, out_dir: str | Path) -> tuple[Path, Path
     md.write_text(
         f"# geovs-drake compare: {result.plant} plant, {len(result.suite.scenarios)} scenarios "
         f"x {len(LAWS)} laws, {result.suite.duration:g} s each\n\n"
+        + "Time to converge, or how the run ended:\n\n"
+        + status_matrix(result.rows)
+        + "\nEvery run:\n\n"
         + markdown_table(result.rows)
         + ("\nRuns that did not converge:\n\n" + "\n".join(notes) + "\n" if notes else "")
     )
