@@ -217,7 +217,8 @@ class SimulationResult:
         """The run as JSON-ready values. The energy fields (``initial_energy``,
         ``energy_bound`` = k_p, ``energy_guarantee`` = E0 < k_p, ``max_energy``) are
         None for the kinematic loop, which has no energy, and for laws other than
-        the NF, whose energy is not k_p phi."""
+        the NF, whose energy is not k_p phi. ``ibvs_depth`` is the IBVS depth
+        estimate (``control.ibvs_depth``) for ``controller`` "ibvs", else None."""
         dp, dr = self.final_errors
         out = {
             "plant": self.config.plant,

@@ -113,6 +113,8 @@ def test_compare_mini_suite_writes_the_table(tmp_path):
     ]
     md = (tmp_path / "out" / "table.md").read_text()
     assert "| roll_180 | ibvs-true | left_domain |" in md
+    matrix = md.split("Every run:")[0]
+    assert "| roll_180 | not converged | left D (lam_min, 0.50 s) | left D (lam_max" in matrix
     pytest.importorskip("matplotlib")
     assert {"image_sphere_roll_180.png", "camera_paths.png"} <= names
 
