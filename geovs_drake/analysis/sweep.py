@@ -46,11 +46,8 @@ from geovs_drake.geometry import kernels
 from geovs_drake.geometry.camera import camera_map_inverse
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import (
-    CONVERGENCE_POSITION_M,
-    CONVERGENCE_ROTATION_RAD,
     StartOutsideDomain,
     camera_pose_in_target,
-    pose_error,
     simulate,
 )
 
@@ -301,18 +298,11 @@ def _drake_row(config: ScenarioConfig, k_p: float, index: int, X_BC, twist) -> d
         nan = math.nan
         row.update(dict.fromkeys(ROW_FIELDS[14:], nan), status=status, monotone=True)
         return row
-    # The last logged time from which the pose error stayed within tolerance.
-    t_converged = math.nan
-    for t, X in zip(r.times[::-1], r.X_BC[::-1], strict=True):
-        dp, dr = pose_error(RigidTransform(X), c.X_BC_goal)
-        if dp > CONVERGENCE_POSITION_M or dr > CONVERGENCE_ROTATION_RAD:
-            break
-        t_converged = float(t)
     dp, dr = r.final_errors
     L = r.lyapunov
     row.update(
         status=r.status,
-        t_converged=t_converged if r.status == "converged" else math.nan,
+        t_converged=r.convergence_time,
         final_position_error_m=dp,
         final_rotation_error_rad=dr,
         min_fov_margin=float(np.min(r.margins[:, 0])),

@@ -1,14 +1,15 @@
-"""SO(3) helpers: hat, vee and the exponential, scalar-generic and batched.
+"""SO(3) helpers: hat, vee, the exponential and its inverse (theta u), scalar-generic.
 
 Used by the tests, the Hessian and the chart of :mod:`geovs_drake.analysis`,
-not on the servo's hot path.
+and by the position-based baselines' theta u (:mod:`geovs_drake.geometry.baselines`);
+not on the NF servo's hot path.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from geovs_drake.geometry._ops import to_float
+from geovs_drake.geometry._ops import namespace, to_float
 
 
 def hat(w: np.ndarray) -> np.ndarray:
@@ -69,3 +70,40 @@ def so3_exp(w: np.ndarray) -> np.ndarray:
             b = (1 - np.cos(t)) / t2
     a, b = np.asarray(a)[..., None, None], np.asarray(b)[..., None, None]
     return np.eye(3) + a * W + b * (W @ W)
+
+
+def so3_log(R: np.ndarray) -> np.ndarray:
+    """``theta u`` of a rotation: ``so3_exp(so3_log(R)) == R``, theta in [0, pi].
+
+    Floats and AutoDiffXd (one 3x3 matrix). Away from pi it is
+    ``theta / (2 sin theta) vee(R - R^T)`` (the series near 0, where it is
+    smooth); within 0.1 rad of pi, where that quotient loses its digits, the
+    axis comes from the symmetric part ``(R + R^T)/2 - cos(theta) I = (1 - cos
+    theta) u u^T``, its sign from ``vee(R - R^T)``. At exactly pi both signs are
+    the same rotation; the one with ``u . vee(R - R^T) >= 0`` and, failing
+    that, a positive largest component is returned.
+    """
+    R = np.asarray(R)
+    if R.shape != (3, 3):
+        raise ValueError(f"so3_log expects one 3x3 rotation, got shape {R.shape}")
+    if R.dtype != object:
+        R = R.astype(float)
+    sv = vee(R)  # sin(theta) u
+    c = (R[0, 0] + R[1, 1] + R[2, 2] - 1) / 2
+    s2 = sv[0] * sv[0] + sv[1] * sv[1] + sv[2] * sv[2]
+    xp = namespace(c)
+    s = xp.sqrt(s2)
+    theta = xp.atan2(s, c)
+    t_value, s_value = float(to_float(theta)), float(to_float(s))
+    if t_value < np.pi - 0.1:
+        # theta / sin(theta), with its series where sin(theta) ~ theta ~ 0.
+        factor = 1 + s2 / 6 + 3 * s2 * s2 / 40 if s_value < 1e-4 else theta / s
+        return factor * sv
+    B = (R + R.T) / 2 - c * np.eye(3)
+    diag = to_float(np.array([B[0, 0], B[1, 1], B[2, 2]]))
+    col = B[:, int(np.argmax(diag))]
+    u = col / xp.sqrt(col[0] * col[0] + col[1] * col[1] + col[2] * col[2])
+    dot = float(to_float(u[0] * sv[0] + u[1] * sv[1] + u[2] * sv[2]))
+    if dot < 0 or (dot == 0 and float(to_float(u[np.argmax(np.abs(to_float(u)))])) < 0):
+        u = -u
+    return theta * u

@@ -2,7 +2,8 @@
 
 ``default.yaml`` is the default scenario (every field of
 :class:`~geovs_drake.scenario.ScenarioConfig` at its default), a template to copy
-and edit::
+and edit; ``suite.yaml`` is the suite of scenarios that ``geovs-drake compare``
+runs (:func:`geovs_drake.scenario.load_suite`)::
 
     python -c "import geovs_drake.scenarios as s; print(s.read_text('default'))" > my.yaml
     geovs-drake simulate --config my.yaml

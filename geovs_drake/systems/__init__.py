@@ -5,6 +5,7 @@ from geovs_drake.systems.fixed_camera_kinematic_mount import (
     FixedCameraKinematicMount_,
 )
 from geovs_drake.systems.fixed_camera_mount import FixedCameraMount, FixedCameraMount_
+from geovs_drake.systems.ibvs_controller import IbvsController, IbvsController_
 from geovs_drake.systems.image_jacobian_force import ImageJacobianForce, ImageJacobianForce_
 from geovs_drake.systems.kinematic_controller import KinematicController, KinematicController_
 from geovs_drake.systems.kinematic_rigid_body import KinematicRigidBody, KinematicRigidBody_
@@ -16,7 +17,12 @@ from geovs_drake.systems.path_following_controller import (
     PathFollowingController,
     PathFollowingController_,
 )
+from geovs_drake.systems.pbvs_controller import PbvsController, PbvsController_
 from geovs_drake.systems.spherical_camera import SphericalCamera, SphericalCamera_
+from geovs_drake.systems.spherical_feature_controller import (
+    SphericalFeatureController,
+    SphericalFeatureController_,
+)
 from geovs_drake.systems.velocity_tracking_force import (
     VelocityTrackingForce,
     VelocityTrackingForce_,
@@ -27,6 +33,8 @@ __all__ = [
     "FixedCameraKinematicMount_",
     "FixedCameraMount",
     "FixedCameraMount_",
+    "IbvsController",
+    "IbvsController_",
     "ImageJacobianForce",
     "ImageJacobianForce_",
     "KinematicController",
@@ -37,8 +45,12 @@ __all__ = [
     "NavigationController_",
     "PathFollowingController",
     "PathFollowingController_",
+    "PbvsController",
+    "PbvsController_",
     "SphericalCamera",
     "SphericalCamera_",
+    "SphericalFeatureController",
+    "SphericalFeatureController_",
     "VelocityTrackingForce",
     "VelocityTrackingForce_",
 ]

@@ -26,10 +26,13 @@ controller where y is not in I.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydrake.math import RigidTransform
 
 from geovs_drake.geometry._ops import to_float
+from geovs_drake.geometry.camera import image_violation, validate_features
 from geovs_drake.geometry.domain import SafeDomain
 
 POSE_SIZE = 7
@@ -93,3 +96,22 @@ def inputs_and_parameters(system) -> set:
     parameters symbolic values), and caches on exactly these dependencies.
     """
     return {system.all_input_ports_ticket(), system.all_parameters_ticket()}
+
+
+def image_usable(y: np.ndarray) -> bool:
+    """False if y's values are known and not in I (NaN from an invisible pose, or an
+    integrator's trial stage outside I): the systems then output NaN, never raise."""
+    values = values_or_none(y.tolist())
+    return values is None or image_violation(values) is None
+
+
+def twist_law_parameters(goal, radius: float, gain: float) -> list[float]:
+    """``[y* (13), rho, lambda]`` of a twist-commanding baseline law, checked:
+    y* in I, rho and the gain lambda [1/s] finite and > 0."""
+    for name, value in (("radius", radius), ("gain", gain)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be finite and > 0, got {value}")
+    return validate_features(goal).to_vector().astype(float).tolist() + [
+        float(radius),
+        float(gain),
+    ]
