@@ -69,13 +69,15 @@ def test_ibvs_true_depth_retreats_along_the_optical_axis_on_the_conundrum(plant)
     assert result.summary()["ibvs_depth"] == "true"
 
 
-def test_an_ibvs_point_out_of_view_stops_the_run_naming_it(monkeypatch):
+@pytest.mark.parametrize("mount", ["hand", "fixed"])
+def test_an_ibvs_point_out_of_view_stops_the_run_naming_it(monkeypatch, mount):
     """A square too large for the field of view: the monitor stops the run at once,
-    with the status lost_visibility and the point's name; the NF ignores the points."""
+    with the status lost_visibility and the point's name; the NF ignores the points.
+    The fixed camera (the target is the moving body) checks the same points."""
     import geovs_drake.systems.ibvs_controller as ibvs_module
 
     monkeypatch.setattr(ibvs_module, "DEFAULT_SQUARE_SIDE", 5.0)  # 0.5 m: corners at 51 deg
-    config = ScenarioConfig(plant="kinematic", controller="ibvs", initial=SMALL_MOVE)
+    config = ScenarioConfig(plant="kinematic", controller="ibvs", initial=SMALL_MOVE, mount=mount)
     result = simulate(config)
     assert result.status == "lost_visibility"
     assert "feature b + side (a + n) outside the field of view" in result.message
