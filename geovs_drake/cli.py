@@ -23,7 +23,7 @@ import sys
 from pathlib import Path
 from typing import NoReturn
 
-from geovs_drake.progress import Progress
+from geovs_drake.progress import HorizonProgress, Progress
 from geovs_drake.scenario import CONTROLLERS, PLANTS, PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import StartOutsideDomain, simulate
 
@@ -33,6 +33,7 @@ __all__ = [
     "EXIT_CONVERGED",
     "EXIT_INTERRUPTED",
     "EXIT_NOT_CONVERGED",
+    "SIMULATE_PROGRESS_DELAY_S",
     "exit_code_of",
     "main",
 ]
@@ -184,13 +185,23 @@ def _add_scenario_args(p: argparse.ArgumentParser) -> None:
     )
 
 
+#: ``simulate`` shows progress on stderr only once a run has taken this long [s wall]
+#: (the default 30 s run takes well under a second).
+SIMULATE_PROGRESS_DELAY_S = 3.0
+
+
 def _simulate(args: argparse.Namespace) -> int:
     config = _config_from_args(args)
+    progress = HorizonProgress(
+        config.duration, "geovs-drake simulate", delay_s=SIMULATE_PROGRESS_DELAY_S
+    )
     try:
-        result = simulate(config)
+        result = simulate(config, progress=progress)
     except StartOutsideDomain as e:
         print(f"geovs-drake: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    finally:
+        progress.close()
     if args.json:
         print(json.dumps(result.summary()))
     else:
@@ -397,6 +408,9 @@ def main(argv: list[str] | None = None) -> int:
     sim = sub.add_parser(
         "simulate",
         help="simulate a scenario and print a one-line result",
+        description="Simulate a scenario and print its result on stdout: one line, or one "
+        f"JSON object with --json. A run that takes longer than {SIMULATE_PROGRESS_DELAY_S:g} s "
+        "of wall time shows its progress on stderr.",
         epilog=epilog,
         formatter_class=formatter,
     )

@@ -18,7 +18,7 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from geovs_drake.progress import Progress
+from geovs_drake.progress import HorizonProgress
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 
 if TYPE_CHECKING:
@@ -101,17 +101,14 @@ def run_demo(
     config.validate()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    # Percent of the horizon: integer counts (a float total shows rounding drift).
-    bar = Progress(100, "%", "dynamic servo")
-
-    def update(t: float) -> None:
-        bar.update_to(int(100 * t / config.duration + 1e-9))
-
-    if meshcat:
-        result = record_meshcat(config, out / "servo.html", progress=update)
-    else:
-        result = simulate(config, progress=update)
-    bar.close()
+    bar = HorizonProgress(config.duration, "dynamic servo")
+    try:
+        if meshcat:
+            result = record_meshcat(config, out / "servo.html", progress=bar)
+        else:
+            result = simulate(config, progress=bar)
+    finally:
+        bar.close()
     (out / "summary.json").write_text(json.dumps(result.summary(), indent=2) + "\n")
     plot_image_view(result, out / "image_view.png")
     plot_run(result, out / "run.png")
