@@ -105,3 +105,28 @@ def test_paper_notes_name_functions_and_tests_that_exist():
     for file, name in tests:
         source = (ROOT / file).read_text()
         assert re.search(rf"^def {name}\(", source, re.M), f"{file}::{name}"
+
+
+def test_readme_says_how_to_open_each_notebook_and_they_carry_no_outputs():
+    """The README's notebooks section: the command that opens them (JupyterLab comes with
+    the notebooks extra), one line per notebook, and the claim that they are committed
+    without outputs."""
+    import json
+    import tomllib
+
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("## Notebooks\n")[1].split("\n## ")[0]
+    assert "jupyter lab notebooks/" in section
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"
+    ]
+    assert any(dep.startswith("jupyterlab") for dep in extras["notebooks"])
+    listed = re.findall(r"^\* `(\w+\.ipynb)`: \S", section, re.M)
+    notebooks = sorted(p.name for p in (ROOT / "notebooks").glob("*.ipynb"))
+    assert listed == notebooks
+    assert "committed without outputs" in section
+    for name in notebooks:
+        cells = json.loads((ROOT / "notebooks" / name).read_text())["cells"]
+        for cell in cells:
+            if cell["cell_type"] == "code":
+                assert cell["outputs"] == [] and cell["execution_count"] is None, name
