@@ -130,3 +130,29 @@ def test_readme_says_how_to_open_each_notebook_and_they_carry_no_outputs():
         for cell in cells:
             if cell["cell_type"] == "code":
                 assert cell["outputs"] == [] and cell["execution_count"] is None, name
+
+
+def test_readme_lists_each_property_test_with_its_examples():
+    """The README's table of hypothesis tests: every test of tests/test_properties.py, with
+    the max_examples its settings give."""
+    import ast
+
+    source = (ROOT / "tests" / "test_properties.py").read_text()
+    tree = ast.parse(source)
+    default = None
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "SETTINGS":
+            default = next(k.value.value for k in node.value.keywords if k.arg == "max_examples")
+    examples = {}
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef) and node.name.startswith("test_"):
+            count = None
+            for deco in node.decorator_list:
+                if isinstance(deco, ast.Name) and deco.id == "SETTINGS":
+                    count = default
+                elif isinstance(deco, ast.Call) and getattr(deco.func, "id", "") == "settings":
+                    count = next(k.value.value for k in deco.keywords if k.arg == "max_examples")
+            examples[node.name] = count
+    readme = (ROOT / "README.md").read_text()
+    table = dict(re.findall(r"^\|[^|]*\| `(test_\w+)` \| (\d+) \|$", readme, re.M))
+    assert {k: int(v) for k, v in table.items()} == examples
