@@ -13,6 +13,7 @@ Writes to the output folder:
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 from pathlib import Path
@@ -65,7 +66,15 @@ def record_meshcat(config: ScenarioConfig, html_path: str | Path, progress=None)
     from geovs_drake.simulation import simulate
     from geovs_drake.visualization import draw_trail
 
-    meshcat = Meshcat()
+    # Meshcat() logs "listening for connections at http://localhost:7000", a URL that
+    # dies with this process: the lasting result is the HTML file, which callers name.
+    drake_log = logging.getLogger("drake")
+    level = drake_log.level
+    drake_log.setLevel(max(level, logging.WARNING))
+    try:
+        meshcat = Meshcat()
+    finally:
+        drake_log.setLevel(level)
     # Look at the target and the camera's path from above and to the side.
     p_WB = config.X_WB.translation()
     p_WC = (config.X_WB @ config.X_BC_initial).translation()

@@ -33,6 +33,7 @@ def test_demo_writes_every_result(tmp_path):
     lines = out.stdout.strip().splitlines()
     assert lines[0].startswith("nf on the dynamic plant: converged")
     # Where the recording is: the saved file, not Drake's localhost URL (dead at exit).
+    assert "localhost" not in out.stdout + out.stderr, out.stderr
     assert lines[1] == f"Meshcat recording: {(tmp_path / 'servo.html').resolve()} " + (
         "(open it in a web browser; it needs no server)"
     )
