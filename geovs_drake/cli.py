@@ -20,6 +20,7 @@ import importlib.metadata
 import json
 import math
 import sys
+import textwrap
 from pathlib import Path
 from typing import NoReturn
 
@@ -85,12 +86,25 @@ class _OneLineParser(argparse.ArgumentParser):
 
 
 class _EpilogTableFormatter(argparse.HelpFormatter):
-    """Wraps descriptions as usual but keeps the exit-code table's lines."""
+    """Keeps the exit-code table's lines, and never breaks a word at its hyphen (an
+    option such as ``--initial-velocity=-0.1,...`` stays whole, ready to copy)."""
 
     def _fill_text(self, text: str, width: int, indent: str) -> str:
         if text.startswith("exit codes:"):
             return "".join(indent + line for line in text.splitlines(keepends=True))
-        return super()._fill_text(text, width, indent)
+        text = " ".join(text.split())
+        return "\n".join(
+            textwrap.wrap(
+                text,
+                width,
+                initial_indent=indent,
+                subsequent_indent=indent,
+                break_on_hyphens=False,
+            )
+        )
+
+    def _split_lines(self, text: str, width: int) -> list[str]:
+        return textwrap.wrap(" ".join(text.split()), width, break_on_hyphens=False)
 
 
 def _six_numbers(text: str, names: str) -> list[float]:
@@ -422,6 +436,11 @@ def main(argv: list[str] | None = None) -> int:
     demo = sub.add_parser(
         "demo",
         help="the default dynamic scenario from a hard start, with plots",
+        description="Run the dynamic loop from a hard start (rolled 160 deg about the optical "
+        "axis, offset sideways and 0.35 m further out than the goal) and write to DIR: "
+        "servo.html (the Meshcat recording, standalone), image_view.png, run.png, "
+        "nf_slices.png, block_diagram.svg|png and summary.json. Prints progress on stderr, "
+        "the run's line and where the recording is on stdout.",
         epilog=epilog,
         formatter_class=formatter,
     )

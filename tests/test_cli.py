@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.metadata
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -328,3 +329,20 @@ def test_simulate_progress_goes_to_stderr_and_changes_nothing_else(monkeypatch, 
     quiet, shown = json.loads(out_quiet), json.loads(out)
     quiet.pop("wall_time_s"), shown.pop("wall_time_s")
     assert shown == quiet  # progress from the monitor: the integration is not cut in pieces
+
+
+@pytest.mark.parametrize("columns", ["60", "80", "120"])
+@pytest.mark.parametrize("command", [[], ["simulate"], ["demo"], ["sweep"]])
+def test_help_never_breaks_a_word_at_its_hyphen(command, columns, monkeypatch, capsys):
+    """argparse wraps at hyphens by default, which printed `--initial-` / `velocity=-0.1`:
+    an option cut in two, wrong when copied. Every help text keeps its words whole."""
+    monkeypatch.setenv("COLUMNS", columns)
+    with pytest.raises(SystemExit):
+        main([*command, "--help"])
+    text = capsys.readouterr().out
+    assert not re.search(r"\w-\n", text), text
+    if command == ["simulate"]:
+        assert "--initial-velocity=-0.1,..." in text
+    if command:
+        # What the command does, in its own help (not only in the list of commands).
+        assert text.split("\n\n")[1].strip() and not text.split("\n\n")[1].startswith("options")
