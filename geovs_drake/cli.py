@@ -323,9 +323,12 @@ def _sweep(args: argparse.Namespace) -> int:
     else:
         counts = ", ".join(f"{k} {v}" for k, v in summary["counts"].items())
         g = summary["guarantee"]
+        # The guarantee's condition: the energy below k_p (Appendix C), or for the
+        # kinematic loop, which has no energy, phi below 1 (every start in D).
+        covered = "E0 < k_p" if result.plant == "dynamic" else "phi0 < 1"
         print(
             f"{result.plant}: {len(result.rows)} of {result.starts} starts x "
-            f"{result.duration:g} s ({result.engine}): {counts} | E0 < k_p: {g['starts']} "
+            f"{result.duration:g} s ({result.engine}): {counts} | {covered}: {g['starts']} "
             f"starts, of which left D {g['left_domain']}, lost visibility "
             f"{g['lost_visibility']}, non-finite {g['non_finite']} | "
             f"{result.wall_time_s:.1f} s wall | {out}/"

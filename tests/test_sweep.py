@@ -213,3 +213,29 @@ def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, capsys, mo
     assert len(err.strip().splitlines()) == 1 and message in err, err
     assert "Traceback" not in err
     assert not (tmp_path / "out").exists()  # nothing written for bad input
+
+
+@pytest.mark.parametrize("plant,covered", [("dynamic", "E0 < k_p"), ("kinematic", "phi0 < 1")])
+def test_cli_line_names_the_guarantee_of_its_plant_and_the_legend_counts(
+    plant, covered, tmp_path, capsys, monkeypatch
+):
+    """The kinematic loop has no energy: its line says phi0 < 1, not E0 < k_p. The starts
+    plot's legend gives each marker's count (a marker with no points says 0)."""
+    import matplotlib.pyplot as plt
+
+    figures = []
+    monkeypatch.setattr(plt, "close", figures.append)
+    code, out, err = _cli(
+        capsys,
+        *("--plant", plant, "--starts", "4", "--duration", "3", "--workers", "1"),
+        *("--out", str(tmp_path)),
+    )
+    assert code == 0, err
+    assert f"| {covered}: 4 starts, of which left D 0" in out
+    assert ("E0" in out) == (plant == "dynamic")
+    labels = [t.get_text() for t in figures[-1].axes[0].get_legend().get_texts()]
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    failed = sum(summary["counts"][k] for k in ("left_domain", "lost_visibility", "non_finite"))
+    assert labels[0] == "start (4)"
+    assert labels[1] == f"not converged ({summary['counts']['not_converged']})"
+    assert labels[3] == f"left D / failed ({failed})"

@@ -596,19 +596,33 @@ def plot_sweep(result: SweepResult, out_dir) -> list[str]:
     yaw = _column(rows, "yaw")
     failed = ~np.isin(status, ["converged", "not_converged"])
     slowest = np.argsort(np.where(converged, t, -np.inf))[::-1][: min(20, int(converged.sum()))]
+    # Each label counts its points: a marker listed with none on the plot says "(0)".
+    not_converged = status == "not_converged"
     fig, ax = plt.subplots(figsize=(6.5, 5))
-    ax.scatter(distance, yaw, s=4, c="0.6", label="start")
+    ax.scatter(distance, yaw, s=4, c="0.6", label=f"start ({len(rows)})")
     ax.scatter(
-        distance[status == "not_converged"],
-        yaw[status == "not_converged"],
+        distance[not_converged],
+        yaw[not_converged],
         s=10,
         c="tab:orange",
-        label="not converged",
+        label=f"not converged ({int(not_converged.sum())})",
     )
     ax.scatter(
-        distance[slowest], yaw[slowest], s=30, facecolors="none", edgecolors="b", label="20 slowest"
+        distance[slowest],
+        yaw[slowest],
+        s=30,
+        facecolors="none",
+        edgecolors="b",
+        label=f"{len(slowest)} slowest",
     )
-    ax.scatter(distance[failed], yaw[failed], s=30, c="r", marker="x", label="left D / failed")
+    ax.scatter(
+        distance[failed],
+        yaw[failed],
+        s=30,
+        c="r",
+        marker="x",
+        label=f"left D / failed ({int(failed.sum())})",
+    )
     ax.set_xlabel("distance |p_BC| [m]")
     ax.set_ylabel("yaw of X_BC (roll about the optical axis) [rad]")
     ax.set_title(f"{len(rows)} starts ({result.plant}): failed and slowest marked")
