@@ -239,3 +239,26 @@ def test_cli_line_names_the_guarantee_of_its_plant_and_the_legend_counts(
     assert labels[0] == "start (4)"
     assert labels[1] == f"not converged ({summary['counts']['not_converged']})"
     assert labels[3] == f"left D / failed ({failed})"
+
+
+def test_local_cluster_says_nothing_when_the_dashboard_port_is_taken(capfd):
+    """Port 8787 busy (another sweep, any Dask session): no UserWarning on stderr."""
+    import socket
+    import warnings
+
+    busy = socket.socket()
+    try:
+        busy.bind(("127.0.0.1", 8787))
+        busy.listen()
+    except OSError:
+        pass  # already taken by someone else: the case under test all the same
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            client, cluster = sweep._connect(None, 1)
+            client.close()
+            cluster.close()
+    finally:
+        busy.close()
+    assert not [w for w in caught if "already in use" in str(w.message)]
+    assert "already in use" not in capfd.readouterr().err

@@ -31,6 +31,7 @@ import logging
 import math
 import signal
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -381,13 +382,17 @@ def _connect(scheduler: str | None, workers: int):
     previous = signal.getsignal(signal.SIGINT)
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-        cluster = LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,  # not a warning per task cancelled by Ctrl-C
-        )
+        with warnings.catch_warnings():
+            # The scheduler's HTTP server falls back to a free port when 8787 is taken
+            # (another sweep, any Dask session): nothing the user must act on.
+            warnings.filterwarnings("ignore", "Port .* is already in use", UserWarning)
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,  # not a warning per task cancelled by Ctrl-C
+            )
     finally:
         signal.signal(signal.SIGINT, previous)
     try:
