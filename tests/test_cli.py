@@ -346,3 +346,27 @@ def test_help_never_breaks_a_word_at_its_hyphen(command, columns, monkeypatch, c
     if command:
         # What the command does, in its own help (not only in the list of commands).
         assert text.split("\n\n")[1].strip() and not text.split("\n\n")[1].startswith("options")
+
+
+def test_readme_synopsis_names_real_options_and_their_choices(capsys):
+    """Each `[--option a|b|c]` of the README's command-line synopsis is an option of that
+    command with exactly those choices (e.g. sweep's --velocity lists `above` too).
+    --plant and --controller are left to the plant/controller work, which extends them."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    synopsis = readme.split("## Command line")[1].split("```")[1]
+    commands = re.split(r"^geovs-drake ", synopsis, flags=re.M)[1:]
+    checked = 0
+    for block in commands:
+        command = block.split()[0]
+        if command.startswith("--"):
+            continue
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        usage = capsys.readouterr().out.split("\n\n")[0]
+        for option, arg in re.findall(r"\[(--[\w-]+)(?: ([^\]]+))?\]", block):
+            assert re.search(rf"\[{option}[ \]]", usage), (command, option)
+            if "|" in arg and option not in ("--plant", "--controller"):
+                choices = re.search(rf"\[{option} \{{([^}}]+)\}}\]", usage).group(1).split(",")
+                assert sorted(arg.split("|")) == sorted(choices), (command, option)
+                checked += 1
+    assert checked >= 2  # sweep's --velocity and --engine at least
