@@ -344,7 +344,9 @@ def _sweep(args: argparse.Namespace) -> int:
 
 def _add_sweep_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
-        "--config", metavar="FILE", help="scenario YAML (fields of ScenarioConfig; default: none)"
+        "--config",
+        metavar="FILE",
+        help="scenario YAML (fields of ScenarioConfig) (default: none, the built-in scenario)",
     )
     p.add_argument(
         "--plant",
@@ -408,7 +410,11 @@ def _add_sweep_args(p: argparse.ArgumentParser) -> None:
         metavar="DIR",
         help="output folder: results.csv, summary.json, plots (default: results/sweep)",
     )
-    p.add_argument("--json", action="store_true", help="print the summary as one JSON line")
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="print the summary as one JSON line (default: one line of text)",
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

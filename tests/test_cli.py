@@ -224,7 +224,7 @@ def _option_entries(help_text: str) -> dict[str, str]:
     return entries
 
 
-@pytest.mark.parametrize("command", ["simulate", "demo"])
+@pytest.mark.parametrize("command", ["simulate", "demo", "sweep"])
 def test_help_shows_every_default_and_the_exit_codes(command, capsys):
     with pytest.raises(SystemExit) as e:
         main([command, "--help"])
