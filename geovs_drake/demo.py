@@ -13,12 +13,13 @@ Writes to the output folder:
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from geovs_drake.progress import Progress
+from geovs_drake.progress import HorizonProgress
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 
 if TYPE_CHECKING:
@@ -68,7 +69,15 @@ def record_meshcat(config: ScenarioConfig, html_path: str | Path, progress=None)
     from geovs_drake.simulation import simulate
     from geovs_drake.visualization import draw_trail
 
-    meshcat = Meshcat()
+    # Meshcat() logs "listening for connections at http://localhost:7000", a URL that
+    # dies with this process: the lasting result is the HTML file, which callers name.
+    drake_log = logging.getLogger("drake")
+    level = drake_log.level
+    drake_log.setLevel(max(level, logging.WARNING))
+    try:
+        meshcat = Meshcat()
+    finally:
+        drake_log.setLevel(level)
     # Look at the target and the camera's path from above and to the side.
     p_WB = config.X_WB.translation()
     p_WC = (config.X_WB @ config.X_BC_initial).translation()
@@ -104,17 +113,14 @@ def run_demo(
     config.validate()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    # Percent of the horizon: integer counts (a float total shows rounding drift).
-    bar = Progress(100, "%", "dynamic servo")
-
-    def update(t: float) -> None:
-        bar.update_to(int(100 * t / config.duration + 1e-9))
-
-    if meshcat:
-        result = record_meshcat(config, out / "servo.html", progress=update)
-    else:
-        result = simulate(config, progress=update)
-    bar.close()
+    bar = HorizonProgress(config.duration, "dynamic servo")
+    try:
+        if meshcat:
+            result = record_meshcat(config, out / "servo.html", progress=bar)
+        else:
+            result = simulate(config, progress=bar)
+    finally:
+        bar.close()
     (out / "summary.json").write_text(json.dumps(result.summary(), indent=2) + "\n")
     plot_image_view(result, out / "image_view.png")
     plot_run(result, out / "run.png")

@@ -83,7 +83,11 @@ def plot_navigation_slices(nf: NavigationFunction, path: str | Path | None = Non
     y, phi = _slice(nf, m0, "circle", a)
     ax.plot(np.degrees(a), phi)
     ax.axhline(nf.gains.circle_weight, ls=":", c="r", label="saddle value c_w")
-    ax.legend()
+    # Named beside the line, between the curve's arms (a legend box this wide covered
+    # the line or the curve wherever it went).
+    ax.text(
+        0.0, nf.gains.circle_weight - 0.03, "saddle value c_w", color="r", ha="center", va="top"
+    )
     ax.set(xlabel="roll of q2 about q1 from the goal [deg]", ylabel="phi", title="circle slice")
     # 2-D: lambda against roll, through the goal and the saddle.
     ax = axes[1, 1]
@@ -154,7 +158,7 @@ def plot_image_view(result, path: str | Path | None = None, snapshots: int = 8):
     y = ImageFeatures.from_vector(result.image_features)
     goal = result.config.goal_features()
     theta = np.radians(result.config.domain.fov_half_angle_deg)
-    fig, ax = plt.subplots(figsize=(7, 7))
+    fig, ax = plt.subplots(figsize=(9, 7))
     a = np.linspace(0, 2 * np.pi, 400)
     ax.plot(
         np.tan(theta) * np.cos(a), np.tan(theta) * np.sin(a), "k-", lw=1.5, label="FOV boundary"
@@ -177,7 +181,8 @@ def plot_image_view(result, path: str | Path | None = None, snapshots: int = 8):
     lim = 1.1 * np.tan(theta)
     ax.set(xlim=(-lim, lim), ylim=(-lim, lim), xlabel="u_x / u_z", ylabel="u_y / u_z")
     ax.set_title("Image (gnomonic projection): silhouette, q1 and the q2 arrow")
-    ax.legend(loc="upper right", fontsize=7)
+    # Beside the image, not on it: inside, it hid a stretch of the FOV boundary.
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
     fig.tight_layout()
     if path is not None:
         fig.savefig(path, dpi=110)

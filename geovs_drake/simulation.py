@@ -359,6 +359,10 @@ class SafeDomainMonitor:
     costs one state copy per step, where Drake's periodic loggers would cut
     every integrator step at each sample time (about 50% more steps at the
     default 50 Hz) and evaluate every logged port there.
+
+    ``on_step``, if given, is called with the time of every accepted step: how
+    :func:`simulate` reports progress without cutting the integration into
+    pieces (each ``AdvanceTo`` boundary would end a step early and change the run).
     """
 
     def __init__(
@@ -366,11 +370,13 @@ class SafeDomainMonitor:
         diagram: Diagram,
         record: bool = True,
         feature_points: FeaturePointCheck | None = None,
+        on_step: Callable[[float], None] | None = None,
     ) -> None:
         self._diagram = diagram
         self._camera = diagram.GetSubsystemByName("spherical_camera")
         self._record = record
         self._feature_points = feature_points
+        self._on_step = on_step
         self._reason: dict[str, str] = {}
         self._params_of: tuple = (None, None)
         self._fixed_camera = _fixed_camera_of(diagram)
@@ -388,6 +394,8 @@ class SafeDomainMonitor:
     def __call__(self, root_context) -> EventStatus:
         # The diagram's only continuous state is the body's, pose first.
         x = root_context.get_continuous_state_vector().CopyToVector()
+        if self._on_step is not None:
+            self._on_step(root_context.get_time())
         if self._record:
             t = root_context.get_time()
             if self.times and t <= self.times[-1]:  # Initialize() and a first step at t = 0
@@ -456,13 +464,16 @@ class SafeDomainMonitor:
 
 
 def make_simulator(
-    diagram: Diagram, config: ScenarioConfig, record: bool = False
+    diagram: Diagram,
+    config: ScenarioConfig,
+    record: bool = False,
+    on_step: Callable[[float], None] | None = None,
 ) -> tuple[Simulator, SafeDomainMonitor]:
     """A Simulator with the config's integrator and a :class:`SafeDomainMonitor`.
 
-    ``record`` makes the monitor keep every accepted step (for logs). A law with
-    feature points (point IBVS) gets them checked too (:func:`feature_point_check`).
-    For the
+    ``record`` makes the monitor keep every accepted step (for logs); ``on_step``
+    is called with each accepted step's time (progress). A law with feature
+    points (point IBVS) gets them checked too (:func:`feature_point_check`). For the
     dynamic loop (a diagram with a ``plant``) the context starts in
     :func:`geovs_drake.diagrams.initial_rig_state`: the rig's pose and the
     velocity that gives the camera ``config.initial_velocity``.
@@ -474,7 +485,10 @@ def make_simulator(
         plant_context = plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
         plant.SetPositionsAndVelocities(plant_context, initial_rig_state(config))
     monitor = SafeDomainMonitor(
-        diagram, record=record, feature_points=feature_point_check(diagram, config)
+        diagram,
+        record=record,
+        feature_points=feature_point_check(diagram, config),
+        on_step=on_step,
     )
     simulator.set_monitor(monitor)
     return simulator, monitor
@@ -541,7 +555,9 @@ def simulate(
     dynamic loop starts with the camera's body twist ``config.initial_velocity``;
     if its energy E0 is not below k_p, the message says that Appendix C's energy
     guarantee does not cover the start (see :func:`energy_note`).
-    ``progress``, if given, is called with the simulated time as it advances.
+    ``progress`` (default None: off), if given, is called with the simulated
+    time after every accepted step, from the safe-domain monitor; e.g. a
+    :class:`geovs_drake.progress.HorizonProgress`. It does not change the run.
     The logs are sampled at ``config.log_rate`` from the recorded steps (see
     :class:`SafeDomainMonitor`); ``wall_time_s`` times the integration alone.
     """
@@ -550,7 +566,7 @@ def simulate(
     check_start(config)
     dynamic = config.plant == "dynamic"
     diagram = make_servo_diagram(config, meshcat=meshcat, log=False)
-    simulator, monitor = make_simulator(diagram, config, record=True)
+    simulator, monitor = make_simulator(diagram, config, record=True, on_step=progress)
     root = simulator.get_mutable_context()
     if meshcat is not None:
         diagram.ForcedPublish(root)
@@ -563,17 +579,8 @@ def simulate(
     start = time.perf_counter()
     failure = None
     try:
-        if stopped:
-            pass
-        elif progress is None:
+        if not stopped:
             simulator.AdvanceTo(config.duration)
-        else:
-            chunk = config.duration / 100
-            while root.get_time() < config.duration - 1e-12:
-                sim_status = simulator.AdvanceTo(min(config.duration, root.get_time() + chunk))
-                progress(root.get_time())
-                if sim_status.reason() != sim_status.ReturnReason.kReachedBoundaryTime:
-                    break
     except RuntimeError as e:
         # Drake's error control found no step it could accept: the derivatives
         # grow without bound (a law's command near its singularity). The batch

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -234,7 +235,7 @@ def _option_entries(help_text: str) -> dict[str, str]:
     return entries
 
 
-@pytest.mark.parametrize("command", ["simulate", "demo"])
+@pytest.mark.parametrize("command", ["simulate", "demo", "sweep"])
 def test_help_shows_every_default_and_the_exit_codes(command, capsys):
     with pytest.raises(SystemExit) as e:
         main([command, "--help"])
@@ -292,3 +293,91 @@ def test_demo_progress_is_sparse_in_a_log(tmp_path):
     assert run.returncode == cli.EXIT_NOT_CONVERGED, run.stderr  # 2 s is too short
     assert "\r" not in run.stderr
     assert "dynamic servo: 100/100 %" in run.stderr
+
+
+def test_progress_waits_for_its_delay_and_stays_quiet_on_short_work(monkeypatch, capsys):
+    """delay_s: nothing before it (a short run prints nothing at all), then sparse lines."""
+    from geovs_drake import progress as progress_module
+
+    clock = {"now": 100.0}
+    monkeypatch.setattr(progress_module.time, "perf_counter", lambda: clock["now"])
+
+    def run(steps: list[tuple[float, int]]) -> list[str]:
+        clock["now"] = 100.0
+        p = progress_module.Progress(100, "%", "geovs-drake simulate", delay_s=3.0)
+        for t, done in steps:
+            clock["now"] = 100.0 + t
+            p.update_to(done)
+        p.close()
+        return capsys.readouterr().err.splitlines()
+
+    assert run([(0.1, 10), (1.0, 60), (2.9, 100)]) == []  # done within the delay: quiet
+    lines = run([(1.0, 10), (2.9, 50), (3.1, 60), (4.0, 70), (5.2, 80), (5.3, 100)])
+    assert lines == [
+        "geovs-drake simulate: 60/100 % after 3.1 s",  # the first after the delay
+        "geovs-drake simulate: 80/100 % after 5.2 s",  # min_interval_s = 2 later
+        "geovs-drake simulate: 100/100 % after 5.3 s",  # and always the end
+    ]
+
+
+def test_simulate_progress_goes_to_stderr_and_changes_nothing_else(monkeypatch, capsys):
+    """`simulate --json` off a terminal: progress lines on stderr only past the delay; stdout
+    is the same one JSON line, and the run the same, steps included."""
+    import json
+    import re
+
+    argv = ["simulate", "--json", "--duration", "5"]
+    code, out_quiet, err_quiet = _run(argv, capsys)
+    assert err_quiet == ""  # well under SIMULATE_PROGRESS_DELAY_S: no progress at all
+    monkeypatch.setattr(cli, "SIMULATE_PROGRESS_DELAY_S", 0.0)
+    code_shown, out, err = _run(argv, capsys)
+    assert code_shown == code
+    lines = err.splitlines()
+    assert 2 <= len(lines) <= 3 and "\r" not in err, err  # first, (maybe one more), last
+    assert all(re.fullmatch(r"geovs-drake simulate: \d+/100 % after \d+\.\d s", x) for x in lines)
+    assert lines[-1].startswith("geovs-drake simulate: 100/100 %")
+    assert len(out.splitlines()) == 1
+    quiet, shown = json.loads(out_quiet), json.loads(out)
+    quiet.pop("wall_time_s"), shown.pop("wall_time_s")
+    assert shown == quiet  # progress from the monitor: the integration is not cut in pieces
+
+
+@pytest.mark.parametrize("columns", ["60", "80", "120"])
+@pytest.mark.parametrize("command", [[], ["simulate"], ["demo"], ["sweep"]])
+def test_help_never_breaks_a_word_at_its_hyphen(command, columns, monkeypatch, capsys):
+    """argparse wraps at hyphens by default, which printed `--initial-` / `velocity=-0.1`:
+    an option cut in two, wrong when copied. Every help text keeps its words whole."""
+    monkeypatch.setenv("COLUMNS", columns)
+    with pytest.raises(SystemExit):
+        main([*command, "--help"])
+    text = capsys.readouterr().out
+    assert not re.search(r"\w-\n", text), text
+    if command == ["simulate"]:
+        assert "--initial-velocity=-0.1,..." in text
+    if command:
+        # What the command does, in its own help (not only in the list of commands).
+        assert text.split("\n\n")[1].strip() and not text.split("\n\n")[1].startswith("options")
+
+
+def test_readme_synopsis_names_real_options_and_their_choices(capsys):
+    """Each `[--option a|b|c]` of the README's command-line synopsis is an option of that
+    command with exactly those choices (e.g. sweep's --velocity lists `above` too).
+    --plant and --controller are left to the plant/controller work, which extends them."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    synopsis = readme.split("## Command line")[1].split("```")[1]
+    commands = re.split(r"^geovs-drake ", synopsis, flags=re.M)[1:]
+    checked = 0
+    for block in commands:
+        command = block.split()[0]
+        if command.startswith("--"):
+            continue
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        usage = capsys.readouterr().out.split("\n\n")[0]
+        for option, arg in re.findall(r"\[(--[\w-]+)(?: ([^\]]+))?\]", block):
+            assert re.search(rf"\[{option}[ \]]", usage), (command, option)
+            if "|" in arg and option not in ("--plant", "--controller"):
+                choices = re.search(rf"\[{option} \{{([^}}]+)\}}\]", usage).group(1).split(",")
+                assert sorted(arg.split("|")) == sorted(choices), (command, option)
+                checked += 1
+    assert checked >= 2  # sweep's --velocity and --engine at least

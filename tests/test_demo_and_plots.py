@@ -33,6 +33,7 @@ def test_demo_writes_every_result(tmp_path):
     lines = out.stdout.strip().splitlines()
     assert lines[0].startswith("nf on the dynamic plant: converged")
     # Where the recording is: the saved file, not Drake's localhost URL (dead at exit).
+    assert "localhost" not in out.stdout + out.stderr, out.stderr
     assert lines[1] == f"Meshcat recording: {(tmp_path / 'servo.html').resolve()} " + (
         "(open it in a web browser; it needs no server)"
     )
@@ -104,3 +105,50 @@ def test_meshcat_trail_has_beads_that_stay_visible():
     assert meshcat.HasPath("/trail/line")
     assert all(meshcat.HasPath(f"/trail/bead_{k}") for k in range(20))
     assert not meshcat.HasPath("/trail/bead_20")
+
+
+def _in_box(xy: np.ndarray, box) -> np.ndarray:
+    return (xy[:, 0] > box.x0) & (xy[:, 0] < box.x1) & (xy[:, 1] > box.y0) & (xy[:, 1] < box.y1)
+
+
+def _data_under_legends(fig) -> list[str]:
+    """Labels of plotted lines and scatters with a point under some legend of ``fig``
+    (lines sampled densely along their segments, in display coordinates)."""
+    fig.canvas.draw()
+    hidden = []
+    for ax in fig.axes:
+        legend = ax.get_legend()
+        if legend is None:
+            continue
+        box = legend.get_window_extent()
+        clip = ax.get_window_extent()
+        for artist in [*ax.get_lines(), *ax.collections]:
+            if hasattr(artist, "get_xydata"):
+                xy = artist.get_transform().transform(artist.get_xydata())
+                t = np.linspace(0, 1, 50)[:, None]
+                pairs = zip(xy[:-1], xy[1:], strict=True)
+                xy = np.concatenate([a + t * (b - a) for a, b in pairs] or [xy])
+            else:
+                xy = artist.get_offset_transform().transform(artist.get_offsets())
+            inside = _in_box(xy, clip) & _in_box(xy, box)
+            if np.any(inside):
+                hidden.append(f"{ax.get_title()}: {artist.get_label()}")
+    return hidden
+
+
+def test_legends_hide_no_data():
+    """A legend over the data hides it: the FOV boundary under the image view's legend,
+    the saddle's line under the circle slice's. Every legend sits clear of every curve."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from geovs_drake.geometry.navigation import NavigationFunction
+    from geovs_drake.plotting import plot_image_view, plot_navigation_slices, plot_run
+    from geovs_drake.scenario import ScenarioConfig
+    from geovs_drake.simulation import simulate
+
+    config = ScenarioConfig(duration=3.0)
+    result = simulate(config)
+    nf = NavigationFunction(config.domain.to_domain(), config.goal_features())
+    for fig in (plot_image_view(result), plot_run(result), plot_navigation_slices(nf)):
+        assert _data_under_legends(fig) == []

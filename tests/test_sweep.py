@@ -213,3 +213,52 @@ def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, capsys, mo
     assert len(err.strip().splitlines()) == 1 and message in err, err
     assert "Traceback" not in err
     assert not (tmp_path / "out").exists()  # nothing written for bad input
+
+
+@pytest.mark.parametrize("plant,covered", [("dynamic", "E0 < k_p"), ("kinematic", "phi0 < 1")])
+def test_cli_line_names_the_guarantee_of_its_plant_and_the_legend_counts(
+    plant, covered, tmp_path, capsys, monkeypatch
+):
+    """The kinematic loop has no energy: its line says phi0 < 1, not E0 < k_p. The starts
+    plot's legend gives each marker's count (a marker with no points says 0)."""
+    import matplotlib.pyplot as plt
+
+    figures = []
+    monkeypatch.setattr(plt, "close", figures.append)
+    code, out, err = _cli(
+        capsys,
+        *("--plant", plant, "--starts", "4", "--duration", "3", "--workers", "1"),
+        *("--out", str(tmp_path)),
+    )
+    assert code == 0, err
+    assert f"| {covered}: 4 starts, of which left D 0" in out
+    assert ("E0" in out) == (plant == "dynamic")
+    labels = [t.get_text() for t in figures[-1].axes[0].get_legend().get_texts()]
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    failed = sum(summary["counts"][k] for k in ("left_domain", "lost_visibility", "non_finite"))
+    assert labels[0] == "start (4)"
+    assert labels[1] == f"not converged ({summary['counts']['not_converged']})"
+    assert labels[3] == f"left D / failed ({failed})"
+
+
+def test_local_cluster_says_nothing_when_the_dashboard_port_is_taken(capfd):
+    """Port 8787 busy (another sweep, any Dask session): no UserWarning on stderr."""
+    import socket
+    import warnings
+
+    busy = socket.socket()
+    try:
+        busy.bind(("127.0.0.1", 8787))
+        busy.listen()
+    except OSError:
+        pass  # already taken by someone else: the case under test all the same
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            client, cluster = sweep._connect(None, 1)
+            client.close()
+            cluster.close()
+    finally:
+        busy.close()
+    assert not [w for w in caught if "already in use" in str(w.message)]
+    assert "already in use" not in capfd.readouterr().err

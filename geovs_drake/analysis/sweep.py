@@ -31,6 +31,7 @@ import logging
 import math
 import signal
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -372,13 +373,17 @@ def _connect(scheduler: str | None, workers: int):
     previous = signal.getsignal(signal.SIGINT)
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-        cluster = LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,  # not a warning per task cancelled by Ctrl-C
-        )
+        with warnings.catch_warnings():
+            # The scheduler's HTTP server falls back to a free port when 8787 is taken
+            # (another sweep, any Dask session): nothing the user must act on.
+            warnings.filterwarnings("ignore", "Port .* is already in use", UserWarning)
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,  # not a warning per task cancelled by Ctrl-C
+            )
     finally:
         signal.signal(signal.SIGINT, previous)
     try:
@@ -589,19 +594,33 @@ def plot_sweep(result: SweepResult, out_dir) -> list[str]:
     yaw = _column(rows, "yaw")
     failed = ~np.isin(status, ["converged", "not_converged"])
     slowest = np.argsort(np.where(converged, t, -np.inf))[::-1][: min(20, int(converged.sum()))]
+    # Each label counts its points: a marker listed with none on the plot says "(0)".
+    not_converged = status == "not_converged"
     fig, ax = plt.subplots(figsize=(6.5, 5))
-    ax.scatter(distance, yaw, s=4, c="0.6", label="start")
+    ax.scatter(distance, yaw, s=4, c="0.6", label=f"start ({len(rows)})")
     ax.scatter(
-        distance[status == "not_converged"],
-        yaw[status == "not_converged"],
+        distance[not_converged],
+        yaw[not_converged],
         s=10,
         c="tab:orange",
-        label="not converged",
+        label=f"not converged ({int(not_converged.sum())})",
     )
     ax.scatter(
-        distance[slowest], yaw[slowest], s=30, facecolors="none", edgecolors="b", label="20 slowest"
+        distance[slowest],
+        yaw[slowest],
+        s=30,
+        facecolors="none",
+        edgecolors="b",
+        label=f"{len(slowest)} slowest",
     )
-    ax.scatter(distance[failed], yaw[failed], s=30, c="r", marker="x", label="left D / failed")
+    ax.scatter(
+        distance[failed],
+        yaw[failed],
+        s=30,
+        c="r",
+        marker="x",
+        label=f"left D / failed ({int(failed.sum())})",
+    )
     ax.set_xlabel("distance |p_BC| [m]")
     ax.set_ylabel("yaw of X_BC (roll about the optical axis) [rad]")
     ax.set_title(f"{len(rows)} starts ({result.plant}): failed and slowest marked")

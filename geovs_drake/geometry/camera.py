@@ -1,7 +1,7 @@
 """The camera map c(H) = (Q, lambda, s), its inverse, visibility and the image Jacobian.
 
 Paper: Cowan & Chang, *Toward Geometric Visual Servoing*, Sec. 2-3 and
-Appendices A-B (with the errata listed in the README).
+Appendices A-B (with the corrections of docs/paper-notes.md).
 
 Conventions (monogram notation):
 

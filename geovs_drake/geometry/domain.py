@@ -1,4 +1,4 @@
-"""The safe domain D of Sec. 4.2, with the errata listed in the README.
+"""The safe domain D of Sec. 4.2, with the corrections of docs/paper-notes.md.
 
 D is the set of images y = (Q, lambda, s) with
 
