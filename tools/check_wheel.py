@@ -11,8 +11,9 @@ Usage::
    (``pip`` if ``uv`` is missing, much slower: drake is about 170 MB unpacked).
 3. From a folder that is not the checkout, with no ``PYTHONPATH``, in each
    environment: ``geovs-drake --version``, ``simulate --json --duration 1`` (on the
-   shipped ``default.yaml`` in ``core``), ``demo --duration 1 --no-meshcat`` and a
-   small ``sweep``. In ``core`` each command either works or prints the one line
+   shipped ``default.yaml`` in ``core``), ``demo --duration 1 --no-meshcat``, a
+   small ``sweep`` and a brief ``compare`` on the shipped suite. In ``core`` each
+   command either works or prints the one line
    ``geovs-drake CMD needs PKG: pip install "geovs-drake[EXTRA]"`` with exit code 2
    (``sweep`` on Dask must, naming ``[sweep]``; ``sweep --workers 1`` must work). In
    ``[all]`` every command must work. No command may print a traceback.
@@ -225,6 +226,16 @@ def exercise(kind: str, env: Path, tmp: Path, report: Report, version: str) -> N
     if core:  # without Dask: in this process
         run, dt = _run(sweep + ["--workers", "1"], cwd)
         _check(report, kind, "sweep --workers 1 (no Dask)", run, dt, may_need_extra=False)
+
+    # Every law on the shipped suite (package data), briefly, in this process.
+    compare_out = cwd / "compare"
+    compare = [cli, "compare", "--plant", "kinematic", "--duration", "0.5", "--workers", "1",
+               "--out", str(compare_out)]  # fmt: skip
+    run, dt = _run(compare, cwd)
+    if _check(report, kind, "compare (shipped suite)", run, dt, False) == "worked":
+        for name in ("table.md", "table.csv"):
+            if not (compare_out / name).is_file():
+                report.fail(f"{kind}: compare wrote no {name}")
 
 
 def check(tmp: Path) -> Report:
