@@ -1,5 +1,5 @@
 # The two commands a fresh machine needs: `make demo` and `make test`.
-# Both create .venv, install the package with its test and notebook extras,
+# Both create .venv, install the package with its test, notebook and vision extras,
 # and install Debian's graphviz for the block diagrams when they can (root
 # with apt-get); otherwise the block diagram is skipped with a message.
 PYTHON ?= python3
@@ -12,7 +12,7 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[test,notebooks]"
+	$(BIN)/python -m pip install --quiet -e ".[test,notebooks,vision]"
 	touch $(STAMP)
 
 venv: $(STAMP)

@@ -1,4 +1,4 @@
-"""Diagram builders: the dynamic and kinematic visual-servo loops as named Diagrams.
+"""Diagram builders: the visual-servo loops as named Diagrams.
 
 Subsystem names (for ``diagram.GetSubsystemByName``): ``plant``,
 ``scene_graph``, ``spherical_camera``, ``navigation_controller``,
@@ -9,41 +9,82 @@ Drake's ``LogVectorOutput`` loggers ``log_image_features``, ``log_phi``,
 ``config.log_rate``. :func:`geovs_drake.simulation.simulate` builds with
 ``log=False`` and logs from its recorded steps instead: periodic loggers cut
 every integrator step at each sample time.
+
+The loops with a camera (:func:`make_rendered_servo_diagram`,
+:func:`make_pinhole_servo_diagram`) add ``feature_sensor`` (the
+:class:`~geovs_drake.systems.FeatureExtractor` or
+:class:`~geovs_drake.systems.PinholeFeatureSensor`), whose held y drives the
+controller, and, rendered, ``rgbd_sensor``; their ``spherical_camera`` still
+computes the exact y, which nothing in the loop reads: it is the truth the
+safe-domain monitor and the logs use. :func:`make_servo_diagram` picks the
+builder from ``config.plant`` and ``config.camera.sensor``.
 """
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
-from pydrake.geometry import Meshcat, MeshcatVisualizer
+from pydrake.geometry import (
+    ClippingRange,
+    ColorRenderCamera,
+    DepthRange,
+    DepthRenderCamera,
+    LightParameter,
+    MakeRenderEngineVtk,
+    Meshcat,
+    MeshcatVisualizer,
+    RenderCameraCore,
+    RenderEngineVtkParams,
+    Role,
+)
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.multibody.tree import RotationalInertia, SpatialInertia
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, LogVectorOutput
+from pydrake.systems.sensors import CameraInfo, RgbdSensor
 from pydrake.visualization import AddFrameTriadIllustration
 
 from geovs_drake.geometry._ops import NUMPY
 from geovs_drake.geometry.rigid import matmul, quaternion_to_rotation, rig_velocity
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems import (
+    FeatureExtractor,
     ImageJacobianForce,
     KinematicController,
     KinematicRigidBody,
     NavigationController,
+    PinholeFeatureSensor,
     SphericalCamera,
 )
-from geovs_drake.visualization import add_camera_geometry, add_goal_ghost, add_target_geometry
+from geovs_drake.systems.feature_extractor import SCENE_COLOURS
+from geovs_drake.visualization import (
+    add_camera_geometry,
+    add_goal_ghost,
+    add_marked_target_geometry,
+    add_target_geometry,
+)
 
 __all__ = [
+    "RENDERER_NAME",
     "RIG_BODY_NAME",
+    "VTK_PRINCIPAL_POINT_SHIFT",
     "initial_body_states",
     "initial_rig_pose",
     "initial_rig_state",
     "make_dynamic_servo_diagram",
     "make_kinematic_servo_diagram",
+    "make_pinhole_servo_diagram",
+    "make_rendered_servo_diagram",
+    "make_servo_diagram",
+    "scene_lights",
+    "vtk_camera_info",
 ]
 
 RIG_BODY_NAME = "camera_rig"
+#: The name of the VTK render engine the rendered loop adds to SceneGraph.
+RENDERER_NAME = "geovs_vtk"
 
 
 def initial_rig_pose(config: ScenarioConfig) -> RigidTransform:
@@ -111,7 +152,11 @@ def _add_loggers(builder: DiagramBuilder, camera, nav, rate: float) -> None:
         LogVectorOutput(port, builder, publish_period=period).set_name(name)
 
 
-def _camera_and_navigation(builder: DiagramBuilder, config: ScenarioConfig, X_RC: RigidTransform):
+def _camera_and_navigation(
+    builder: DiagramBuilder, config: ScenarioConfig, X_RC: RigidTransform, connect: bool = True
+):
+    """The exact camera (the truth) and the NF controller; ``connect`` feeds the former to
+    the latter (the exact loop)."""
     domain = config.domain.to_domain()
     camera = builder.AddNamedSystem(
         "spherical_camera",
@@ -123,8 +168,86 @@ def _camera_and_navigation(builder: DiagramBuilder, config: ScenarioConfig, X_RC
             goal=config.goal_features(), domain=domain, gains=config.navigation.to_gains()
         ),
     )
-    builder.Connect(camera.image_features_output, nav.image_features_input)
+    if connect:
+        builder.Connect(camera.image_features_output, nav.image_features_input)
     return camera, nav
+
+
+def _add_rig(builder: DiagramBuilder, config: ScenarioConfig, rendered: bool):
+    """The MultibodyPlant with the free camera rig, the target and the camera's drawing.
+
+    ``rendered``: the target in the extractor's colours
+    (:func:`~geovs_drake.visualization.add_marked_target_geometry`), and the camera's
+    own drawing and the goal ghost kept out of the renderer (illustration only).
+    """
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+    # The rig's body frame R has its origin at the centre of mass.
+    rig = plant.AddRigidBody(
+        RIG_BODY_NAME,
+        SpatialInertia.MakeFromCentralInertia(
+            config.rig.mass, np.zeros(3), RotationalInertia(*config.rig.inertia_diagonal)
+        ),
+    )
+    plant.mutable_gravity_field().set_gravity_vector(np.zeros(3))
+    theta = config.domain.to_domain().fov_half_angle
+    if rendered:
+        add_marked_target_geometry(plant, config)
+    else:
+        add_target_geometry(plant, config)
+    drawing = add_camera_geometry(plant, rig, config.X_RC, theta) + add_goal_ghost(plant, config)
+    plant.Finalize()
+    plant.SetDefaultFloatingBaseBodyPose(rig, initial_rig_pose(config))
+    if rendered:
+        for geometry_id in drawing:
+            scene_graph.RemoveRole(plant.get_source_id(), geometry_id, Role.kPerception)
+    return plant, scene_graph, rig
+
+
+def _close_dynamic_loop(builder, config, plant, features_port, log: bool):
+    """Camera (truth) -> NF -> Eq. (45) force -> plant, with y from ``features_port``
+    (None: the exact camera's)."""
+    demux = builder.AddNamedSystem("state_demux", Demultiplexer([7, 6]))
+    builder.Connect(plant.get_state_output_port(), demux.get_input_port())
+    camera, nav = _camera_and_navigation(builder, config, config.X_RC, features_port is None)
+    builder.Connect(demux.get_output_port(0), camera.body_pose_input)
+    exact = features_port is None
+    features_port = camera.image_features_output if exact else features_port
+    force = builder.AddNamedSystem(
+        "image_jacobian_force",
+        ImageJacobianForce(
+            radius=config.believed_radius,
+            potential_gain=config.control.potential_gain,
+            damping=np.asarray(config.damping, dtype=float),
+            X_RC=config.X_RC,
+        ),
+    )
+    if not exact:
+        builder.Connect(features_port, nav.image_features_input)
+    builder.Connect(features_port, force.image_features_input)
+    builder.Connect(nav.dphi_output, force.dphi_input)
+    builder.Connect(plant.get_state_output_port(), force.body_state_input)
+    builder.Connect(
+        force.generalized_force_output, plant.get_applied_generalized_force_input_port()
+    )
+    if log:
+        _add_loggers(builder, camera, nav, config.log_rate)
+        LogVectorOutput(
+            plant.get_state_output_port(), builder, publish_period=1.0 / config.log_rate
+        ).set_name("log_body_state")
+    return demux
+
+
+def _add_meshcat(builder, scene_graph, rig, config, meshcat: Meshcat | None) -> None:
+    if meshcat is not None:
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+        AddFrameTriadIllustration(
+            scene_graph=scene_graph,
+            body=rig,
+            X_FT=config.X_RC,
+            length=0.08,
+            radius=0.003,
+            name="C",
+        )
 
 
 def make_dynamic_servo_diagram(
@@ -137,60 +260,198 @@ def make_dynamic_servo_diagram(
     camera frame may sit off the rig's centre of mass (``rig.camera_offset``,
     Appendix C.0.6). Pass ``meshcat`` to add a MeshcatVisualizer and the camera
     frame's axes (double only: leave it out of diagrams you will convert to
-    AutoDiffXd).
+    AutoDiffXd). The controller reads the exact y = c(H), whatever
+    ``config.camera.sensor`` says (see :func:`make_servo_diagram`).
     """
     config = config or ScenarioConfig()
     config.validate()
     builder = DiagramBuilder()
-    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
-    # The rig's body frame R has its origin at the centre of mass.
-    rig = plant.AddRigidBody(
-        RIG_BODY_NAME,
-        SpatialInertia.MakeFromCentralInertia(
-            config.rig.mass, np.zeros(3), RotationalInertia(*config.rig.inertia_diagonal)
-        ),
-    )
-    plant.mutable_gravity_field().set_gravity_vector(np.zeros(3))
-    X_RC = config.X_RC
-    theta = config.domain.to_domain().fov_half_angle
-    add_target_geometry(plant, config)
-    add_camera_geometry(plant, rig, X_RC, theta)
-    add_goal_ghost(plant, config)
-    plant.Finalize()
-    plant.SetDefaultFloatingBaseBodyPose(rig, initial_rig_pose(config))
-
-    demux = builder.AddNamedSystem("state_demux", Demultiplexer([7, 6]))
-    builder.Connect(plant.get_state_output_port(), demux.get_input_port())
-    camera, nav = _camera_and_navigation(builder, config, X_RC)
-    builder.Connect(demux.get_output_port(0), camera.body_pose_input)
-    force = builder.AddNamedSystem(
-        "image_jacobian_force",
-        ImageJacobianForce(
-            radius=config.radius,
-            potential_gain=config.control.potential_gain,
-            damping=np.asarray(config.control.damping, dtype=float),
-            X_RC=X_RC,
-        ),
-    )
-    builder.Connect(camera.image_features_output, force.image_features_input)
-    builder.Connect(nav.dphi_output, force.dphi_input)
-    builder.Connect(plant.get_state_output_port(), force.body_state_input)
-    builder.Connect(
-        force.generalized_force_output, plant.get_applied_generalized_force_input_port()
-    )
-    if log:
-        _add_loggers(builder, camera, nav, config.log_rate)
-        LogVectorOutput(
-            plant.get_state_output_port(), builder, publish_period=1.0 / config.log_rate
-        ).set_name("log_body_state")
-    if meshcat is not None:
-        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
-        AddFrameTriadIllustration(
-            scene_graph=scene_graph, body=rig, X_FT=X_RC, length=0.08, radius=0.003, name="C"
-        )
+    plant, scene_graph, rig = _add_rig(builder, config, rendered=False)
+    _close_dynamic_loop(builder, config, plant, None, log)
+    _add_meshcat(builder, scene_graph, rig, config, meshcat)
     diagram = builder.Build()
     diagram.set_name("dynamic_visual_servo")
     return diagram
+
+
+def _camera_config(config: ScenarioConfig, sensor: str, rate, resolution) -> ScenarioConfig:
+    """A copy of ``config`` with the camera's sensor, rate and resolution set, validated."""
+    config = copy.deepcopy(config or ScenarioConfig())
+    config.camera.sensor = sensor
+    if rate is not None:
+        config.camera.rate = rate
+    if resolution is not None:
+        config.camera.resolution = [int(v) for v in resolution]
+    config.validate()
+    return config
+
+
+def _add_feature_loggers(builder, sensor, rate: float) -> None:
+    for port, name in (
+        (sensor.image_features_output, "log_measured_features"),
+        (sensor.feature_status_output, "log_feature_status"),
+    ):
+        LogVectorOutput(port, builder, publish_period=1.0 / rate).set_name(name)
+
+
+#: Where Drake's RenderEngineVtk (drake 1.51) puts the optical axis, in pixel-centre
+#: coordinates, relative to ``CameraInfo``'s ``(center_x, center_y)``: half a pixel up
+#: and left, OpenGL's convention of pixel corners at integers. Measured (a test renders
+#: a small sphere on the optical axis and finds its centroid there).
+VTK_PRINCIPAL_POINT_SHIFT = -0.5
+
+
+def vtk_camera_info(intrinsics) -> CameraInfo:
+    """The ``CameraInfo`` with which RenderEngineVtk renders an image that ``intrinsics``
+    (pixel centres at integers, :mod:`geovs_drake.geometry.pinhole`) describes exactly."""
+    return CameraInfo(
+        intrinsics.width,
+        intrinsics.height,
+        intrinsics.fx,
+        intrinsics.fy,
+        intrinsics.cx - VTK_PRINCIPAL_POINT_SHIFT,
+        intrinsics.cy - VTK_PRINCIPAL_POINT_SHIFT,
+    )
+
+
+def scene_lights() -> list[LightParameter]:
+    """A headlight and four side lights, all in the camera frame, intensity 0.5 each.
+
+    Why not Drake's default headlight alone: it shades by the cosine between the
+    normal and the view, so near the limb a mark turns black and the extractor
+    loses it (a mark seen at 82 deg from face-on read 1 dark pixel). With side lights
+    from +-x and +-y a diffuse surface gets between 0.5 and 0.87 of full light
+    wherever it is seen, the limb included.
+    """
+    directions = ([0, 0, 1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0])
+    return [
+        LightParameter(type="directional", frame="camera", intensity=0.5, direction=d)
+        for d in directions
+    ]
+
+
+def make_rendered_servo_diagram(
+    config: ScenarioConfig | None = None,
+    camera_rate: float | None = None,
+    resolution: tuple[int, int] | None = None,
+    meshcat: Meshcat | None = None,
+    log: bool = True,
+) -> Diagram:
+    """The dynamic loop closed through rendered images.
+
+    plant -> SceneGraph -> ``RgbdSensor`` (``RenderEngineVtk``, EGL backend:
+    headless) -> :class:`~geovs_drake.systems.FeatureExtractor` (a frame every
+    ``1 / camera_rate`` s, held between frames) -> NF controller ->
+    ``ImageJacobianForce`` -> plant. ``camera_rate`` [Hz] and ``resolution``
+    (W, H) default to ``config.camera``'s (30 Hz, 320x240); the camera's
+    intrinsics are :meth:`~geovs_drake.scenario.CameraConfig.intrinsics` (its
+    inscribed cone is D's field of view, so no pose of D cuts the sphere), the
+    extractor's those times ``1 + camera.focal_error``. The renderer draws
+    the marked target (:func:`~geovs_drake.visualization.add_marked_target_geometry`)
+    on a blue background; the camera's own drawing is illustration only.
+    Double only (``RgbdSensor`` does not convert).
+    """
+    config = _camera_config(config, "rendered", camera_rate, resolution)
+    cam = config.camera
+    theta = config.domain.to_domain().fov_half_angle
+    intrinsics = cam.intrinsics(theta)
+    builder = DiagramBuilder()
+    plant, scene_graph, rig = _add_rig(builder, config, rendered=True)
+    scene_graph.AddRenderer(
+        RENDERER_NAME,
+        MakeRenderEngineVtk(
+            RenderEngineVtkParams(
+                backend="EGL",
+                default_clear_color=list(SCENE_COLOURS["background"]),
+                lights=scene_lights(),
+            )
+        ),
+    )
+    # Clip well short of the nearest sphere of D and well beyond the farthest.
+    d = config.domain
+    near = 0.5 * config.radius * (1 / d.lam_max - 1)
+    far = 2.0 * config.radius * (1 / d.lam_min + 1)
+    core = RenderCameraCore(
+        RENDERER_NAME, vtk_camera_info(intrinsics), ClippingRange(near, far), RigidTransform()
+    )
+    rgbd = builder.AddNamedSystem(
+        "rgbd_sensor",
+        RgbdSensor(
+            plant.GetBodyFrameIdOrThrow(rig.index()),
+            config.X_RC,
+            ColorRenderCamera(core, False),
+            DepthRenderCamera(core, DepthRange(1.01 * near, 0.99 * far)),
+        ),
+    )
+    builder.Connect(scene_graph.get_query_output_port(), rgbd.query_object_input_port())
+    sensor = builder.AddNamedSystem(
+        "feature_sensor",
+        FeatureExtractor(
+            intrinsics=cam.believed_intrinsics(theta),
+            period=1.0 / cam.rate,
+            latency_frames=int(cam.latency_frames),
+            pixel_noise=cam.pixel_noise,
+            seed=int(cam.seed),
+        ),
+    )
+    builder.Connect(rgbd.color_image_output_port(), sensor.color_image_input)
+    _close_dynamic_loop(builder, config, plant, sensor.image_features_output, log)
+    if log:
+        _add_feature_loggers(builder, sensor, config.log_rate)
+    _add_meshcat(builder, scene_graph, rig, config, meshcat)
+    diagram = builder.Build()
+    diagram.set_name("rendered_visual_servo")
+    return diagram
+
+
+def make_pinhole_servo_diagram(
+    config: ScenarioConfig | None = None, meshcat: Meshcat | None = None, log: bool = True
+) -> Diagram:
+    """The dynamic loop closed through :class:`~geovs_drake.systems.PinholeFeatureSensor`:
+    the rendered loop's measurement (camera rate, latency, pixel noise, focal error, the
+    same fit) on exact projected points, without a renderer."""
+    config = _camera_config(config, "pinhole", None, None)
+    cam = config.camera
+    theta = config.domain.to_domain().fov_half_angle
+    builder = DiagramBuilder()
+    plant, scene_graph, rig = _add_rig(builder, config, rendered=True)
+    sensor = builder.AddNamedSystem(
+        "feature_sensor",
+        PinholeFeatureSensor(
+            radius=config.radius,
+            intrinsics=cam.intrinsics(theta),
+            believed=cam.believed_intrinsics(theta),
+            X_WB=config.X_WB,
+            X_RC=config.X_RC,
+            period=1.0 / cam.rate,
+            latency_frames=int(cam.latency_frames),
+            pixel_noise=cam.pixel_noise,
+            seed=int(cam.seed),
+        ),
+    )
+    demux = _close_dynamic_loop(builder, config, plant, sensor.image_features_output, log)
+    builder.Connect(demux.get_output_port(0), sensor.body_pose_input)
+    if log:
+        _add_feature_loggers(builder, sensor, config.log_rate)
+    _add_meshcat(builder, scene_graph, rig, config, meshcat)
+    diagram = builder.Build()
+    diagram.set_name("pinhole_visual_servo")
+    return diagram
+
+
+def make_servo_diagram(
+    config: ScenarioConfig | None = None, meshcat: Meshcat | None = None, log: bool = True
+) -> Diagram:
+    """The loop ``config`` describes: ``config.plant`` and ``config.camera.sensor``."""
+    config = config or ScenarioConfig()
+    config.validate()
+    if config.plant == "kinematic":
+        return make_kinematic_servo_diagram(config, log=log)
+    if config.camera.sensor == "rendered":
+        return make_rendered_servo_diagram(config, meshcat=meshcat, log=log)
+    if config.camera.sensor == "pinhole":
+        return make_pinhole_servo_diagram(config, meshcat=meshcat, log=log)
+    return make_dynamic_servo_diagram(config, meshcat=meshcat, log=log)
 
 
 def make_kinematic_servo_diagram(config: ScenarioConfig | None = None, log: bool = True) -> Diagram:
@@ -208,7 +469,7 @@ def make_kinematic_servo_diagram(config: ScenarioConfig | None = None, log: bool
     builder.Connect(body.body_pose_output, camera.body_pose_input)
     controller = builder.AddNamedSystem(
         "kinematic_controller",
-        KinematicController(radius=config.radius, gain=config.control.kinematic_gain),
+        KinematicController(radius=config.believed_radius, gain=config.control.kinematic_gain),
     )
     builder.Connect(camera.image_features_output, controller.image_features_input)
     builder.Connect(nav.dphi_output, controller.dphi_input)

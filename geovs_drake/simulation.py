@@ -14,12 +14,9 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Diagram, EventStatus
 from pydrake.trajectories import PiecewisePolynomial
 
-from geovs_drake.diagrams import (
-    initial_rig_state,
-    make_dynamic_servo_diagram,
-    make_kinematic_servo_diagram,
-)
+from geovs_drake.diagrams import initial_rig_state, make_servo_diagram
 from geovs_drake.geometry.domain import DomainMargins
+from geovs_drake.geometry.features import FEATURE_FAILURES
 from geovs_drake.geometry.kernels import camera_image, for_scalar_type, navigation
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.scenario import ScenarioConfig
@@ -33,6 +30,7 @@ __all__ = [
     "camera_pose_in_target",
     "camera_signals",
     "check_start",
+    "convergence_tolerance",
     "energy_note",
     "saddle_note",
     "make_simulator",
@@ -42,6 +40,11 @@ __all__ = [
 
 CONVERGENCE_POSITION_M = 1e-3
 CONVERGENCE_ROTATION_RAD = 1e-3
+#: A loop with a camera converges to what the camera resolves at the goal: within this
+#: many pixels of lateral offset at the goal's distance, and this many pixel angles of
+#: rotation (:func:`convergence_tolerance`).
+CAMERA_TOLERANCE_PX = 2.0
+CAMERA_ROTATION_TOLERANCE_PX = 5.0
 MARGIN_NAMES = DomainMargins._fields
 _camera_kernel = for_scalar_type(camera_image, float)
 
@@ -93,6 +96,28 @@ def energy_note(initial_energy: float, bound: float) -> str:
     return (
         f"E0 = {initial_energy:.4g} {'<' if covered else '>='} k_p = {bound:.4g}: "
         f"the energy guarantee {'covers' if covered else 'does not cover'} this start"
+    )
+
+
+def convergence_tolerance(config: ScenarioConfig) -> tuple[float, float]:
+    """``(position [m], rotation [rad])`` within which a run counts as converged.
+
+    The exact sensor: 1 mm and 1 mrad. A camera cannot do better than it resolves:
+    a pixel subtends ``1 / f`` rad, so the tolerances are ``CAMERA_TOLERANCE_PX``
+    pixels of lateral offset at the goal's distance and
+    ``CAMERA_ROTATION_TOLERANCE_PX`` pixel angles of rotation (at 320x240, 5.9 mm
+    and 30 mrad; at 640x480 half that), never below the exact sensor's. Why so
+    many pixel angles for rotation: the roll is read from the two marks, about
+    8.5 px apart at 320x240 at the goal, so a tenth of a pixel on their
+    centroids is 2 pixel angles of roll.
+    """
+    if config.camera.sensor == "exact":
+        return CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
+    f = config.camera.intrinsics(config.domain.to_domain().fov_half_angle).fx
+    distance = float(np.linalg.norm(config.X_BC_goal.translation()))
+    return (
+        max(CONVERGENCE_POSITION_M, CAMERA_TOLERANCE_PX * distance / f),
+        max(CONVERGENCE_ROTATION_RAD, CAMERA_ROTATION_TOLERANCE_PX / f),
     )
 
 
@@ -169,20 +194,26 @@ class SimulationResult:
     @property
     def converged(self) -> bool:
         dp, dr = self.final_errors
+        tol_p, tol_r = convergence_tolerance(self.config)
         return (
-            not self.left_domain and dp <= CONVERGENCE_POSITION_M and dr <= CONVERGENCE_ROTATION_RAD
+            not self.left_domain and self.status != "feature_lost" and dp <= tol_p and dr <= tol_r
         )
 
     def one_line(self) -> str:
         """The run in one line: status, final errors, minimum margins, timing."""
         s = self.summary()
+        cam = self.config.camera
+        sensor = ""
+        if cam.sensor != "exact":
+            width, height = (int(v) for v in cam.resolution)
+            sensor = f", {cam.sensor} camera {width}x{height} at {cam.rate:g} Hz"
         energy = ""
         if self.energy is not None:
             energy = f" | {energy_note(self.initial_energy, self.energy_bound)}"
         if self.saddle_note:
             energy += f" | {self.saddle_note}"
         return (
-            f"{s['controller']} on the {s['plant']} plant: {s['status']} | position error "
+            f"{s['controller']} on the {s['plant']} plant{sensor}: {s['status']} | position error "
             f"{s['final_position_error_m']:.2e} m, rotation error "
             f"{s['final_rotation_error_rad']:.2e} rad | min margins: "
             f"fov {s['min_fov_margin']:.3g}, occlusion {s['min_occlusion_margin']:.3g}, "
@@ -196,14 +227,18 @@ class SimulationResult:
         ``energy_bound`` = k_p, ``energy_guarantee`` = E0 < k_p, ``max_energy``) are
         None for the kinematic loop, which has no energy."""
         dp, dr = self.final_errors
+        tol_p, tol_r = convergence_tolerance(self.config)
         out = {
             "plant": self.config.plant,
             "controller": self.config.controller,
+            "sensor": self.config.camera.sensor,
             "converged": self.converged,
             "status": self.status,
             "message": self.message,
             "final_position_error_m": dp,
             "final_rotation_error_rad": dr,
+            "tolerance_position_m": tol_p,
+            "tolerance_rotation_rad": tol_r,
             "final_phi": float(self.phi[-1]),
             "min_fov_margin": float(np.min(self.margins[:, 0])),
             "min_lambda_margin": float(np.min(self.margins[:, 1:3])),
@@ -221,6 +256,16 @@ class SimulationResult:
             "energy_guarantee": self.energy_guarantee,
             "max_energy": None if self.energy is None else float(np.max(self.energy)),
         }
+        if self.config.camera.sensor != "exact":
+            cam = self.config.camera
+            out["camera"] = {
+                "rate_hz": cam.rate,
+                "resolution": [int(v) for v in cam.resolution],
+                "pixel_noise_px": cam.pixel_noise,
+                "focal_error": cam.focal_error,
+                "latency_frames": int(cam.latency_frames),
+            }
+        out["radius_error"] = self.config.camera.radius_error
         return out
 
 
@@ -231,7 +276,11 @@ class SafeDomainMonitor:
     the run with ``ReachedTermination`` when the camera loses sight of the
     marked point (nu <= 0), leaves D (a margin < 0), or the state is not
     finite, so a run never continues into NaN. :meth:`termination` reports
-    ``(status, message)`` of the last termination, if any.
+    ``(status, message)`` of the last termination, if any. These read the true
+    pose (the exact camera map), whatever sensor the loop uses. A loop with a
+    camera (a ``feature_sensor`` subsystem) also stops with ``feature_lost``
+    when the frame the controller acts on gave no y, naming why
+    (:data:`~geovs_drake.geometry.features.FEATURE_FAILURES`).
 
     It also records ``(t, x)`` at every accepted step. That is how
     :func:`simulate` logs: interpolating the steps at the log rate afterwards
@@ -243,6 +292,11 @@ class SafeDomainMonitor:
     def __init__(self, diagram: Diagram, record: bool = True) -> None:
         self._diagram = diagram
         self._camera = diagram.GetSubsystemByName("spherical_camera")
+        self._sensor = (
+            diagram.GetSubsystemByName("feature_sensor")
+            if diagram.HasSubsystemNamed("feature_sensor")
+            else None
+        )
         self._record = record
         self._reason: dict[str, str] = {}
         self._params_of: tuple = (None, None)
@@ -275,7 +329,7 @@ class SafeDomainMonitor:
             self._params_of = (root_context, camera_context.get_numeric_parameter(0).get_value())
         out = _camera_kernel(x[0:7], self._params_of[1])
         if out[0] > 0 and out[14] > 0 and out[15] > 0 and out[16] > 0 and out[17] > 0:
-            return EventStatus.Succeeded()
+            return self._check_sensor(root_context)
         t = root_context.get_time()
         if not np.all(np.isfinite(x)):
             return self._stop("non_finite", f"non-finite state at t = {t:.4g}")
@@ -293,7 +347,23 @@ class SafeDomainMonitor:
                 "left_domain",
                 f"left D: {MARGIN_NAMES[i]} margin = {margins[i]:.4g} < 0 at t = {t:.4g}",
             )
-        return EventStatus.Succeeded()  # on the boundary of D, still in it
+        return self._check_sensor(root_context)  # on the boundary of D, still in it
+
+    def _check_sensor(self, root_context) -> EventStatus:
+        """``feature_lost`` if the held frame gave no y (a camera's loop), else go on."""
+        if self._sensor is None:
+            return EventStatus.Succeeded()
+        status = self._sensor.feature_status_output.Eval(
+            self._sensor.GetMyContextFromRoot(root_context)
+        )
+        if status[0] > 0:
+            return EventStatus.Succeeded()
+        code = int(status[1])
+        reason = FEATURE_FAILURES[code] if 0 < code < len(FEATURE_FAILURES) else f"code {code}"
+        return self._stop(
+            "feature_lost",
+            f"feature lost at t = {root_context.get_time():.4g}: {reason}",
+        )
 
     def resample(self, rate: float) -> tuple[np.ndarray, np.ndarray]:
         """``(times, states)`` at ``rate`` Hz from t = 0, plus the last step.
@@ -386,10 +456,14 @@ def simulate(
     meshcat=None,
     progress: Callable[[float], None] | None = None,
 ) -> SimulationResult:
-    """Simulate the configured loop (``config.plant``) for ``config.duration``.
+    """Simulate the configured loop (``config.plant``, ``config.camera.sensor``) for
+    ``config.duration``.
 
     Raises StartOutsideDomain if the start is not in D. A run that leaves D
-    stops early with ``status`` ``left_domain`` / ``lost_visibility``. The
+    stops early with ``status`` ``left_domain`` / ``lost_visibility``; a loop with
+    a camera whose frame gives no y stops with ``feature_lost``. With a camera the
+    logs (y, phi, margins, energy) are the true pose's; the controller acted on
+    the measured y. The
     dynamic loop starts with the camera's body twist ``config.initial_velocity``;
     if its energy E0 is not below k_p, the message says that Appendix C's energy
     guarantee does not cover the start (see :func:`energy_note`).
@@ -401,11 +475,7 @@ def simulate(
     config.validate()
     check_start(config)
     dynamic = config.plant == "dynamic"
-    diagram = (
-        make_dynamic_servo_diagram(config, meshcat=meshcat, log=False)
-        if dynamic
-        else make_kinematic_servo_diagram(config, log=False)
-    )
+    diagram = make_servo_diagram(config, meshcat=meshcat, log=False)
     simulator, monitor = make_simulator(diagram, config, record=True)
     root = simulator.get_mutable_context()
     if meshcat is not None:
@@ -443,7 +513,8 @@ def simulate(
     final_X_BC = camera_pose_in_target(config, x_final, dynamic)
     if status == "completed":
         dp, dr = pose_error(final_X_BC, config.X_BC_goal)
-        converged = dp <= CONVERGENCE_POSITION_M and dr <= CONVERGENCE_ROTATION_RAD
+        tol_p, tol_r = convergence_tolerance(config)
+        converged = dp <= tol_p and dr <= tol_r
         status = "converged" if converged else "not_converged"
         message = (
             f"{'converged' if converged else 'did not converge'}: position error {dp:.3g} m, "

@@ -98,6 +98,11 @@ class LoopParameters:
 
 def loop_parameters(config: ScenarioConfig) -> LoopParameters:
     """The parameter vectors of the systems of ``config``'s diagram (``config.plant``)."""
+    if config.camera.sensor != "exact":
+        raise ValueError(
+            f"the batch engine reads the exact y = c(H); camera.sensor "
+            f"{config.camera.sensor!r} runs through simulate()"
+        )
     dynamic = config.plant == "dynamic"
     build = make_dynamic_servo_diagram if dynamic else make_kinematic_servo_diagram
     diagram = build(config, log=False)
