@@ -212,6 +212,8 @@ class SimulationResult:
             energy = f" | {energy_note(self.initial_energy, self.energy_bound)}"
         if self.saddle_note:
             energy += f" | {self.saddle_note}"
+        if self.status == "feature_lost":  # say which feature and why
+            energy += f" | {self.message}"
         return (
             f"{s['controller']} on the {s['plant']} plant{sensor}: {s['status']} | position error "
             f"{s['final_position_error_m']:.2e} m, rotation error "

@@ -8,6 +8,7 @@ same measurement without a renderer.
 """
 
 import copy
+import json
 import math
 
 import numpy as np
@@ -29,6 +30,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.sensors import RgbdSensor
 
 from geovs_drake.analysis.camera_accuracy import feature_accuracy
+from geovs_drake.cli import exit_code_of, main
 from geovs_drake.diagrams import (
     initial_rig_state,
     make_pinhole_servo_diagram,
@@ -237,3 +239,45 @@ def test_docstrings_list_ports():
             system.get_output_port(i) for i in range(system.num_output_ports())
         ]:
             assert f"- {port.get_name()}" in doc
+
+
+# ------------------------------------------------------------------ the CLI
+def test_simulate_with_a_camera_from_the_command_line(capsys):
+    code = main(["simulate", "--sensor", "pinhole", "--duration", "4", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    summary = json.loads(out)
+    assert summary["sensor"] == "pinhole" and summary["status"] == "converged"
+    assert summary["camera"]["resolution"] == [320, 240] and summary["camera"]["rate_hz"] == 30
+    # The camera's tolerance (2 px at the goal's 0.5 m, 5 pixel angles), not 1 mm / 1 mrad.
+    f = ScenarioConfig().camera.intrinsics(math.radians(35.0)).fx
+    assert summary["tolerance_position_m"] == pytest.approx(2 * 0.5 / f)
+    assert summary["tolerance_rotation_rad"] == pytest.approx(5 / f)
+    code = main(["simulate", "--sensor", "rendered", "--duration", "0.3", "--camera-rate", "20"])
+    out, err = capsys.readouterr()
+    assert code == 3, err  # ran, not converged in 0.3 s
+    assert out.startswith("nf on the dynamic plant, rendered camera 320x240 at 20 Hz: ")
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--resolution", "320"], "expected WxH"),
+        (["--resolution", "8x8"], "expected WxH"),
+        (["--sensor", "rendered", "--plant", "kinematic"], "dynamic plant only"),
+        (["--sensor", "pinhole", "--camera-rate", "0"], "--camera-rate must be"),
+        (["--sensor", "webcam"], "invalid choice"),
+    ],
+)
+def test_bad_camera_options_are_one_line_errors(argv, needle, capsys):
+    try:
+        code = main(["simulate", *argv])
+    except SystemExit as e:  # argparse's own errors
+        code = e.code
+    err = capsys.readouterr().err
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and needle in err, err
+
+
+def test_feature_lost_exits_3():
+    assert exit_code_of("feature_lost") == 3
