@@ -138,7 +138,9 @@ class CameraConfig:
     Errors, for robustness studies: ``pixel_noise`` [px], Gaussian, per axis, on
     every extracted image point; ``focal_error``: the extractor believes the focal
     lengths ``(1 + focal_error)`` times the true ones; ``latency_frames``: the
-    controller acts on the frame taken that many periods ago; ``radius_error``
+    controller acts on the frame taken that many periods ago; ``max_lost_frames``:
+    how many frames in a row may give no y (the last good y held) before the run
+    stops with ``feature_lost``; ``radius_error``
     (any sensor): the controller believes rho ``(1 + radius_error)`` times the true
     radius, in C(y) and in the goal image y* = c(X_CB*) (see the README: it moves
     the equilibrium's distance, not its image). ``seed`` draws the noise.
@@ -159,6 +161,7 @@ class CameraConfig:
     pixel_noise: float = 0.0
     focal_error: float = 0.0
     latency_frames: int = 0
+    max_lost_frames: int = 3
     radius_error: float = 0.0
     seed: int = 0
     damping: list[float] = field(default_factory=lambda: [0.6, 0.6, 0.6, 4.0, 4.0, 4.0])
@@ -203,12 +206,10 @@ class CameraConfig:
             raise ValueError(
                 f"camera.damping must be 6 finite non-negative numbers, got {self.damping!r}"
             )
-        if isinstance(self.latency_frames, bool) or not (
-            self.latency_frames == int(self.latency_frames) and self.latency_frames >= 0
-        ):
-            raise ValueError(
-                f"camera.latency_frames must be an integer >= 0, got {self.latency_frames!r}"
-            )
+        for name in ("latency_frames", "max_lost_frames"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (value == int(value) and value >= 0):
+                raise ValueError(f"camera.{name} must be an integer >= 0, got {value!r}")
         if self.sensor == "exact":
             for name in ("pixel_noise", "focal_error", "latency_frames"):
                 if getattr(self, name) != 0:

@@ -360,11 +360,12 @@ class SafeDomainMonitor:
         )
         if status[0] > 0:
             return EventStatus.Succeeded()
-        code = int(status[1])
+        code, lost = int(status[1]), int(status[2])
         reason = FEATURE_FAILURES[code] if 0 < code < len(FEATURE_FAILURES) else f"code {code}"
         return self._stop(
             "feature_lost",
-            f"feature lost at t = {root_context.get_time():.4g}: {reason}",
+            f"feature lost at t = {root_context.get_time():.4g}: {reason} "
+            f"({lost} frame{'s' if lost != 1 else ''} in a row)",
         )
 
     def resample(self, rate: float) -> tuple[np.ndarray, np.ndarray]:
@@ -483,9 +484,15 @@ def simulate(
     if meshcat is not None:
         diagram.ForcedPublish(root)
     status, message = "completed", ""
-    simulator.Initialize()  # also loads the compiled kernels: not part of the timing
+    # Initialize also loads the compiled kernels: not part of the timing. Its monitor
+    # call may already stop the run (a camera whose first frame gives no y): then
+    # nothing is integrated (the held y would be NaN).
+    initial = simulator.Initialize()
+    stopped = initial.reason() == initial.ReturnReason.kReachedTerminationCondition
     start = time.perf_counter()
-    if progress is None:
+    if stopped:
+        pass
+    elif progress is None:
         simulator.AdvanceTo(config.duration)
     else:
         chunk = config.duration / 100

@@ -144,14 +144,14 @@ def test_latency_delays_the_held_y_by_whole_frames():
         else:
             simulator.AdvanceTo(0.1 * k)
         outputs.append(sensor.image_features_output.Eval(context).copy())
-        assert list(sensor.feature_status_output.Eval(context)) == [1.0, 0.0]
+        assert list(sensor.feature_status_output.Eval(context)) == [1.0, 0.0, 0.0]
     # Frame k holds the measurement of frame k - 2 (the first frame fills the line).
     for k in range(6):
         np.testing.assert_allclose(outputs[k], expected[max(0, k - 2)], atol=1e-9)
 
 
 def test_a_lost_feature_holds_the_last_y_and_stops_the_run():
-    sensor = _pinhole_sensor(latency=0)
+    sensor = _pinhole_sensor(latency=0)  # max_lost_frames = 3 by default
     simulator = Simulator(sensor)
     context = simulator.get_mutable_context()
     seen = RigidTransform([0.0, 0.0, -0.6])
@@ -161,10 +161,17 @@ def test_a_lost_feature_holds_the_last_y_and_stops_the_run():
     # Turned to face away: the marked point is behind the sphere.
     away = RigidTransform(RotationMatrix.MakeXRotation(math.pi), [0.0, 0.0, 0.6])
     sensor.body_pose_input.FixValue(context, pose_state(away))
-    simulator.AdvanceTo(0.1)
-    valid, code = sensor.feature_status_output.Eval(context)
-    assert valid == 0.0 and "marked point not found" in FEATURE_FAILURES[int(code)]
-    np.testing.assert_array_equal(sensor.image_features_output.Eval(context), good)
+    for k in range(1, 5):
+        simulator.AdvanceTo(0.1 * k)
+        valid, code, lost = sensor.feature_status_output.Eval(context)
+        assert "marked point not found" in FEATURE_FAILURES[int(code)] and lost == k
+        assert valid == (1.0 if k <= 3 else 0.0)  # usable through 3 lost frames, not 4
+        np.testing.assert_array_equal(sensor.image_features_output.Eval(context), good)
+    # Seen again: valid, nothing lost, a new y.
+    sensor.body_pose_input.FixValue(context, pose_state(seen @ RigidTransform([0.01, 0, 0])))
+    simulator.AdvanceTo(0.5)
+    assert list(sensor.feature_status_output.Eval(context)) == [1.0, 0.0, 0.0]
+    assert not np.array_equal(sensor.image_features_output.Eval(context), good)
     # In a loop the monitor stops the run and names why: an arrow mark 1.5 rad from b
     # is past the limb seen from the default start.
     config = ScenarioConfig()
@@ -179,7 +186,7 @@ def test_a_lost_feature_holds_the_last_y_and_stops_the_run():
     p.SetFromVector(values)
     simulator.Initialize()
     status, message = monitor.termination()
-    assert status == "feature_lost" and "arrow mark not found" in message
+    assert status == "feature_lost" and "arrow mark not found" in message  # never seen
 
 
 @pytest.fixture(scope="module")

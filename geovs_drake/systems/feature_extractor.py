@@ -238,9 +238,11 @@ def FeatureExtractor_(T):
         :func:`extract_features` gives y; ``image_features`` is the 13-vector
         ``[q1, q2, q3, lambda, s]`` of the frame taken ``latency_frames``
         periods ago, held between frames; ``feature_status`` is ``[valid,
-        code]``: on a failed frame the last good y is held, ``valid`` is 0 and
-        ``code`` says why (:data:`~geovs_drake.geometry.features.FEATURE_FAILURES`).
-        See :mod:`geovs_drake.systems._sampled`.
+        code, lost]``: on a failed frame the last good y is held, ``code`` says
+        why (:data:`~geovs_drake.geometry.features.FEATURE_FAILURES`) and
+        ``lost`` counts the failed frames in a row; ``valid`` drops to 0 when
+        more than ``max_lost_frames`` have failed (or none has succeeded). See
+        :mod:`geovs_drake.systems._sampled`.
 
         Double only: ``RgbdSensor`` does not convert to AutoDiffXd or
         Expression, and an image has no derivative to propagate.
@@ -260,6 +262,7 @@ def FeatureExtractor_(T):
             marks: TargetMarks | None = None,
             period: float = 1.0 / 30.0,
             latency_frames: int = 0,
+            max_lost_frames: int = 3,
             pixel_noise: float = 0.0,
             seed: int = 0,
             converter=None,
@@ -269,7 +272,15 @@ def FeatureExtractor_(T):
             marks = marks or TargetMarks()
             if not (math.isfinite(pixel_noise) and pixel_noise >= 0):
                 raise ValueError(f"pixel_noise must be finite and >= 0 [px], got {pixel_noise}")
-            self._defaults = (intrinsics, marks, period, latency_frames, pixel_noise, seed)
+            self._defaults = (
+                intrinsics,
+                marks,
+                period,
+                latency_frames,
+                max_lost_frames,
+                pixel_noise,
+                seed,
+            )
             self._size = (intrinsics.width, intrinsics.height)
             self._period = period
             self._params_index = self.DeclareNumericParameter(
@@ -281,7 +292,7 @@ def FeatureExtractor_(T):
                 "color_image", AbstractValue.Make(ImageRgba8U(*self._size))
             )
             self.image_features_output, self.feature_status_output = declare_sampled_features(
-                self, period, latency_frames, self._measure
+                self, period, latency_frames, max_lost_frames, self._measure
             )
 
         def _construct_copy(self, other, converter=None):

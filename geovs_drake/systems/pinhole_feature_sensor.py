@@ -73,6 +73,7 @@ def PinholeFeatureSensor_(T):
             marks: TargetMarks | None = None,
             period: float = 1.0 / 30.0,
             latency_frames: int = 0,
+            max_lost_frames: int = 3,
             pixel_noise: float = 0.0,
             seed: int = 0,
             converter=None,
@@ -97,6 +98,7 @@ def PinholeFeatureSensor_(T):
                 marks,
                 period,
                 latency_frames,
+                max_lost_frames,
                 pixel_noise,
                 seed,
             )
@@ -115,7 +117,7 @@ def PinholeFeatureSensor_(T):
             )
             self.body_pose_input = self.DeclareVectorInputPort(name="body_pose", size=POSE_SIZE)
             self.image_features_output, self.feature_status_output = declare_sampled_features(
-                self, period, latency_frames, self._measure
+                self, period, latency_frames, max_lost_frames, self._measure
             )
 
         def _construct_copy(self, other, converter=None):
