@@ -381,9 +381,11 @@ def robustness_sweep(
 def summarize_robustness(
     rows: Sequence[RobustnessRow], config: ScenarioConfig | None = None
 ) -> list[dict]:
-    """One line per (gains, parameter, level): runs, settled and converged counts,
-    statuses, the final pose error (median, max) and the predictions (equilibrium
-    offset for the calibration errors, spectral radius of the sampled loop)."""
+    """One line per (gains, parameter, level): runs, how many stayed in D with every
+    frame usable to the end (``stayed``), settled, and converged (at the goal within
+    the camera's tolerance), the statuses, the final pose error over the runs that
+    stayed (median, max; NaN if none) and the predictions (equilibrium offset for the
+    calibration errors, spectral radius of the sampled loop)."""
     config = config or ScenarioConfig()
     bases = {"default": config, "soft": soft_gains(config)}
     order = {p: i for i, p in enumerate(LEVELS)}
@@ -394,8 +396,11 @@ def summarize_robustness(
     table = []
     for gains, parameter, level in cases:
         group = [r for r in rows if (r.gains, r.parameter, r.level) == (gains, parameter, level)]
-        dp = np.array([r.position_error_m for r in group])
-        dr = np.array([r.rotation_error_rad for r in group])
+        # Final errors of the runs that stayed in D to the end (a run that stopped has
+        # only a pose where it stopped).
+        stayed = [r for r in group if r.status in ("converged", "not_converged")]
+        dp = np.array([r.position_error_m for r in stayed] or [np.nan])
+        dr = np.array([r.rotation_error_rad for r in stayed] or [np.nan])
         statuses: dict[str, int] = {}
         for r in group:
             statuses[r.status] = statuses.get(r.status, 0) + 1
@@ -407,6 +412,7 @@ def summarize_robustness(
             "level": level,
             "sensor": group[0].sensor,
             "runs": len(group),
+            "stayed": len(stayed),
             "settled": sum(r.settled for r in group),
             "converged": sum(r.converged for r in group),
             "statuses": statuses,
@@ -423,7 +429,8 @@ def summarize_robustness(
 
 
 def plot_robustness(table: Sequence[dict], path: str | Path | None = None):
-    """Settled and converged shares and the final position error against each error's level."""
+    """The shares that stayed in D, settled and reached the goal, and the final position
+    error of the runs in D, against each error's level."""
     from geovs_drake.plotting import _pyplot
 
     plt = _pyplot()
@@ -444,7 +451,8 @@ def plot_robustness(table: Sequence[dict], path: str | Path | None = None):
         lines = [t for t in table if (t["gains"], t["parameter"]) == (gains, parameter)]
         x = [t["level"] for t in lines]
         ax = axes[0, j]
-        ax.plot(x, [t["settled"] / t["runs"] for t in lines], "o-", label="settled in D")
+        ax.plot(x, [t["stayed"] / t["runs"] for t in lines], "^-", label="stayed in D")
+        ax.plot(x, [t["settled"] / t["runs"] for t in lines], "o-", label="settled")
         ax.plot(x, [t["converged"] / t["runs"] for t in lines], "s--", label="at the goal")
         title = parameter if gains == "default" else f"{parameter}, soft gains"
         ax.set(ylim=(-0.05, 1.05), title=title, ylabel="share of starts")
@@ -455,10 +463,12 @@ def plot_robustness(table: Sequence[dict], path: str | Path | None = None):
         predicted = [t.get("predicted_position_error_m") for t in lines]
         if any(p is not None for p in predicted):
             ax.semilogy(x, [max(p, 1e-6) for p in predicted], "k+", ms=10, label="predicted offset")
-        ax.set(xlabel=units[parameter], ylabel="final position error [m]")
+        ax.set(xlabel=units[parameter], ylabel="final position error [m], runs in D")
         ax.legend(fontsize=7)
+        pad = 0.08 * (max(x) - min(x) or 1.0)
         for a in axes[:, j]:
             a.grid(alpha=0.3)
+            a.set_xlim(min(x) - pad, max(x) + pad)  # the same levels, data or not
     fig.suptitle("The loop through a camera (30 Hz, 320x240): one error at a time")
     fig.tight_layout()
     if path is not None:
@@ -534,7 +544,8 @@ def main(argv: list[str] | None = None) -> None:
         predicted = t.get("predicted_position_error_m")
         print(
             f"{t['gains']:>7} {t['parameter']:>15} {t['level']:>6g}: "
-            f"settled {t['settled']}/{t['runs']}, at goal {t['converged']}/{t['runs']}, "
+            f"stayed {t['stayed']}/{t['runs']}, settled {t['settled']}/{t['runs']}, "
+            f"at goal {t['converged']}/{t['runs']}, "
             "position error median "
             f"{t['position_error_median_m']:.2e} max {t['position_error_max_m']:.2e} m"
             + ("" if predicted is None else f" (predicted {predicted:.2e})")
