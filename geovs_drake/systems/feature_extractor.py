@@ -1,9 +1,11 @@
 """FeatureExtractor: the image features y = (Q, lambda, s) from a rendered colour image.
 
 The image processing is OpenCV's (``opencv-python-headless``, the ``vision``
-extra): colour arithmetic with saturation, the bounding box of a mask, and
-connected components with their areas and centroids, each a single C++ call
-(together about 0.2 ms on a 320x240 frame). Why OpenCV rather than
+extra): colour arithmetic with saturation, the bounding box of a mask,
+connected components with their areas and centroids, and image moments, each a
+single C++ call (all of :func:`find_target_pixels`, numpy's sub-pixel edge
+included, takes about 0.8 ms a 320x240 frame, ``benchmarks/bench_rendered.py``).
+Why OpenCV rather than
 scikit-image: one wheel whose only dependency is numpy (scikit-image pulls in
 scipy, networkx, imageio, tifffile and more), and these calls are several
 times faster. What no image library offers is the geometry after it, which
