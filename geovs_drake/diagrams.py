@@ -205,7 +205,7 @@ def _add_rig(builder: DiagramBuilder, config: ScenarioConfig, rendered: bool):
 
 def _close_dynamic_loop(builder, config, plant, features_port, log: bool):
     """Camera (truth) -> NF -> Eq. (45) force -> plant, with y from ``features_port``
-    (None: the exact camera's)."""
+    (None: the exact camera's, with ``control.damping``; else ``camera.damping``)."""
     demux = builder.AddNamedSystem("state_demux", Demultiplexer([7, 6]))
     builder.Connect(plant.get_state_output_port(), demux.get_input_port())
     camera, nav = _camera_and_navigation(builder, config, config.X_RC, features_port is None)
@@ -217,7 +217,9 @@ def _close_dynamic_loop(builder, config, plant, features_port, log: bool):
         ImageJacobianForce(
             radius=config.believed_radius,
             potential_gain=config.control.potential_gain,
-            damping=np.asarray(config.damping, dtype=float),
+            damping=np.asarray(
+                config.control.damping if exact else config.camera.damping, dtype=float
+            ),
             X_RC=config.X_RC,
         ),
     )
