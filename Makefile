@@ -63,6 +63,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_camera_map.py
 	$(BIN)/python benchmarks/bench_closed_loop.py
 	$(BIN)/python benchmarks/bench_batch.py
+	$(BIN)/python benchmarks/bench_rendered.py
 	$(BIN)/python benchmarks/time_to_converge.py
 
 clean:

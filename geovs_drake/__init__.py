@@ -12,6 +12,7 @@ from geovs_drake.geometry.camera import (
 )
 from geovs_drake.geometry.domain import DEFAULT_DOMAIN, DomainMargins, SafeDomain
 from geovs_drake.geometry.navigation import NavigationFunction, NavigationGains
+from geovs_drake.geometry.pinhole import PinholeIntrinsics
 from geovs_drake.geometry.so3 import hat, so3_exp, vee
 
 #: The package's version: the one place it is written (pyproject.toml reads it,
@@ -25,6 +26,7 @@ __all__ = [
     "NavigationFunction",
     "NavigationGains",
     "OutOfDomainError",
+    "PinholeIntrinsics",
     "SafeDomain",
     "camera_map",
     "camera_map_inverse",

@@ -5,6 +5,7 @@ Examples::
     geovs-drake simulate --json
     geovs-drake simulate --plant kinematic --initial=-0.1,0.05,-0.7,0.1,0,1.2
     geovs-drake simulate --initial-velocity=-0.2,0,0.3,0.05,-0.1,0
+    geovs-drake simulate --sensor rendered --camera-rate 30 --resolution 320x240
     geovs-drake demo --out results
     geovs-drake sweep --starts 10000 --duration 10 --json
     geovs-drake sweep --scheduler tcp://host:8786 --starts 100000
@@ -35,6 +36,7 @@ from geovs_drake.scenario import (
     IBVS_DEPTHS,
     MOUNTS,
     PLANTS,
+    SENSORS,
     PoseConfig,
     ScenarioConfig,
     load_scenario,
@@ -65,7 +67,7 @@ EXIT_CODES: dict[int, str] = {
     EXIT_BAD_INPUT: "bad input: an argument, the --config file, a start outside D,\n"
     "or a missing extra (one line on stderr, nothing run)",
     EXIT_NOT_CONVERGED: "ran and did not converge (simulate, demo): status not_converged,\n"
-    "left_domain, lost_visibility or non_finite",
+    "left_domain, lost_visibility, feature_lost or non_finite",
     EXIT_INTERRUPTED: "interrupted (Ctrl-C)",
 }
 
@@ -151,6 +153,7 @@ def _config_from_args(args: argparse.Namespace) -> ScenarioConfig:
     _apply_path_and_mount_args(args, config)
     if args.ibvs_depth is not None:
         config.control.ibvs_depth = args.ibvs_depth
+    _apply_camera_args(config, args)
     config.validate()
     return config
 
@@ -260,6 +263,59 @@ def _apply_path_and_mount_args(args: argparse.Namespace, config: ScenarioConfig)
         config.path.feedback_gain = args.path_feedback
 
 
+# --- The camera options of `simulate` (issue 13): --sensor, --camera-rate, --resolution.
+def _resolution_arg(text: str) -> list[int]:
+    parts = text.lower().split("x")
+    try:
+        size = [int(v) for v in parts]
+    except ValueError:
+        size = []
+    if len(size) != 2 or min(size) < 16:
+        raise argparse.ArgumentTypeError(
+            f"expected WxH, two integers >= 16 such as 320x240, got {text!r}"
+        )
+    return size
+
+
+def _add_camera_args(p: argparse.ArgumentParser) -> None:
+    d = ScenarioConfig().camera
+    p.add_argument(
+        "--sensor",
+        choices=SENSORS,
+        help="exact: the controller reads y = c(H); rendered: Drake renders the target "
+        "(RgbdSensor, VTK) and y is extracted from each frame; pinhole: that measurement "
+        "on exact image points, without rendering (dynamic plant only for the last two) "
+        f"(default: the config's, else {d.sensor})",
+    )
+    p.add_argument(
+        "--camera-rate",
+        type=float,
+        metavar="HZ",
+        help=f"frames per second of the camera (default: the config's, else {d.rate:g})",
+    )
+    p.add_argument(
+        "--resolution",
+        type=_resolution_arg,
+        metavar="WxH",
+        help="image size [px]; the focal length makes the inscribed cone the field of view "
+        f"(default: the config's, else {d.resolution[0]}x{d.resolution[1]})",
+    )
+
+
+def _apply_camera_args(config: ScenarioConfig, args: argparse.Namespace) -> None:
+    if getattr(args, "sensor", None):
+        config.camera.sensor = args.sensor
+    if getattr(args, "camera_rate", None) is not None:
+        if not (math.isfinite(args.camera_rate) and args.camera_rate > 0):
+            raise ValueError(f"--camera-rate must be finite and > 0 [Hz]: {args.camera_rate}")
+        config.camera.rate = args.camera_rate
+    if getattr(args, "resolution", None) is not None:
+        config.camera.resolution = args.resolution
+
+
+# --- end of the camera options.
+
+
 def _simulate(args: argparse.Namespace) -> int:
     config = _config_from_args(args)
     progress = HorizonProgress(
@@ -283,7 +339,9 @@ def _demo(args: argparse.Namespace) -> int:
     from geovs_drake.demo import check_demo_args, run_demo
 
     check_demo_args(args.out, args.duration)  # before any side effect
-    result = run_demo(args.out, args.duration, meshcat=not args.no_meshcat)
+    result = run_demo(
+        args.out, args.duration, meshcat=not args.no_meshcat, rendered=not args.no_rendered
+    )
     return exit_code_of(result.status)
 
 
@@ -567,6 +625,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_scenario_args(sim)
     _add_path_and_mount_args(sim)
+    _add_camera_args(sim)
     sim.add_argument(
         "--json", action="store_true", help="print one JSON object (default: one line of text)"
     )
@@ -599,6 +658,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-meshcat",
         action="store_true",
         help="skip the Meshcat recording servo.html (default: record it)",
+    )
+    demo.add_argument(
+        "--no-rendered",
+        action="store_true",
+        help="skip the run through rendered camera images (default: run it, the first "
+        "6 s at 320x240 and 30 Hz; it needs OpenCV and EGL)",
     )
     demo.set_defaults(func=_demo)
     sw = sub.add_parser(

@@ -1,4 +1,4 @@
-"""Diagram builders: the dynamic and kinematic visual-servo loops as named Diagrams.
+"""Diagram builders: the visual-servo loops as named Diagrams.
 
 Subsystem names (for ``diagram.GetSubsystemByName``): ``plant``,
 ``scene_graph``, ``spherical_camera``, ``navigation_controller``,
@@ -18,20 +18,43 @@ Drake's ``LogVectorOutput`` loggers ``log_image_features``, ``log_phi``,
 ``config.log_rate``. :func:`geovs_drake.simulation.simulate` builds with
 ``log=False`` and logs from its recorded steps instead: periodic loggers cut
 every integrator step at each sample time.
+
+The loops with a camera (:func:`make_rendered_servo_diagram`,
+:func:`make_pinhole_servo_diagram`) add ``feature_sensor`` (the
+:class:`~geovs_drake.systems.FeatureExtractor` or
+:class:`~geovs_drake.systems.PinholeFeatureSensor`), whose held y drives the
+controller, and, rendered, ``rgbd_sensor``; their ``spherical_camera`` still
+computes the exact y, which nothing in the loop reads: it is the truth the
+safe-domain monitor and the logs use. :func:`make_servo_diagram` picks the
+builder from ``config.plant`` and ``config.camera.sensor``.
 """
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable
 
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
-from pydrake.geometry import Meshcat, MeshcatVisualizer
+from pydrake.geometry import (
+    ClippingRange,
+    ColorRenderCamera,
+    DepthRange,
+    DepthRenderCamera,
+    LightParameter,
+    MakeRenderEngineVtk,
+    Meshcat,
+    MeshcatVisualizer,
+    RenderCameraCore,
+    RenderEngineVtkParams,
+    Role,
+)
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.multibody.tree import RotationalInertia, SpatialInertia
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Demultiplexer, LogVectorOutput, TrajectorySource
+from pydrake.systems.sensors import CameraInfo, RgbdSensor
 from pydrake.visualization import AddFrameTriadIllustration
 
 from geovs_drake.geometry._ops import MATH, NUMPY
@@ -45,6 +68,7 @@ from geovs_drake.geometry.rigid import (
 from geovs_drake.planning import plan_for_scenario
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems import (
+    FeatureExtractor,
     FixedCameraKinematicMount,
     FixedCameraMount,
     IbvsController,
@@ -54,16 +78,25 @@ from geovs_drake.systems import (
     NavigationController,
     PathFollowingController,
     PbvsController,
+    PinholeFeatureSensor,
     SphericalCamera,
     SphericalFeatureController,
     VelocityTrackingForce,
 )
-from geovs_drake.visualization import add_camera_geometry, add_goal_ghost, add_target_geometry
+from geovs_drake.systems.feature_extractor import SCENE_COLOURS
+from geovs_drake.visualization import (
+    add_camera_geometry,
+    add_goal_ghost,
+    add_marked_target_geometry,
+    add_target_geometry,
+)
 
 __all__ = [
+    "RENDERER_NAME",
     "RIG_BODY_NAME",
     "TARGET_BODY_NAME",
     "TWIST_CONTROLLERS",
+    "VTK_PRINCIPAL_POINT_SHIFT",
     "initial_body_states",
     "initial_rig_pose",
     "initial_rig_state",
@@ -72,43 +105,53 @@ __all__ = [
     "make_fixed_camera_diagram",
     "make_kinematic_servo_diagram",
     "make_servo_diagram",
+    "make_pinhole_servo_diagram",
+    "make_rendered_servo_diagram",
+    "scene_lights",
+    "vtk_camera_info",
 ]
 
 RIG_BODY_NAME = "camera_rig"
+#: The name of the VTK render engine the rendered loop adds to SceneGraph.
+RENDERER_NAME = "geovs_vtk"
 TARGET_BODY_NAME = "target_sphere"
 
-#: A law that commands the camera's body twist: ``factory(builder, config, camera)``
+#: A law that commands the camera's body twist: ``factory(builder, config, features)``
 #: adds its system (and any sources it needs) to ``builder``, connects every input
-#: but the ones it wants from the camera, and returns the system, whose output port
+#: but ``image_features``, and returns the system, whose output port
 #: ``camera_velocity`` is (Omega, V) in C. The builder then connects the system's
-#: ``image_features`` input (if it has one) to the camera's y. Keyed by
-#: ``ScenarioConfig.controller``; the NF ("nf") is built in.
-TwistControllerFactory = Callable[[DiagramBuilder, ScenarioConfig, SphericalCamera], LeafSystem]
+#: ``image_features`` input (if it has one) to ``features``, the output port y comes
+#: from. Keyed by ``ScenarioConfig.controller``; the NF ("nf") is built in.
+TwistControllerFactory = Callable[[DiagramBuilder, ScenarioConfig, object], LeafSystem]
 
 
-def _ibvs(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:
+def _ibvs(builder: DiagramBuilder, config: ScenarioConfig, features) -> LeafSystem:
     return builder.AddSystem(
         IbvsController(
             goal=config.goal_features(),
-            radius=config.radius,
+            radius=config.believed_radius,
             gain=config.control.baseline_gain,
             depth=config.control.ibvs_depth,
         )
     )
 
 
-def _pbvs(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:
+def _pbvs(builder: DiagramBuilder, config: ScenarioConfig, features) -> LeafSystem:
     return builder.AddSystem(
         PbvsController(
-            goal=config.goal_features(), radius=config.radius, gain=config.control.baseline_gain
+            goal=config.goal_features(),
+            radius=config.believed_radius,
+            gain=config.control.baseline_gain,
         )
     )
 
 
-def _spherical(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:
+def _spherical(builder: DiagramBuilder, config: ScenarioConfig, features) -> LeafSystem:
     return builder.AddSystem(
         SphericalFeatureController(
-            goal=config.goal_features(), radius=config.radius, gain=config.control.baseline_gain
+            goal=config.goal_features(),
+            radius=config.believed_radius,
+            gain=config.control.baseline_gain,
         )
     )
 
@@ -120,8 +163,10 @@ TWIST_CONTROLLERS: dict[str, TwistControllerFactory] = {
 }
 
 
-def _add_twist_controller(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:
-    """The registered law of ``config.controller``, named ``controller`` and connected to y."""
+def _add_twist_controller(builder: DiagramBuilder, config: ScenarioConfig, features) -> LeafSystem:
+    """The registered law of ``config.controller``, named ``controller``, its
+    ``image_features`` input connected to ``features`` (the port y comes from: the
+    exact camera's, or a camera model's measurement)."""
     try:
         factory = TWIST_CONTROLLERS[config.controller]
     except KeyError:
@@ -129,14 +174,14 @@ def _add_twist_controller(builder: DiagramBuilder, config: ScenarioConfig, camer
             f"controller {config.controller!r} has no diagram (registered: nf, "
             f"{', '.join(sorted(TWIST_CONTROLLERS))})"
         ) from None
-    law = factory(builder, config, camera)
+    law = factory(builder, config, features)
     law.set_name("controller")
     if law.HasInputPort("image_features"):
-        builder.Connect(camera.image_features_output, law.GetInputPort("image_features"))
+        builder.Connect(features, law.GetInputPort("image_features"))
     return law
 
 
-def _path_following(builder: DiagramBuilder, config: ScenarioConfig, camera) -> LeafSystem:
+def _path_following(builder: DiagramBuilder, config: ScenarioConfig, features) -> LeafSystem:
     """``controller: path``: the planned y_d(t) (:func:`~geovs_drake.planning.plan_for_scenario`)
     through a ``TrajectorySource`` named ``desired_image`` (value and derivative) into a
     :class:`PathFollowingController` (Eq. 18, with ``config.path.feedback_gain``). Raises
@@ -265,7 +310,11 @@ def _camera_and_navigation(
     config: ScenarioConfig,
     X_RC: RigidTransform,
     X_WB: RigidTransform | None = None,
+    *,
+    connect: bool = True,
 ):
+    """The exact camera (the truth) and the NF controller; ``connect`` feeds the former to
+    the latter (the exact loop). ``X_WB`` defaults to ``config.X_WB``."""
     domain = config.domain.to_domain()
     X_WB = config.X_WB if X_WB is None else X_WB
     camera = builder.AddNamedSystem(
@@ -278,8 +327,101 @@ def _camera_and_navigation(
             goal=config.goal_features(), domain=domain, gains=config.navigation.to_gains()
         ),
     )
-    builder.Connect(camera.image_features_output, nav.image_features_input)
+    if connect:
+        builder.Connect(camera.image_features_output, nav.image_features_input)
     return camera, nav
+
+
+def _add_rig(builder: DiagramBuilder, config: ScenarioConfig, rendered: bool):
+    """The MultibodyPlant with the free camera rig, the target and the camera's drawing.
+
+    ``rendered``: the target in the extractor's colours
+    (:func:`~geovs_drake.visualization.add_marked_target_geometry`), and the camera's
+    own drawing and the goal ghost kept out of the renderer (illustration only).
+    """
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+    # The rig's body frame R has its origin at the centre of mass.
+    rig = plant.AddRigidBody(
+        RIG_BODY_NAME,
+        SpatialInertia.MakeFromCentralInertia(
+            config.rig.mass, np.zeros(3), RotationalInertia(*config.rig.inertia_diagonal)
+        ),
+    )
+    plant.mutable_gravity_field().set_gravity_vector(np.zeros(3))
+    theta = config.domain.to_domain().fov_half_angle
+    if rendered:
+        add_marked_target_geometry(plant, config)
+    else:
+        add_target_geometry(plant, config)
+    drawing = add_camera_geometry(plant, rig, config.X_RC, theta) + add_goal_ghost(plant, config)
+    plant.Finalize()
+    plant.SetDefaultFloatingBaseBodyPose(rig, initial_rig_pose(config))
+    if rendered:
+        for geometry_id in drawing:
+            scene_graph.RemoveRole(plant.get_source_id(), geometry_id, Role.kPerception)
+    return plant, scene_graph, rig
+
+
+def _close_dynamic_loop(builder, config, plant, features_port, log: bool):
+    """Camera (truth) -> law -> force -> plant, with y from ``features_port`` (None: the
+    exact camera's). The NF's law is Eq. (45)'s force, with ``control.damping`` on the
+    exact y and ``camera.damping`` on a camera model's; any other law
+    (:data:`TWIST_CONTROLLERS`) commands a twist that ``VelocityTrackingForce`` tracks.
+    The NF controller stays in the diagram for phi on D either way."""
+    demux = builder.AddNamedSystem("state_demux", Demultiplexer([7, 6]))
+    builder.Connect(plant.get_state_output_port(), demux.get_input_port())
+    camera, nav = _camera_and_navigation(
+        builder, config, config.X_RC, connect=features_port is None
+    )
+    builder.Connect(demux.get_output_port(0), camera.body_pose_input)
+    exact = features_port is None
+    features_port = camera.image_features_output if exact else features_port
+    if not exact:
+        builder.Connect(features_port, nav.image_features_input)
+    if config.controller == "nf":
+        force = builder.AddNamedSystem(
+            "image_jacobian_force",
+            ImageJacobianForce(
+                radius=config.believed_radius,
+                potential_gain=config.control.potential_gain,
+                damping=np.asarray(
+                    config.control.damping if exact else config.camera.damping, dtype=float
+                ),
+                X_RC=config.X_RC,
+            ),
+        )
+        builder.Connect(features_port, force.image_features_input)
+        builder.Connect(nav.dphi_output, force.dphi_input)
+    else:
+        law = _add_twist_controller(builder, config, features_port)
+        force = builder.AddNamedSystem(
+            "velocity_tracking_force",
+            VelocityTrackingForce(gains=config.control.tracking_gains, X_RC=config.X_RC),
+        )
+        builder.Connect(law.GetOutputPort("camera_velocity"), force.camera_velocity_command_input)
+    builder.Connect(plant.get_state_output_port(), force.body_state_input)
+    builder.Connect(
+        force.generalized_force_output, plant.get_applied_generalized_force_input_port()
+    )
+    if log:
+        _add_loggers(builder, camera, nav, config.log_rate)
+        LogVectorOutput(
+            plant.get_state_output_port(), builder, publish_period=1.0 / config.log_rate
+        ).set_name("log_body_state")
+    return demux
+
+
+def _add_meshcat(builder, scene_graph, rig, config, meshcat: Meshcat | None) -> None:
+    if meshcat is not None:
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+        AddFrameTriadIllustration(
+            scene_graph=scene_graph,
+            body=rig,
+            X_FT=config.X_RC,
+            length=0.08,
+            radius=0.003,
+            name="C",
+        )
 
 
 def make_dynamic_servo_diagram(
@@ -292,67 +434,184 @@ def make_dynamic_servo_diagram(
     camera frame may sit off the rig's centre of mass (``rig.camera_offset``,
     Appendix C.0.6). Pass ``meshcat`` to add a MeshcatVisualizer and the camera
     frame's axes (double only: leave it out of diagrams you will convert to
-    AutoDiffXd).
+    AutoDiffXd). The controller reads the exact y = c(H), whatever
+    ``config.camera.sensor`` says (see :func:`make_servo_diagram`).
     """
     config = config or ScenarioConfig()
     config.validate()
     builder = DiagramBuilder()
-    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
-    # The rig's body frame R has its origin at the centre of mass.
-    rig = plant.AddRigidBody(
-        RIG_BODY_NAME,
-        SpatialInertia.MakeFromCentralInertia(
-            config.rig.mass, np.zeros(3), RotationalInertia(*config.rig.inertia_diagonal)
-        ),
-    )
-    plant.mutable_gravity_field().set_gravity_vector(np.zeros(3))
-    X_RC = config.X_RC
-    theta = config.domain.to_domain().fov_half_angle
-    add_target_geometry(plant, config)
-    add_camera_geometry(plant, rig, X_RC, theta)
-    add_goal_ghost(plant, config)
-    plant.Finalize()
-    plant.SetDefaultFloatingBaseBodyPose(rig, initial_rig_pose(config))
-
-    demux = builder.AddNamedSystem("state_demux", Demultiplexer([7, 6]))
-    builder.Connect(plant.get_state_output_port(), demux.get_input_port())
-    camera, nav = _camera_and_navigation(builder, config, X_RC)
-    builder.Connect(demux.get_output_port(0), camera.body_pose_input)
-    if config.controller == "nf":
-        force = builder.AddNamedSystem(
-            "image_jacobian_force",
-            ImageJacobianForce(
-                radius=config.radius,
-                potential_gain=config.control.potential_gain,
-                damping=np.asarray(config.control.damping, dtype=float),
-                X_RC=X_RC,
-            ),
-        )
-        builder.Connect(camera.image_features_output, force.image_features_input)
-        builder.Connect(nav.dphi_output, force.dphi_input)
-    else:
-        law = _add_twist_controller(builder, config, camera)
-        force = builder.AddNamedSystem(
-            "velocity_tracking_force",
-            VelocityTrackingForce(gains=config.control.tracking_gains, X_RC=X_RC),
-        )
-        builder.Connect(law.GetOutputPort("camera_velocity"), force.camera_velocity_command_input)
-    builder.Connect(plant.get_state_output_port(), force.body_state_input)
-    builder.Connect(
-        force.generalized_force_output, plant.get_applied_generalized_force_input_port()
-    )
-    if log:
-        _add_loggers(builder, camera, nav, config.log_rate)
-        LogVectorOutput(
-            plant.get_state_output_port(), builder, publish_period=1.0 / config.log_rate
-        ).set_name("log_body_state")
-    if meshcat is not None:
-        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
-        AddFrameTriadIllustration(
-            scene_graph=scene_graph, body=rig, X_FT=X_RC, length=0.08, radius=0.003, name="C"
-        )
+    plant, scene_graph, rig = _add_rig(builder, config, rendered=False)
+    _close_dynamic_loop(builder, config, plant, None, log)
+    _add_meshcat(builder, scene_graph, rig, config, meshcat)
     diagram = builder.Build()
     diagram.set_name("dynamic_visual_servo")
+    return diagram
+
+
+def _camera_config(config: ScenarioConfig, sensor: str, rate, resolution) -> ScenarioConfig:
+    """A copy of ``config`` with the camera's sensor, rate and resolution set, validated."""
+    config = copy.deepcopy(config or ScenarioConfig())
+    config.camera.sensor = sensor
+    if rate is not None:
+        config.camera.rate = rate
+    if resolution is not None:
+        config.camera.resolution = [int(v) for v in resolution]
+    config.validate()
+    return config
+
+
+def _add_feature_loggers(builder, sensor, rate: float) -> None:
+    for port, name in (
+        (sensor.image_features_output, "log_measured_features"),
+        (sensor.feature_status_output, "log_feature_status"),
+    ):
+        LogVectorOutput(port, builder, publish_period=1.0 / rate).set_name(name)
+
+
+#: Where Drake's RenderEngineVtk (drake 1.51) puts the optical axis, in pixel-centre
+#: coordinates, relative to ``CameraInfo``'s ``(center_x, center_y)``: half a pixel up
+#: and left, OpenGL's convention of pixel corners at integers. Measured (a test renders
+#: a small sphere on the optical axis and finds its centroid there).
+VTK_PRINCIPAL_POINT_SHIFT = -0.5
+
+
+def vtk_camera_info(intrinsics) -> CameraInfo:
+    """The ``CameraInfo`` with which RenderEngineVtk renders an image that ``intrinsics``
+    (pixel centres at integers, :mod:`geovs_drake.geometry.pinhole`) describes exactly."""
+    return CameraInfo(
+        intrinsics.width,
+        intrinsics.height,
+        intrinsics.fx,
+        intrinsics.fy,
+        intrinsics.cx - VTK_PRINCIPAL_POINT_SHIFT,
+        intrinsics.cy - VTK_PRINCIPAL_POINT_SHIFT,
+    )
+
+
+def scene_lights() -> list[LightParameter]:
+    """A headlight and four side lights, all in the camera frame, intensity 0.5 each.
+
+    Why not Drake's default headlight alone: it shades by the cosine between the
+    normal and the view, so near the limb a mark turns black and the extractor
+    loses it (a mark seen at 82 deg from face-on read 1 dark pixel). With side lights
+    from +-x and +-y a diffuse surface gets between 0.5 and 0.87 of full light
+    wherever it is seen, the limb included.
+    """
+    directions = ([0, 0, 1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0])
+    return [
+        LightParameter(type="directional", frame="camera", intensity=0.5, direction=d)
+        for d in directions
+    ]
+
+
+def make_rendered_servo_diagram(
+    config: ScenarioConfig | None = None,
+    camera_rate: float | None = None,
+    resolution: tuple[int, int] | None = None,
+    meshcat: Meshcat | None = None,
+    log: bool = True,
+) -> Diagram:
+    """The dynamic loop closed through rendered images.
+
+    plant -> SceneGraph -> ``RgbdSensor`` (``RenderEngineVtk``, EGL backend:
+    headless) -> :class:`~geovs_drake.systems.FeatureExtractor` (a frame every
+    ``1 / camera_rate`` s, held between frames) -> NF controller ->
+    ``ImageJacobianForce`` -> plant. ``camera_rate`` [Hz] and ``resolution``
+    (W, H) default to ``config.camera``'s (30 Hz, 320x240); the camera's
+    intrinsics are :meth:`~geovs_drake.scenario.CameraConfig.intrinsics` (its
+    inscribed cone is D's field of view, so no pose of D cuts the sphere), the
+    extractor's those times ``1 + camera.focal_error``. The renderer draws
+    the marked target (:func:`~geovs_drake.visualization.add_marked_target_geometry`)
+    on a blue background; the camera's own drawing is illustration only.
+    Double only (``RgbdSensor`` does not convert).
+    """
+    config = _camera_config(config, "rendered", camera_rate, resolution)
+    cam = config.camera
+    theta = config.domain.to_domain().fov_half_angle
+    intrinsics = cam.intrinsics(theta)
+    builder = DiagramBuilder()
+    plant, scene_graph, rig = _add_rig(builder, config, rendered=True)
+    scene_graph.AddRenderer(
+        RENDERER_NAME,
+        MakeRenderEngineVtk(
+            RenderEngineVtkParams(
+                backend="EGL",
+                default_clear_color=list(SCENE_COLOURS["background"]),
+                lights=scene_lights(),
+            )
+        ),
+    )
+    # Clip well short of the nearest sphere of D and well beyond the farthest.
+    d = config.domain
+    near = 0.5 * config.radius * (1 / d.lam_max - 1)
+    far = 2.0 * config.radius * (1 / d.lam_min + 1)
+    core = RenderCameraCore(
+        RENDERER_NAME, vtk_camera_info(intrinsics), ClippingRange(near, far), RigidTransform()
+    )
+    rgbd = builder.AddNamedSystem(
+        "rgbd_sensor",
+        RgbdSensor(
+            plant.GetBodyFrameIdOrThrow(rig.index()),
+            config.X_RC,
+            ColorRenderCamera(core, False),
+            DepthRenderCamera(core, DepthRange(1.01 * near, 0.99 * far)),
+        ),
+    )
+    builder.Connect(scene_graph.get_query_output_port(), rgbd.query_object_input_port())
+    sensor = builder.AddNamedSystem(
+        "feature_sensor",
+        FeatureExtractor(
+            intrinsics=cam.believed_intrinsics(theta),
+            period=1.0 / cam.rate,
+            latency_frames=int(cam.latency_frames),
+            max_lost_frames=int(cam.max_lost_frames),
+            pixel_noise=cam.pixel_noise,
+            seed=int(cam.seed),
+        ),
+    )
+    builder.Connect(rgbd.color_image_output_port(), sensor.color_image_input)
+    _close_dynamic_loop(builder, config, plant, sensor.image_features_output, log)
+    if log:
+        _add_feature_loggers(builder, sensor, config.log_rate)
+    _add_meshcat(builder, scene_graph, rig, config, meshcat)
+    diagram = builder.Build()
+    diagram.set_name("rendered_visual_servo")
+    return diagram
+
+
+def make_pinhole_servo_diagram(
+    config: ScenarioConfig | None = None, meshcat: Meshcat | None = None, log: bool = True
+) -> Diagram:
+    """The dynamic loop closed through :class:`~geovs_drake.systems.PinholeFeatureSensor`:
+    the rendered loop's measurement (camera rate, latency, pixel noise, focal error, the
+    same fit) on exact projected points, without a renderer."""
+    config = _camera_config(config, "pinhole", None, None)
+    cam = config.camera
+    theta = config.domain.to_domain().fov_half_angle
+    builder = DiagramBuilder()
+    plant, scene_graph, rig = _add_rig(builder, config, rendered=True)
+    sensor = builder.AddNamedSystem(
+        "feature_sensor",
+        PinholeFeatureSensor(
+            radius=config.radius,
+            intrinsics=cam.intrinsics(theta),
+            believed=cam.believed_intrinsics(theta),
+            X_WB=config.X_WB,
+            X_RC=config.X_RC,
+            period=1.0 / cam.rate,
+            latency_frames=int(cam.latency_frames),
+            max_lost_frames=int(cam.max_lost_frames),
+            pixel_noise=cam.pixel_noise,
+            seed=int(cam.seed),
+        ),
+    )
+    demux = _close_dynamic_loop(builder, config, plant, sensor.image_features_output, log)
+    builder.Connect(demux.get_output_port(0), sensor.body_pose_input)
+    if log:
+        _add_feature_loggers(builder, sensor, config.log_rate)
+    _add_meshcat(builder, scene_graph, rig, config, meshcat)
+    diagram = builder.Build()
+    diagram.set_name("pinhole_visual_servo")
     return diagram
 
 
@@ -373,13 +632,13 @@ def make_kinematic_servo_diagram(config: ScenarioConfig | None = None, log: bool
     if config.controller == "nf":
         controller = builder.AddNamedSystem(
             "kinematic_controller",
-            KinematicController(radius=config.radius, gain=config.control.kinematic_gain),
+            KinematicController(radius=config.believed_radius, gain=config.control.kinematic_gain),
         )
         builder.Connect(camera.image_features_output, controller.image_features_input)
         builder.Connect(nav.dphi_output, controller.dphi_input)
         builder.Connect(controller.camera_velocity_output, body.camera_velocity_input)
     else:
-        law = _add_twist_controller(builder, config, camera)
+        law = _add_twist_controller(builder, config, camera.image_features_output)
         builder.Connect(law.GetOutputPort("camera_velocity"), body.camera_velocity_input)
     if log:
         _add_loggers(builder, camera, nav, config.log_rate)
@@ -460,7 +719,7 @@ def make_fixed_camera_diagram(
             builder.Connect(camera.image_features_output, force.image_features_input)
             builder.Connect(nav.dphi_output, force.dphi_input)
         else:
-            law = _add_twist_controller(builder, config, camera)
+            law = _add_twist_controller(builder, config, camera.image_features_output)
             force = builder.AddNamedSystem(
                 "velocity_tracking_force",
                 VelocityTrackingForce(gains=config.control.tracking_gains, X_RC=identity),
@@ -489,9 +748,9 @@ def make_fixed_camera_diagram(
             builder.Connect(nav.dphi_output, controller.dphi_input)
             command = controller.camera_velocity_output
         else:
-            command = _add_twist_controller(builder, config, camera).GetOutputPort(
-                "camera_velocity"
-            )
+            command = _add_twist_controller(
+                builder, config, camera.image_features_output
+            ).GetOutputPort("camera_velocity")
         builder.Connect(command, mount.camera_velocity_input)
         builder.Connect(mount.target_velocity_output, body.camera_velocity_input)
         state_port = body.body_pose_output
@@ -518,10 +777,17 @@ def make_fixed_camera_diagram(
 def make_servo_diagram(
     config: ScenarioConfig | None = None, meshcat: Meshcat | None = None, log: bool = True
 ) -> Diagram:
-    """The loop ``config`` describes: its ``mount`` (hand or fixed) and ``plant``."""
+    """The loop ``config`` describes: its ``mount`` (hand or fixed), ``plant`` and
+    ``camera.sensor`` (exact, rendered or pinhole; the camera models run eye-in-hand
+    on the dynamic plant, which ``ScenarioConfig.validate`` checks)."""
     config = config or ScenarioConfig()
+    config.validate()
     if config.mount == "fixed":
         return make_fixed_camera_diagram(config, meshcat=meshcat, log=log)
+    if config.camera.sensor == "rendered":
+        return make_rendered_servo_diagram(config, meshcat=meshcat, log=log)
+    if config.camera.sensor == "pinhole":
+        return make_pinhole_servo_diagram(config, meshcat=meshcat, log=log)
     if config.plant == "dynamic":
         return make_dynamic_servo_diagram(config, meshcat=meshcat, log=log)
     if meshcat is not None:

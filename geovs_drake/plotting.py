@@ -19,7 +19,14 @@ from geovs_drake.geometry.navigation import (
     model_coordinates,
 )
 
-__all__ = ["plot_image_view", "plot_navigation_slices", "plot_run", "write_block_diagram"]
+__all__ = [
+    "plot_camera_frames",
+    "plot_image_view",
+    "plot_navigation_slices",
+    "plot_run",
+    "plot_sensor_comparison",
+    "write_block_diagram",
+]
 
 
 def _pyplot():
@@ -222,6 +229,62 @@ def plot_run(result, path: str | Path | None = None):
     ax.legend()
     for a in axes:
         a.grid(alpha=0.3)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=110)
+    return fig
+
+
+def plot_sensor_comparison(runs: dict, path: str | Path | None = None):
+    """The pose error of runs from the same start with different sensors (label -> result),
+    with each run's convergence tolerance."""
+    plt = _pyplot()
+    from pydrake.math import RigidTransform
+
+    from geovs_drake.simulation import convergence_tolerance, pose_error
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharex=True)
+    for k, (label, result) in enumerate(runs.items()):
+        colour = f"C{k}"
+        goal = result.config.X_BC_goal
+        err = np.array([pose_error(RigidTransform(X), goal) for X in result.X_BC])
+        tol = convergence_tolerance(result.config)
+        for j, (ax, unit) in enumerate(zip(axes, ("m", "rad"), strict=True)):
+            ax.semilogy(result.times, err[:, j], color=colour, label=f"{label}: {result.status}")
+            ax.axhline(tol[j], color=colour, ls=":", lw=0.9, label=f"{label}: tolerance {unit}")
+    axes[0].set(xlabel="t [s]", ylabel="position error [m]", title="position error")
+    axes[1].set(xlabel="t [s]", ylabel="rotation error [rad]", title="rotation error")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle("The same start and gains: the exact y = c(H) against y from rendered frames")
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=110)
+    return fig
+
+
+def plot_camera_frames(frames, features, intrinsics, times, path: str | Path | None = None):
+    """Rendered frames (N, H, W, 4) with what the extractor read from each (features: (N, 13)
+    rows or None): the fitted silhouette, the marked point q1 and the q2 arrow."""
+    plt = _pyplot()
+    n = len(frames)
+    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 3.6))
+    for ax, frame, y, t in zip(np.atleast_1d(axes), frames, features, times, strict=True):
+        ax.imshow(frame[..., :3], interpolation="nearest")
+        if y is not None:
+            y = np.asarray(y)
+            sil = intrinsics.ray_to_pixel(_silhouette(y[10:13], float(y[9])))
+            ax.plot(sil[:, 0], sil[:, 1], "y-", lw=1, label="fitted silhouette")
+            q1 = intrinsics.ray_to_pixel(y[0:3])
+            tip = intrinsics.ray_to_pixel(y[0:3] + 0.25 * y[9] * y[3:6])
+            ax.annotate("", tip, q1, arrowprops=dict(arrowstyle="->", color="yellow", lw=1.5))
+            ax.plot(*q1, "+", color="yellow", ms=8, label="q1, q2")
+            ax.legend(loc="lower left", fontsize=7)
+        ax.set_title(f"t = {t:.2f} s" + ("" if y is not None else ": no features"))
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.suptitle("What the rendered camera sees, and what the extractor reads")
     fig.tight_layout()
     if path is not None:
         fig.savefig(path, dpi=110)

@@ -26,12 +26,15 @@ from geovs_drake.geometry.baselines import IBVS_DEPTHS
 from geovs_drake.geometry.camera import ImageFeatures, camera_map
 from geovs_drake.geometry.domain import SafeDomain
 from geovs_drake.geometry.navigation import NavigationGains
+from geovs_drake.geometry.pinhole import PinholeIntrinsics
 
 __all__ = [
     "CONTROLLERS",
     "IBVS_DEPTHS",
     "MOUNTS",
     "PLANTS",
+    "SENSORS",
+    "CameraConfig",
     "ControlConfig",
     "DomainConfig",
     "NavigationGainsConfig",
@@ -55,6 +58,8 @@ PLANTS = ("dynamic", "kinematic")
 CONTROLLERS = ("nf", "ibvs", "pbvs", "spherical", "path")
 #: Where the camera is: on the moving rig (eye-in-hand) or fixed in the world.
 MOUNTS = ("hand", "fixed")
+#: How the loop sees the target (``ScenarioConfig.camera.sensor``).
+SENSORS = ("exact", "rendered", "pinhole")
 
 
 @dataclass
@@ -172,6 +177,112 @@ class PathConfig:
     radius_scale: float = 1.0
 
 
+@dataclass
+class CameraConfig:
+    """How the loop sees the target.
+
+    ``sensor``: ``exact``, the camera map y = c(H) read continuously (the paper's
+    spherical camera); ``rendered``, the scene drawn by Drake's RgbdSensor
+    (RenderEngineVtk) every frame and y extracted from the colour image
+    (:class:`~geovs_drake.systems.FeatureExtractor`); ``pinhole``, the same
+    measurement on the exact image points, without rendering
+    (:class:`~geovs_drake.systems.PinholeFeatureSensor`, for fast sweeps). The
+    last two run at ``rate`` frames per second with a zero-order hold, on the
+    dynamic plant.
+
+    The camera is a pinhole of ``resolution`` [W, H] px, square pixels, the
+    principal point at the centre, and the focal length whose inscribed cone,
+    ``border_px`` in from the image's edges, is the domain's field of view
+    (:meth:`intrinsics`): every pose of D keeps the whole sphere in the image.
+
+    Errors, for robustness studies: ``pixel_noise`` [px], Gaussian, per axis, on
+    every extracted image point; ``focal_error``: the extractor believes the focal
+    lengths ``(1 + focal_error)`` times the true ones; ``latency_frames``: the
+    controller acts on the frame taken that many periods ago; ``max_lost_frames``:
+    how many frames in a row may give no y (the last good y held) before the run
+    stops with ``feature_lost``; ``radius_error``
+    (any sensor): the controller believes rho ``(1 + radius_error)`` times the true
+    radius, in C(y) and in the goal image y* = c(X_CB*) (see the README: it moves
+    the equilibrium's distance, not its image). ``seed`` draws the noise.
+
+    ``damping``: the damping B of the loops with a camera (rendered, pinhole),
+    rotational first, in place of ``control.damping``. Why a second one: the
+    default gains give the exact loop a mode at 36 rad/s damped only 0.19 of
+    critical; a 30 Hz zero-order hold delays the force by half a frame, 34 deg
+    of phase at that frequency, and that mode grows: the default start leaves D
+    at t = 1.6 s. Rotational damping 0.6 brings it home as fast as the exact
+    loop (3.7 s). The damping reads the rig's own velocity, not the camera.
+    """
+
+    sensor: str = "exact"
+    rate: float = 30.0
+    resolution: list[int] = field(default_factory=lambda: [320, 240])
+    border_px: float = 2.0
+    pixel_noise: float = 0.0
+    focal_error: float = 0.0
+    latency_frames: int = 0
+    max_lost_frames: int = 3
+    radius_error: float = 0.0
+    seed: int = 0
+    damping: list[float] = field(default_factory=lambda: [0.6, 0.6, 0.6, 4.0, 4.0, 4.0])
+
+    def intrinsics(self, fov_half_angle: float) -> PinholeIntrinsics:
+        """The true camera: its inscribed cone (``border_px`` in) is ``fov_half_angle``."""
+        width, height = (int(v) for v in self.resolution)
+        return PinholeIntrinsics.for_fov(width, height, fov_half_angle, self.border_px)
+
+    def believed_intrinsics(self, fov_half_angle: float) -> PinholeIntrinsics:
+        """The camera the extractor believes in: focal lengths scaled by 1 + focal_error."""
+        return self.intrinsics(fov_half_angle).scaled(1 + self.focal_error)
+
+    def validate(self, plant: str) -> None:
+        """Raise ValueError naming the first bad field ``camera.<name>`` and its value."""
+        if self.sensor not in SENSORS:
+            raise ValueError(
+                f"camera.sensor must be one of {', '.join(SENSORS)}, got {self.sensor!r}"
+            )
+        if not (math.isfinite(self.rate) and self.rate > 0):
+            raise ValueError(f"camera.rate must be finite and > 0 [Hz]: rate = {self.rate}")
+        size = _finite_numbers(self.resolution, 2)
+        if size is None or not all(v == int(v) and v >= 16 for v in size):
+            raise ValueError(
+                f"camera.resolution must be 2 integers >= 16 [px], got {self.resolution!r}"
+            )
+        if not (math.isfinite(self.border_px) and 0 <= self.border_px < min(size) / 4):
+            raise ValueError(
+                f"camera.border_px must be in [0, {min(size) / 4:g}) [px]: "
+                f"border_px = {self.border_px}"
+            )
+        if not (math.isfinite(self.pixel_noise) and self.pixel_noise >= 0):
+            raise ValueError(
+                f"camera.pixel_noise must be finite and >= 0 [px]: pixel_noise = {self.pixel_noise}"
+            )
+        for name in ("focal_error", "radius_error"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and -0.5 <= value <= 0.5):
+                raise ValueError(f"camera.{name} must be in [-0.5, 0.5]: {name} = {value}")
+        damping = _finite_numbers(self.damping, 6)
+        if damping is None or not all(v >= 0 for v in damping):
+            raise ValueError(
+                f"camera.damping must be 6 finite non-negative numbers, got {self.damping!r}"
+            )
+        for name in ("latency_frames", "max_lost_frames"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (value == int(value) and value >= 0):
+                raise ValueError(f"camera.{name} must be an integer >= 0, got {value!r}")
+        if self.sensor == "exact":
+            for name in ("pixel_noise", "focal_error", "latency_frames"):
+                if getattr(self, name) != 0:
+                    raise ValueError(
+                        f"camera.{name} = {getattr(self, name)} needs a camera: sensor "
+                        "rendered or pinhole (the exact sensor reads c(H))"
+                    )
+        elif plant != "dynamic":
+            raise ValueError(
+                f"camera.sensor {self.sensor!r} runs on the dynamic plant only, got plant {plant!r}"
+            )
+
+
 def _finite_numbers(values, n: int) -> list[float] | None:
     """``values`` as n finite floats, or None if it is not that."""
     try:
@@ -224,6 +335,8 @@ class ScenarioConfig:
     navigation: NavigationGainsConfig = field(default_factory=NavigationGainsConfig)
     rig: RigConfig = field(default_factory=RigConfig)
     control: ControlConfig = field(default_factory=ControlConfig)
+    #: How the loop sees the target: the exact camera map, or a camera (CameraConfig).
+    camera: CameraConfig = field(default_factory=CameraConfig)
     #: The plant: "dynamic" (the MultibodyPlant free body of Appendix C, driven by a
     #: wrench) or "kinematic" (the camera's body twist is commanded, Eqs. 17-19).
     plant: str = "dynamic"
@@ -326,6 +439,12 @@ class ScenarioConfig:
             )
         self.domain.to_domain()
         self.navigation.to_gains()
+        self.camera.validate(self.plant)
+        if self.camera.sensor != "exact" and self.mount != "hand":
+            raise ValueError(
+                f"camera.sensor {self.camera.sensor!r} runs eye-in-hand only (the camera "
+                f"rides on the rig), got mount {self.mount!r}"
+            )
 
     # Derived quantities, in the names the code uses.
     @property
@@ -348,9 +467,20 @@ class ScenarioConfig:
         """X_RC, the camera frame's pose on the rig."""
         return self.rig.camera_offset.to_rigid_transform()
 
+    @property
+    def damping(self) -> list[float]:
+        """The damping B the loop runs with: ``camera.damping`` with a camera, else
+        ``control.damping``."""
+        return self.control.damping if self.camera.sensor == "exact" else self.camera.damping
+
+    @property
+    def believed_radius(self) -> float:
+        """The radius the controller believes: ``radius (1 + camera.radius_error)``."""
+        return self.radius * (1 + self.camera.radius_error)
+
     def goal_features(self) -> ImageFeatures:
-        """y* = c(X_CB*) = c((X_BC*)^-1)."""
-        return camera_map(self.X_BC_goal.inverse(), self.radius)
+        """y* = c(X_CB*) = c((X_BC*)^-1), for the radius the controller believes."""
+        return camera_map(self.X_BC_goal.inverse(), self.believed_radius)
 
     def initial_features(self) -> ImageFeatures:
         """y(0) = c((X_BC(0))^-1), the initial image."""

@@ -18,6 +18,7 @@ from geovs_drake.diagrams import fixed_camera_pose, initial_rig_state, make_serv
 from geovs_drake.geometry._ops import MATH, NUMPY
 from geovs_drake.geometry.baselines import point_fov_margins, points_in_camera
 from geovs_drake.geometry.domain import DomainMargins
+from geovs_drake.geometry.features import FEATURE_FAILURES
 from geovs_drake.geometry.kernels import camera_image, for_scalar_type, navigation
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.geometry.rigid import fixed_camera_relative_pose, quaternion_to_rotation
@@ -34,6 +35,7 @@ __all__ = [
     "camera_pose_in_target",
     "camera_signals",
     "check_start",
+    "convergence_tolerance",
     "energy_note",
     "feature_point_check",
     "saddle_note",
@@ -44,6 +46,11 @@ __all__ = [
 
 CONVERGENCE_POSITION_M = 1e-3
 CONVERGENCE_ROTATION_RAD = 1e-3
+#: A loop with a camera converges to what the camera resolves at the goal: within this
+#: many pixels of lateral offset at the goal's distance, and this many pixel angles of
+#: rotation (:func:`convergence_tolerance`).
+CAMERA_TOLERANCE_PX = 2.0
+CAMERA_ROTATION_TOLERANCE_PX = 5.0
 MARGIN_NAMES = DomainMargins._fields
 _camera_kernel = for_scalar_type(camera_image, float)
 
@@ -95,6 +102,28 @@ def energy_note(initial_energy: float, bound: float) -> str:
     return (
         f"E0 = {initial_energy:.4g} {'<' if covered else '>='} k_p = {bound:.4g}: "
         f"the energy guarantee {'covers' if covered else 'does not cover'} this start"
+    )
+
+
+def convergence_tolerance(config: ScenarioConfig) -> tuple[float, float]:
+    """``(position [m], rotation [rad])`` within which a run counts as converged.
+
+    The exact sensor: 1 mm and 1 mrad. A camera cannot do better than it resolves:
+    a pixel subtends ``1 / f`` rad, so the tolerances are ``CAMERA_TOLERANCE_PX``
+    pixels of lateral offset at the goal's distance and
+    ``CAMERA_ROTATION_TOLERANCE_PX`` pixel angles of rotation (at 320x240, 5.9 mm
+    and 30 mrad; at 640x480 half that), never below the exact sensor's. Why so
+    many pixel angles for rotation: the roll is read from the two marks, about
+    8.5 px apart at 320x240 at the goal, so a tenth of a pixel on their
+    centroids is 2 pixel angles of roll.
+    """
+    if config.camera.sensor == "exact":
+        return CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
+    f = config.camera.intrinsics(config.domain.to_domain().fov_half_angle).fx
+    distance = float(np.linalg.norm(config.X_BC_goal.translation()))
+    return (
+        max(CONVERGENCE_POSITION_M, CAMERA_TOLERANCE_PX * distance / f),
+        max(CONVERGENCE_ROTATION_RAD, CAMERA_ROTATION_TOLERANCE_PX / f),
     )
 
 
@@ -193,13 +222,19 @@ class SimulationResult:
         :data:`CONVERGENCE_ROTATION_RAD` of the goal.
         """
         dp, dr = self.final_errors
+        tol_p, tol_r = convergence_tolerance(self.config)
         return (
-            not self.left_domain and dp <= CONVERGENCE_POSITION_M and dr <= CONVERGENCE_ROTATION_RAD
+            not self.left_domain and self.status != "feature_lost" and dp <= tol_p and dr <= tol_r
         )
 
     def one_line(self) -> str:
         """The run in one line: status, final errors, minimum margins, timing."""
         s = self.summary()
+        cam = self.config.camera
+        sensor = ""
+        if cam.sensor != "exact":
+            width, height = (int(v) for v in cam.resolution)
+            sensor = f", {cam.sensor} camera {width}x{height} at {cam.rate:g} Hz"
         energy = ""
         if self.energy is not None:
             energy = f" | {energy_note(self.initial_energy, self.energy_bound)}"
@@ -208,8 +243,10 @@ class SimulationResult:
         law = s["controller"]
         if s["ibvs_depth"] is not None:
             law += f" ({s['ibvs_depth']} depth)"
+        if self.status == "feature_lost":  # say which feature and why
+            energy += f" | {self.message}"
         return (
-            f"{law} on the {s['plant']} plant"
+            f"{law} on the {s['plant']} plant{sensor}"
             f"{', camera fixed' if s['mount'] == 'fixed' else ''}: {s['status']} | position error "
             f"{s['final_position_error_m']:.2e} m, rotation error "
             f"{s['final_rotation_error_rad']:.2e} rad | min margins: "
@@ -226,6 +263,7 @@ class SimulationResult:
         the NF, whose energy is not k_p phi. ``ibvs_depth`` is the IBVS depth
         estimate (``control.ibvs_depth``) for ``controller`` "ibvs", else None."""
         dp, dr = self.final_errors
+        tol_p, tol_r = convergence_tolerance(self.config)
         out = {
             "plant": self.config.plant,
             "controller": self.config.controller,
@@ -233,11 +271,14 @@ class SimulationResult:
             "ibvs_depth": (
                 self.config.control.ibvs_depth if self.config.controller == "ibvs" else None
             ),
+            "sensor": self.config.camera.sensor,
             "converged": self.converged,
             "status": self.status,
             "message": self.message,
             "final_position_error_m": dp,
             "final_rotation_error_rad": dr,
+            "tolerance_position_m": tol_p,
+            "tolerance_rotation_rad": tol_r,
             "final_phi": float(self.phi[-1]),
             "min_fov_margin": float(np.min(self.margins[:, 0])),
             "min_lambda_margin": float(np.min(self.margins[:, 1:3])),
@@ -255,6 +296,16 @@ class SimulationResult:
             "energy_guarantee": self.energy_guarantee,
             "max_energy": None if self.energy is None else float(np.max(self.energy)),
         }
+        if self.config.camera.sensor != "exact":
+            cam = self.config.camera
+            out["camera"] = {
+                "rate_hz": cam.rate,
+                "resolution": [int(v) for v in cam.resolution],
+                "pixel_noise_px": cam.pixel_noise,
+                "focal_error": cam.focal_error,
+                "latency_frames": int(cam.latency_frames),
+            }
+        out["radius_error"] = self.config.camera.radius_error
         return out
 
 
@@ -352,7 +403,11 @@ class SafeDomainMonitor:
     finite, so a run never continues into NaN; with a ``feature_points`` check
     (point IBVS), also when one of the law's points leaves the field-of-view
     cone (``lost_visibility``, naming the point). :meth:`termination` reports
-    ``(status, message)`` of the last termination, if any.
+    ``(status, message)`` of the last termination, if any. These read the true
+    pose (the exact camera map), whatever sensor the loop uses. A loop with a
+    camera (a ``feature_sensor`` subsystem) also stops with ``feature_lost``
+    when the frame the controller acts on gave no y, naming why
+    (:data:`~geovs_drake.geometry.features.FEATURE_FAILURES`).
 
     It also records ``(t, x)`` at every accepted step. That is how
     :func:`simulate` logs: interpolating the steps at the log rate afterwards
@@ -374,6 +429,11 @@ class SafeDomainMonitor:
     ) -> None:
         self._diagram = diagram
         self._camera = diagram.GetSubsystemByName("spherical_camera")
+        self._sensor = (
+            diagram.GetSubsystemByName("feature_sensor")
+            if diagram.HasSubsystemNamed("feature_sensor")
+            else None
+        )
         self._record = record
         self._feature_points = feature_points
         self._on_step = on_step
@@ -415,13 +475,12 @@ class SafeDomainMonitor:
             pose = fixed_camera_relative_pose(tuple(pose.tolist()), *self._fixed_camera, MATH)
         out = _camera_kernel(pose, self._params_of[1])
         if out[0] > 0 and out[14] > 0 and out[15] > 0 and out[16] > 0 and out[17] > 0:
-            if self._feature_points is None:
-                return EventStatus.Succeeded()
-            lost = self._feature_points.lost(pose)
-            if lost is None:
-                return EventStatus.Succeeded()
-            t = root_context.get_time()
-            return self._stop("lost_visibility", f"lost visibility: {lost} at t = {t:.4g}")
+            if self._feature_points is not None:
+                lost = self._feature_points.lost(pose)
+                if lost is not None:
+                    t = root_context.get_time()
+                    return self._stop("lost_visibility", f"lost visibility: {lost} at t = {t:.4g}")
+            return self._check_sensor(root_context)
         t = root_context.get_time()
         if not np.all(np.isfinite(x)):
             return self._stop("non_finite", f"non-finite state at t = {t:.4g}")
@@ -439,7 +498,24 @@ class SafeDomainMonitor:
                 "left_domain",
                 f"left D: {MARGIN_NAMES[i]} margin = {margins[i]:.4g} < 0 at t = {t:.4g}",
             )
-        return EventStatus.Succeeded()  # on the boundary of D, still in it
+        return self._check_sensor(root_context)  # on the boundary of D, still in it
+
+    def _check_sensor(self, root_context) -> EventStatus:
+        """``feature_lost`` if the held frame gave no y (a camera's loop), else go on."""
+        if self._sensor is None:
+            return EventStatus.Succeeded()
+        status = self._sensor.feature_status_output.Eval(
+            self._sensor.GetMyContextFromRoot(root_context)
+        )
+        if status[0] > 0:
+            return EventStatus.Succeeded()
+        code, lost = int(status[1]), int(status[2])
+        reason = FEATURE_FAILURES[code] if 0 < code < len(FEATURE_FAILURES) else f"code {code}"
+        return self._stop(
+            "feature_lost",
+            f"feature lost at t = {root_context.get_time():.4g}: {reason} "
+            f"({lost} frame{'s' if lost != 1 else ''} in a row)",
+        )
 
     def resample(self, rate: float) -> tuple[np.ndarray, np.ndarray]:
         """``(times, states)`` at ``rate`` Hz from t = 0, plus the last step.
@@ -548,10 +624,14 @@ def simulate(
     meshcat=None,
     progress: Callable[[float], None] | None = None,
 ) -> SimulationResult:
-    """Simulate the configured loop (``config.plant``) for ``config.duration``.
+    """Simulate the configured loop (``config.plant``, ``config.camera.sensor``) for
+    ``config.duration``.
 
     Raises StartOutsideDomain if the start is not in D. A run that leaves D
-    stops early with ``status`` ``left_domain`` / ``lost_visibility``. The
+    stops early with ``status`` ``left_domain`` / ``lost_visibility``; a loop with
+    a camera whose frame gives no y stops with ``feature_lost``. With a camera the
+    logs (y, phi, margins, energy) are the true pose's; the controller acted on
+    the measured y. The
     dynamic loop starts with the camera's body twist ``config.initial_velocity``;
     if its energy E0 is not below k_p, the message says that Appendix C's energy
     guarantee does not cover the start (see :func:`energy_note`).
@@ -572,8 +652,9 @@ def simulate(
         diagram.ForcedPublish(root)
     status, message = "completed", ""
     # Initialize() also loads the compiled kernels: not part of the timing. Its
-    # monitor call may already stop the run (a law's feature point out of view at
-    # t = 0); AdvanceTo would otherwise take one step regardless.
+    # monitor call may already stop the run (a law's feature point out of view, or a
+    # camera whose first frame gives no y, at t = 0); AdvanceTo would otherwise take
+    # one step regardless (on a held y of NaN).
     initial = simulator.Initialize()
     stopped = initial.reason() == initial.ReturnReason.kReachedTerminationCondition
     start = time.perf_counter()
@@ -616,7 +697,8 @@ def simulate(
     final_X_BC = camera_pose_in_target(config, x_final, dynamic)
     if status == "completed":
         dp, dr = pose_error(final_X_BC, config.X_BC_goal)
-        converged = dp <= CONVERGENCE_POSITION_M and dr <= CONVERGENCE_ROTATION_RAD
+        tol_p, tol_r = convergence_tolerance(config)
+        converged = dp <= tol_p and dr <= tol_r
         status = "converged" if converged else "not_converged"
         message = (
             f"{'converged' if converged else 'did not converge'}: position error {dp:.3g} m, "

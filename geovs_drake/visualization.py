@@ -10,23 +10,28 @@ camera's trail is a Meshcat line drawn from the run's log.
 from __future__ import annotations
 
 import math
+import os
 import tempfile
 from pathlib import Path
 
 import numpy as np
-from pydrake.geometry import Box, Cylinder, Mesh, Meshcat, Rgba, Sphere
-from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.geometry import Box, Cylinder, GeometryId, Mesh, Meshcat, Rgba, Sphere
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import RigidBody
 
+from geovs_drake.geometry.features import TargetMarks
 from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.systems.feature_extractor import SCENE_COLOURS
 
 __all__ = [
     "add_camera_geometry",
     "add_goal_ghost",
+    "add_marked_target_geometry",
     "add_target_geometry",
     "draw_trail",
     "fov_cone_obj",
+    "sphere_obj",
 ]
 
 FOV_CONE_LENGTH = 0.25  # [m] how far the drawn cone reaches
@@ -57,6 +62,46 @@ def fov_cone_obj(
         lines.append(f"f 1 {j} {i}")  # the side, seen from outside
         lines.append(f"f {centre} {i} {j}")  # the base
     path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def sphere_obj(segments: int = 128) -> Path:
+    """An OBJ of the unit sphere, ``segments`` around and ``segments / 2`` from pole to pole,
+    with vertex normals (smooth shading); written once per resolution to the temp folder.
+
+    Why not SceneGraph's ``Sphere``: RenderEngineVtk draws it as a coarse polyhedron whose
+    silhouette lies about 0.13% inside the true circle (measured: lambda read 0.13%
+    low). At 128 segments the polygon's mean shortfall, about (2/3)(1 - cos(pi/128)),
+    is 2e-4 of the radius, and a 320x240 frame costs about 1.5 ms more to render
+    than with ``Sphere`` (192 segments: 1e-4, but twice that cost).
+    """
+    rings = segments // 2
+    path = Path(tempfile.gettempdir()) / f"geovs_drake_sphere_{segments}.obj"
+    if path.exists():
+        return path
+    lines = []
+    for i in range(rings + 1):
+        theta = math.pi * i / rings
+        for j in range(segments):
+            phi = 2 * math.pi * j / segments
+            x = math.sin(theta) * math.cos(phi)
+            y = math.sin(theta) * math.sin(phi)
+            z = math.cos(theta)
+            lines.append(f"v {x:.9f} {y:.9f} {z:.9f}")
+            lines.append(f"vn {x:.9f} {y:.9f} {z:.9f}")
+    for i in range(rings):
+        for j in range(segments):
+            a = 1 + i * segments + j
+            b = 1 + i * segments + (j + 1) % segments
+            c, d = a + segments, b + segments
+            # Counter-clockwise seen from outside; the degenerate ones at the poles are skipped.
+            if i > 0:
+                lines.append(f"f {a}//{a} {c}//{c} {b}//{b}")
+            if i < rings - 1:
+                lines.append(f"f {b}//{b} {c}//{c} {d}//{d}")
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    tmp.write_text("\n".join(lines) + "\n")
+    tmp.replace(path)  # atomic: parallel workers never read half a file
     return path
 
 
@@ -92,6 +137,60 @@ def add_target_geometry(
     )
 
 
+#: The marks' discs: thickness and lift of their underside off the tangent plane,
+#: fractions of rho. Thin, so that a disc near the limb does not change the
+#: silhouette (its rim stands about (radius^2 / 2) rho above the sphere: 0.005 rho
+#: for the default marks); low, because the extractor takes the disc's centroid for
+#: the mark's point and a top face h above it shifts by h sin(view angle) (0.003 rho
+#: put q1 0.12 px off at 640x480); lifted at all so that the depth test never mixes the
+#: disc with the sphere's mesh (which lies up to 1.3e-4 rho inside the true sphere).
+MARK_THICKNESS = 0.0006
+MARK_LIFT = 0.0004
+
+
+def add_marked_target_geometry(
+    plant: MultibodyPlant, config: ScenarioConfig, marks: TargetMarks | None = None
+) -> list[GeometryId]:
+    """The target as the rendered camera sees it, fixed in the world: a grey sphere, a red
+    disc on the marked point b and a green disc on the arrow mark (:class:`TargetMarks`),
+    in the colours the :class:`~geovs_drake.systems.FeatureExtractor` looks for
+    (:data:`~geovs_drake.systems.feature_extractor.SCENE_COLOURS`).
+
+    Each disc is a thin cylinder tangent to the sphere at its mark, its axis along
+    the sphere's normal there. Registered with illustration and perception
+    roles, so Meshcat shows what the camera renders.
+    """
+    marks = marks or TargetMarks()
+    world = plant.world_body()
+    rho = config.radius
+    X_WB = config.X_WB
+    rgba = {k: list(v) + [1.0] for k, v in SCENE_COLOURS.items()}
+    ids = [
+        plant.RegisterVisualGeometry(
+            world, X_WB, Mesh(str(sphere_obj()), rho), "target_sphere", rgba["sphere"]
+        )
+    ]
+    b_B, m_B = marks.points_B(rho)
+    offset = (MARK_LIFT + 0.5 * MARK_THICKNESS) * rho
+    for name, centre, radius, angle in (
+        ("marked_point", b_B, marks.mark_radius, 0.0),
+        ("arrow_mark", m_B, marks.arrow_mark_radius, marks.arrow_angle),
+    ):
+        # Rx(angle) turns the cylinder's axis e3 onto -(the mark's outward normal).
+        normal = centre / rho
+        X_BM = RigidTransform(RotationMatrix.MakeXRotation(angle), centre + offset * normal)
+        ids.append(
+            plant.RegisterVisualGeometry(
+                world,
+                X_WB @ X_BM,
+                Cylinder(radius * rho, MARK_THICKNESS * rho),
+                name,
+                rgba[name],
+            )
+        )
+    return ids
+
+
 def _camera_shapes(fov_half_angle: float) -> list[tuple[str, object, RigidTransform]]:
     return [
         ("box", Box(0.06, 0.04, 0.04), RigidTransform([0.0, 0.0, -0.02])),
@@ -102,26 +201,33 @@ def _camera_shapes(fov_half_angle: float) -> list[tuple[str, object, RigidTransf
 
 def add_camera_geometry(
     plant: MultibodyPlant, body: RigidBody, X_RC: RigidTransform, fov_half_angle: float
-) -> None:
-    """The camera body and its FOV cone, on the rig at X_RC."""
+) -> list[GeometryId]:
+    """The camera body and its FOV cone, on the rig at X_RC; returns their geometry ids."""
     colors = {
         "box": [0.2, 0.2, 0.25, 1.0],
         "lens": [0.1, 0.1, 0.1, 1.0],
         "fov_cone": [1, 0.8, 0.1, 0.18],
     }
-    for name, shape, X_CS in _camera_shapes(fov_half_angle):
+    return [
         plant.RegisterVisualGeometry(body, X_RC @ X_CS, shape, f"camera_{name}", colors[name])
+        for name, shape, X_CS in _camera_shapes(fov_half_angle)
+    ]
 
 
-def add_goal_ghost(plant: MultibodyPlant, config: ScenarioConfig) -> None:
-    """A translucent camera at the goal pose X_WC* = X_WB X_BC*."""
+def add_goal_ghost(plant: MultibodyPlant, config: ScenarioConfig) -> list[GeometryId]:
+    """A translucent camera at the goal pose X_WC* = X_WB X_BC*; returns its geometry ids."""
     X_WC = config.X_WB @ config.X_BC_goal
     theta = math.radians(config.domain.fov_half_angle_deg)
-    for name, shape, X_CS in _camera_shapes(theta):
-        alpha = 0.08 if name == "fov_cone" else 0.3
+    return [
         plant.RegisterVisualGeometry(
-            plant.world_body(), X_WC @ X_CS, shape, f"goal_{name}", [0.2, 0.5, 1.0, alpha]
+            plant.world_body(),
+            X_WC @ X_CS,
+            shape,
+            f"goal_{name}",
+            [0.2, 0.5, 1.0, 0.08 if name == "fov_cone" else 0.3],
         )
+        for name, shape, X_CS in _camera_shapes(theta)
+    ]
 
 
 def draw_trail(meshcat: Meshcat, X_WC: np.ndarray, path: str = "/trail", beads: int = 60) -> None:

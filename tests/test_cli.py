@@ -132,7 +132,9 @@ def test_demo_exit_3_when_the_run_did_not_converge(monkeypatch, tmp_path, capsys
     class _Result:
         status = "left_domain"
 
-    def fake_run_demo(out: str, duration: float | None, meshcat: bool) -> SimulationResult:
+    def fake_run_demo(
+        out: str, duration: float | None, meshcat: bool, rendered: bool = True
+    ) -> SimulationResult:
         return _Result()  # type: ignore[return-value]
 
     monkeypatch.setattr(geovs_drake.demo, "run_demo", fake_run_demo)
@@ -286,7 +288,7 @@ def test_demo_progress_is_sparse_in_a_log(tmp_path):
     out = tmp_path / "demo"
     run = subprocess.run(
         [sys.executable, "-m", "geovs_drake.cli", "demo", "--out", str(out), "--duration", "2",
-         "--no-meshcat"],
+         "--no-meshcat", "--no-rendered"],
         capture_output=True,
         text=True,
     )  # fmt: skip

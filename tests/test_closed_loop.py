@@ -526,3 +526,27 @@ def test_twist_law_registry_drives_both_plants(plant, monkeypatch):
     np.testing.assert_allclose(
         result.final_X_BC.translation(), config.X_BC_goal.translation(), atol=1e-9
     )
+
+
+def test_a_baseline_runs_through_the_camera_model():
+    """The laws that command a twist take y from the camera model too: PBVS through
+    the pinhole sensor (30 Hz frames, fits of projected points) converges."""
+    config = ScenarioConfig(controller="pbvs", duration=10.0)
+    config.camera.sensor = "pinhole"
+    result = simulate(config)
+    assert result.status == "converged", result.message
+    assert result.summary()["sensor"] == "pinhole"
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"plant": "kinematic"}, "runs on the dynamic plant only, got plant 'kinematic'"),
+        ({"mount": "fixed"}, "runs eye-in-hand only .*got mount 'fixed'"),
+    ],
+)
+def test_camera_models_name_the_loops_they_cannot_run(changes, message):
+    config = ScenarioConfig(**changes)
+    config.camera.sensor = "rendered"
+    with pytest.raises(ValueError, match=message):
+        config.validate()

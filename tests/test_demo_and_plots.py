@@ -37,9 +37,22 @@ def test_demo_writes_every_result(tmp_path):
     assert lines[1] == f"Meshcat recording: {(tmp_path / 'servo.html').resolve()} " + (
         "(open it in a web browser; it needs no server)"
     )
+    # The same start through rendered frames (320x240, 30 Hz, the first 6 s), beside it.
+    assert lines[2].startswith(
+        "rendered camera: nf on the dynamic plant, rendered camera 320x240 at 30 Hz: converged"
+    )
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["converged"] and not summary["left_domain"] and summary["lyapunov_monotone"]
-    for name in ("image_view.png", "run.png", "nf_slices.png"):
+    rendered = json.loads((tmp_path / "rendered_summary.json").read_text())
+    assert rendered["rendered"]["sensor"] == "rendered" and rendered["rendered"]["converged"]
+    assert rendered["exact_same_gains"]["sensor"] == "exact"
+    for name in (
+        "image_view.png",
+        "run.png",
+        "nf_slices.png",
+        "rendered_vs_exact.png",
+        "camera_frames.png",
+    ):
         assert (tmp_path / name).read_bytes()[:8] == PNG_MAGIC, name
     html = (tmp_path / "servo.html").read_text()
     assert "<html" in html.lower() and len(html) > 100_000  # the recording is embedded

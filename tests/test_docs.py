@@ -18,12 +18,27 @@ pydrake_system = pytest.importorskip("pydrake_system")  # needs sphinx (the docs
 BLOCK = re.compile(r"\.\. pydrake_system::\n\n((?:[ \t]+\S.*\n)+)")
 
 
+def _required_values() -> dict:
+    """Values for the constructor arguments some systems require, by name."""
+    config = ScenarioConfig()
+    return {
+        "goal": config.goal_features(),
+        "radius": config.radius,
+        "intrinsics": config.camera.intrinsics(config.domain.to_domain().fov_half_angle),
+    }
+
+
 def _instance(cls):
-    """A system with its defaults; the laws toward a goal image get the default goal."""
-    try:
-        return cls()
-    except TypeError:  # a required `goal`
-        return cls(goal=ScenarioConfig().goal_features())
+    """A system with its defaults, and the scenario's values where an argument is required."""
+    import inspect
+
+    required = [
+        name
+        for name, p in inspect.signature(cls._construct).parameters.items()
+        if name != "self" and p.default is inspect.Parameter.empty
+    ]
+    values = _required_values()
+    return cls(**{name: values[name] for name in required})
 
 
 def _instances():

@@ -12,7 +12,8 @@ Usage::
 3. From a folder that is not the checkout, with no ``PYTHONPATH``, in each
    environment: ``geovs-drake --version``, ``simulate --json --duration 1`` (on the
    shipped ``default.yaml`` in ``core``), ``demo --duration 1 --no-meshcat``, a
-   small ``sweep`` and a brief ``compare`` on the shipped suite. In ``core`` each
+   small ``sweep``, ``simulate --sensor rendered`` and a brief ``compare`` on the
+   shipped suite. In ``core`` each
    command either works or prints the one line
    ``geovs-drake CMD needs PKG: pip install "geovs-drake[EXTRA]"`` with exit code 2
    (``sweep`` on Dask must, naming ``[sweep]``; ``sweep --workers 1`` must work). In
@@ -226,6 +227,13 @@ def exercise(kind: str, env: Path, tmp: Path, report: Report, version: str) -> N
     if core:  # without Dask: in this process
         run, dt = _run(sweep + ["--workers", "1"], cwd)
         _check(report, kind, "sweep --workers 1 (no Dask)", run, dt, may_need_extra=False)
+
+    # The rendered camera (RgbdSensor, VTK/EGL, OpenCV): needs the `vision` extra.
+    rendered = [cli, "simulate", "--sensor", "rendered", "--duration", "0.2", "--json"]
+    run, dt = _run(rendered, cwd)
+    outcome = _check(report, kind, "simulate --sensor rendered", run, dt, core)
+    if core and outcome != "needs vision":
+        report.fail(f"core: the rendered camera should need the vision extra: {outcome}")
 
     # Every law on the shipped suite (package data), briefly, in this process.
     compare_out = cwd / "compare"

@@ -44,6 +44,7 @@ __all__ = [
     "config_at_goal",
     "linearize_at_goal",
     "navigation_hessian",
+    "rig_spatial_inertia",
 ]
 
 
@@ -111,6 +112,16 @@ class LinearizationResult:
         return float(np.max(self.eigenvalues.real))
 
 
+def rig_spatial_inertia(config: ScenarioConfig) -> np.ndarray:
+    """M, the rig's spatial inertia about the camera origin in C (Appendix C.0.6:
+    ``Ad^T M_R Ad``), on (Omega, V)."""
+    Ad = _adjoint(config.X_RC)
+    M_R = np.zeros((6, 6))
+    M_R[:3, :3] = np.diag(config.rig.inertia_diagonal)
+    M_R[3:, 3:] = config.rig.mass * np.eye(3)
+    return Ad.T @ M_R @ Ad
+
+
 def closed_form_A(config: ScenarioConfig, plant: str | None = None) -> np.ndarray:
     """The closed-form linearisation at the goal (module docstring)."""
     plant = plant or config.plant
@@ -121,11 +132,7 @@ def closed_form_A(config: ScenarioConfig, plant: str | None = None) -> np.ndarra
     if plant == "kinematic":
         return -config.control.kinematic_gain * np.linalg.solve(Cc, H @ Cc)
     K = config.control.potential_gain * Cc.T @ H @ Cc
-    Ad = _adjoint(config.X_RC)
-    M_R = np.zeros((6, 6))
-    M_R[:3, :3] = np.diag(config.rig.inertia_diagonal)
-    M_R[3:, 3:] = config.rig.mass * np.eye(3)
-    M = Ad.T @ M_R @ Ad
+    M = rig_spatial_inertia(config)
     Bd = np.diag(config.control.damping)
     A = np.zeros((12, 12))
     A[:6, 6:] = np.eye(6)

@@ -111,6 +111,11 @@ def loop_parameters(config: ScenarioConfig) -> LoopParameters:
             f"the batch engine runs the eye-in-hand loops only: mount = {config.mount!r} "
             "(use simulate() for the fixed camera)"
         )
+    if config.camera.sensor != "exact":
+        raise ValueError(
+            f"the batch engine reads the exact y = c(H); camera.sensor "
+            f"{config.camera.sensor!r} runs through simulate()"
+        )
     dynamic = config.plant == "dynamic"
     build = make_dynamic_servo_diagram if dynamic else make_kinematic_servo_diagram
     diagram = build(config, log=False)

@@ -61,11 +61,13 @@ __all__ = [
     "image_of_pose",
     "image_violation",
     "inverse_pose",
+    "inward_normal",
     "jacobian_inverse_times",
     "jacobian_rows",
     "jacobian_transpose_times",
     "limb_margin",
     "pose_matrix",
+    "ray_terms",
     "silhouette_margin",
     "validate_features",
     "visibility",
@@ -119,10 +121,31 @@ def limb_terms(y: tuple) -> tuple:
     and, unlike |s x q1|, differentiable at phi = 0 (the goal image has
     q1 = s), so AutoDiffXd gives finite derivatives there.
     """
-    q1x, q1y, q1z = y[0], y[1], y[2]
-    sx, sy, sz = y[10], y[11], y[12]
+    return ray_terms((y[0], y[1], y[2]), (y[10], y[11], y[12]))
+
+
+def ray_terms(x: tuple, s: tuple) -> tuple:
+    """``(x.s, |s x x|^2)`` for unit vectors x and s: :func:`limb_terms` for any ray x."""
+    q1x, q1y, q1z = x
+    sx, sy, sz = s
     wx, wy, wz = sy * q1z - sz * q1y, sz * q1x - sx * q1z, sx * q1y - sy * q1x
     return sx * q1x + sy * q1y + sz * q1z, wx * wx + wy * wy + wz * wz
+
+
+def inward_normal(x: tuple, lam: object, s: tuple, xp: Ops) -> tuple:
+    """``(d - p) / rho``: the unit normal, pointing to the centre, where the ray x meets the sphere.
+
+    p is the nearer of the two points where the unit ray x (inside the
+    silhouette: ``|s x x| < lambda``) meets the sphere of centre
+    ``d = (rho / lambda) s``; by Eq. (21) ``p = |p| x`` with
+    ``|p| = (rho / lambda)(x.s - sqrt(lambda^2 - |s x x|^2))``, so
+    ``(d - p) / rho = (s - f x) / lambda``, ``f = x.s - sqrt(lambda^2 - |s x x|^2)``.
+    For x = q1 this is Eq. (23)'s r3. It does not depend on rho: the image fixes
+    the shape of the scene, not its scale.
+    """
+    cos_phi, sin2 = ray_terms(x, s)
+    f = cos_phi - xp.sqrt(lam * lam - sin2)
+    return (s[0] - f * x[0]) / lam, (s[1] - f * x[1]) / lam, (s[2] - f * x[2]) / lam
 
 
 def limb_margin(y: tuple, xp: Ops) -> object:
@@ -237,10 +260,8 @@ def inverse_pose(y: tuple, rho: object, xp: Ops) -> tuple:
     visibility boundary cost 7 digits.
     """
     q1x, q1y, q1z, q2x, q2y, q2z, q3x, q3y, q3z, lam, sx, sy, sz = y
-    cos_phi, sin2 = limb_terms(y)
     r = rho / lam
-    f = cos_phi - xp.sqrt(lam * lam - sin2)
-    r3x, r3y, r3z = (sx - f * q1x) / lam, (sy - f * q1y) / lam, (sz - f * q1z) / lam
+    r3x, r3y, r3z = inward_normal((q1x, q1y, q1z), lam, (sx, sy, sz), xp)
     gx, gy, gz = q3y * r3z - q3z * r3y, q3z * r3x - q3x * r3z, q3x * r3y - q3y * r3x
     ng = xp.sqrt(gx * gx + gy * gy + gz * gz)
     r2x, r2y, r2z = gx / ng, gy / ng, gz / ng

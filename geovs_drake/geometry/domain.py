@@ -29,6 +29,7 @@ from geovs_drake.geometry.camera import (
     silhouette_margin,
     validated_components,
 )
+from geovs_drake.geometry.pinhole import PinholeIntrinsics
 
 __all__ = ["DEFAULT_DOMAIN", "DomainMargins", "SafeDomain", "domain_margins"]
 
@@ -93,6 +94,32 @@ class SafeDomain:
             )
         if not 0 < k < 1:
             raise ValueError(f"infeasible domain: need 0 < occlusion_margin < 1, got {k}")
+
+    @classmethod
+    def from_intrinsics(
+        cls,
+        intrinsics: PinholeIntrinsics,
+        lam_min: float = 0.05,
+        lam_max: float = 0.4,
+        occlusion_margin: float = 0.1,
+        border_px: float = 0.0,
+    ) -> SafeDomain:
+        """The domain whose field of view is the camera's inscribed cone.
+
+        theta is :meth:`PinholeIntrinsics.inscribed_half_angle` (``border_px`` in
+        from the image's edges). The FOV constraint keeps the silhouette's cone
+        (half-angle arcsin(lambda) about s) inside the cone of half-angle theta
+        about e3, and that cone lies inside the image rectangle: so at every
+        pose of D the whole sphere is in the image.
+        """
+        theta = intrinsics.inscribed_half_angle(border_px)
+        if 0 < lam_max < 1 and not math.asin(lam_max) < theta:  # else SafeDomain says why
+            raise ValueError(
+                f"infeasible domain: the camera's inscribed cone, {math.degrees(theta):.4g} deg, "
+                f"is no wider than the nearest sphere's, arcsin(lam_max = {lam_max}) = "
+                f"{math.degrees(math.asin(lam_max)):.4g} deg"
+            )
+        return cls(theta, lam_min, lam_max, occlusion_margin)
 
     @property
     def params(self) -> tuple[float, float, float, float, float]:

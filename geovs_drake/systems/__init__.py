@@ -1,5 +1,6 @@
 """The servo's Drake systems, one LeafSystem per module, all TemplateSystems."""
 
+from geovs_drake.systems.feature_extractor import FeatureExtractor, FeatureExtractor_
 from geovs_drake.systems.fixed_camera_kinematic_mount import (
     FixedCameraKinematicMount,
     FixedCameraKinematicMount_,
@@ -18,6 +19,10 @@ from geovs_drake.systems.path_following_controller import (
     PathFollowingController_,
 )
 from geovs_drake.systems.pbvs_controller import PbvsController, PbvsController_
+from geovs_drake.systems.pinhole_feature_sensor import (
+    PinholeFeatureSensor,
+    PinholeFeatureSensor_,
+)
 from geovs_drake.systems.spherical_camera import SphericalCamera, SphericalCamera_
 from geovs_drake.systems.spherical_feature_controller import (
     SphericalFeatureController,
@@ -35,6 +40,8 @@ __all__ = [
     "FixedCameraMount_",
     "IbvsController",
     "IbvsController_",
+    "FeatureExtractor",
+    "FeatureExtractor_",
     "ImageJacobianForce",
     "ImageJacobianForce_",
     "KinematicController",
@@ -47,6 +54,8 @@ __all__ = [
     "PathFollowingController_",
     "PbvsController",
     "PbvsController_",
+    "PinholeFeatureSensor",
+    "PinholeFeatureSensor_",
     "SphericalCamera",
     "SphericalCamera_",
     "SphericalFeatureController",

@@ -1,0 +1,104 @@
+"""What the two sampled feature sensors share: a frame clock, a latency line, a held y.
+
+A camera delivers y once per frame, not continuously. :class:`FeatureExtractor`
+(rendered images) and :class:`PinholeFeatureSensor` (the same measurement on
+exact projected points) both:
+
+* measure at t = 0 (an initialization event, so the loop starts from a frame)
+  and then every ``period`` seconds (a periodic discrete update);
+* keep the last ``latency_frames + 1`` measurements in their discrete state and
+  output the oldest: the controller acts on the frame taken ``latency_frames``
+  periods ago, held constant between frames (a zero-order hold);
+* on a failed measurement keep the last good y (never a garbage y) and count
+  the frames lost in a row. ``feature_status`` is ``[valid, code, lost]``:
+  ``lost`` failed frames in a row, ``code`` the last failure's reason
+  (:data:`~geovs_drake.geometry.features.FEATURE_FAILURES`, 0 if the frame was
+  good) and ``valid`` 1 while the held y is usable: some frame gave y and at
+  most ``max_lost_frames`` have failed since. The simulation's monitor stops the
+  run on ``valid = 0`` with the status ``feature_lost`` naming the reason.
+  Why a tolerance: with pixel noise a single frame's marks can fail the
+  consistency check now and then (1 px of noise on marks 8 px apart, about one
+  frame in 300) while the next frame is fine; holding y through a few such
+  frames is what a camera loop does, and a run then stops only when the target
+  is really lost. Before any good frame the held y is NaN and ``valid`` is 0.
+
+State layout: ``latency_frames + 1`` entries of ``[y (13), has_y, code, lost]``,
+oldest first. The outputs depend on the discrete state only, so Drake caches
+them between frames: a frame is measured once, however often the continuous
+integrator evaluates the controller.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+ENTRY_SIZE = 16
+_Y, _HAS_Y, _CODE, _LOST = slice(0, 13), 13, 14, 15
+
+
+def frame_index(t: float, period: float) -> int:
+    """The frame taken at time t (frames at 0, period, 2 period, ...)."""
+    return int(round(t / period))
+
+
+def declare_sampled_features(
+    system, period: float, latency_frames: int, max_lost_frames: int, measure: Callable
+) -> tuple[object, object]:
+    """Declare the state, events and the ``image_features`` and ``feature_status`` outputs.
+
+    ``measure(context) -> (y tuple | None, code)`` takes the current frame.
+    Returns the two output ports.
+    """
+    if not (math.isfinite(period) and period > 0):
+        raise ValueError(f"camera period must be finite and > 0 [s], got {period}")
+    for name, value in (("latency_frames", latency_frames), ("max_lost_frames", max_lost_frames)):
+        if isinstance(value, bool) or not (isinstance(value, int) and value >= 0):
+            raise ValueError(f"{name} must be an integer >= 0, got {value!r}")
+    n = latency_frames + 1
+    initial = np.zeros(n * ENTRY_SIZE)
+    initial.reshape(n, ENTRY_SIZE)[:, _Y] = math.nan
+    state = system.DeclareDiscreteState(initial)
+
+    def entry(context, previous: np.ndarray) -> np.ndarray:
+        y, code = measure(context)
+        out = previous.copy()
+        if y is None:  # keep the last good y; one more frame lost
+            out[_CODE], out[_LOST] = float(code), previous[_LOST] + 1
+        else:
+            out[_Y], out[_HAS_Y], out[_CODE], out[_LOST] = y, 1.0, 0.0, 0.0
+        return out
+
+    def on_frame(context, discrete_state) -> None:
+        buffer = context.get_discrete_state(state).get_value().reshape(n, ENTRY_SIZE)
+        new = np.vstack([buffer[1:], entry(context, buffer[-1])])
+        discrete_state.get_mutable_vector(state).SetFromVector(new.ravel())
+
+    def on_start(context, discrete_state) -> None:
+        # The first frame fills the latency line: before it, the loop has seen nothing else.
+        empty = np.zeros(ENTRY_SIZE)
+        empty[_Y] = math.nan
+        first = entry(context, empty)
+        discrete_state.get_mutable_vector(state).SetFromVector(np.tile(first, n))
+
+    system.DeclareInitializationDiscreteUpdateEvent(on_start)
+    system.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, on_frame)
+
+    def features(context, output) -> None:
+        output.SetFromVector(context.get_discrete_state(state).get_value()[_Y])
+
+    def status(context, output) -> None:
+        v = context.get_discrete_state(state).get_value()
+        usable = v[_HAS_Y] > 0 and v[_LOST] <= max_lost_frames
+        output.SetFromVector([1.0 if usable else 0.0, v[_CODE], v[_LOST]])
+
+    ticket = {system.xd_ticket()}
+    features_port = system.DeclareVectorOutputPort(
+        "image_features", 13, features, prerequisites_of_calc=ticket
+    )
+    status_port = system.DeclareVectorOutputPort(
+        "feature_status", 3, status, prerequisites_of_calc=ticket
+    )
+    return features_port, status_port
