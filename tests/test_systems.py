@@ -303,3 +303,32 @@ def test_ibvs_controller_refuses_an_unknown_depth_and_a_bad_side():
         IbvsController(goal=GOAL, depth="exact")
     with pytest.raises(ValueError, match="square side must be finite and > 0"):
         IbvsController(goal=GOAL, side=-0.1)
+
+
+@pytest.mark.parametrize("name", ["IbvsController", "PbvsController", "SphericalFeatureController"])
+def test_baseline_laws_convert_to_autodiff_with_the_same_values(name):
+    """Each baseline law's system in AutoDiffXd gives its float command, and the
+    derivative along y is that of central differences of the float system."""
+    import geovs_drake.systems as systems
+
+    law = getattr(systems, name)(goal=GOAL, radius=RHO, gain=0.7)
+    y = camera_map(RigidTransform(RollPitchYaw(0.1, -0.05, 0.8), [0.03, -0.02, 0.6]), RHO)
+    ctx = law.CreateDefaultContext()
+    law.GetInputPort("image_features").FixValue(ctx, y.to_vector())
+    command = law.GetOutputPort("camera_velocity").Eval(ctx).copy()
+    law_ad = law.ToAutoDiffXd()
+    ctx_ad = law_ad.CreateDefaultContext()
+    law_ad.GetInputPort("image_features").FixValue(ctx_ad, InitializeAutoDiff(y.to_vector()))
+    out = law_ad.GetOutputPort("camera_velocity").Eval(ctx_ad)
+    np.testing.assert_allclose(_values(out), command, atol=1e-12)
+    # Along lambda (entry 9 of y: stays in I for a small step) by central differences.
+    h, k = 1e-6, 9
+    values = []
+    for sign in (1, -1):
+        yk = y.to_vector().copy()
+        yk[k] += sign * h
+        law.GetInputPort("image_features").FixValue(ctx, yk)
+        values.append(law.GetOutputPort("camera_velocity").Eval(ctx).copy())
+    np.testing.assert_allclose(
+        ExtractGradient(np.asarray(out))[:, k], (values[0] - values[1]) / (2 * h), atol=1e-6
+    )
