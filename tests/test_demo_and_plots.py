@@ -165,3 +165,26 @@ def test_legends_hide_no_data():
     nf = NavigationFunction(config.domain.to_domain(), config.goal_features())
     for fig in (plot_image_view(result), plot_run(result), plot_navigation_slices(nf)):
         assert _data_under_legends(fig) == []
+
+
+def test_demo_without_the_vision_extra_skips_the_rendered_run_and_says_so(
+    tmp_path, monkeypatch, capsys
+):
+    """A plain install has no OpenCV: the demo runs, a note on stderr names the extra,
+    and no rendered file is written."""
+    import geovs_drake.demo as demo
+    from geovs_drake._optional import MissingExtra
+
+    def missing(module, extra, needed_by, package=None):
+        raise MissingExtra(package or module, extra, needed_by)
+
+    monkeypatch.setattr(demo, "require", missing)
+    result = demo.run_demo(tmp_path, duration=0.5, meshcat=False, rendered=True)
+    err = capsys.readouterr().err
+    assert result.sim_time_s == pytest.approx(0.5)
+    assert (
+        "skipping the rendered run: the demo's rendered run needs opencv-python-headless: "
+        'pip install "geovs-drake[vision]"'
+    ) in err
+    assert (tmp_path / "summary.json").is_file()
+    assert not (tmp_path / "rendered_vs_exact.png").exists()
