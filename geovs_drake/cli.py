@@ -23,6 +23,7 @@ import argparse
 import csv
 import json
 import math
+import os
 import sys
 import textwrap
 from pathlib import Path
@@ -46,6 +47,7 @@ from geovs_drake.simulation import StartOutsideDomain, simulate
 
 __all__ = [
     "EXIT_BAD_INPUT",
+    "EXIT_BROKEN_PIPE",
     "EXIT_CODES",
     "EXIT_CONVERGED",
     "EXIT_INTERRUPTED",
@@ -60,6 +62,7 @@ EXIT_CONVERGED = 0
 EXIT_BAD_INPUT = 2
 EXIT_NOT_CONVERGED = 3
 EXIT_INTERRUPTED = 130
+EXIT_BROKEN_PIPE = 141
 
 #: The exit codes of every command, in one place (``--help`` and the README show them).
 EXIT_CODES: dict[int, str] = {
@@ -69,6 +72,7 @@ EXIT_CODES: dict[int, str] = {
     EXIT_NOT_CONVERGED: "ran and did not converge (simulate, demo): status not_converged,\n"
     "left_domain, lost_visibility, feature_lost or non_finite",
     EXIT_INTERRUPTED: "interrupted (Ctrl-C)",
+    EXIT_BROKEN_PIPE: "the reader of stdout went away (e.g. | head), as a shell reports SIGPIPE",
 }
 
 
@@ -711,6 +715,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("geovs-drake: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # The reader closed the pipe: stop quietly, and point stdout at devnull so
+        # that the interpreter's final flush does not raise again.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
 
 
 if __name__ == "__main__":

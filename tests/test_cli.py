@@ -383,3 +383,17 @@ def test_readme_synopsis_names_real_options_and_their_choices(capsys):
                 assert sorted(arg.split("|")) == sorted(choices), (command, option)
                 checked += 1
     assert checked >= 2  # sweep's --velocity and --engine at least
+
+
+def test_a_closed_pipe_ends_quietly_with_its_own_exit_code():
+    """`geovs-drake ... | head` closes stdout early: no traceback, exit code 141."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "geovs_drake.cli", "simulate", "--json", "--duration", "0.2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    proc.stdout.close()  # the reader is gone before the result is written
+    err = proc.stderr.read()
+    assert proc.wait() == 141, err
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err
