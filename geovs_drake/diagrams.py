@@ -125,41 +125,27 @@ TARGET_BODY_NAME = "target_sphere"
 TwistControllerFactory = Callable[[DiagramBuilder, ScenarioConfig, object], LeafSystem]
 
 
-def _ibvs(builder: DiagramBuilder, config: ScenarioConfig, features) -> LeafSystem:
-    return builder.AddSystem(
-        IbvsController(
-            goal=config.goal_features(),
-            radius=config.believed_radius,
-            gain=config.control.baseline_gain,
-            depth=config.control.ibvs_depth,
+def _baseline(law: type, **options: Callable[[ScenarioConfig], object]) -> TwistControllerFactory:
+    """The factory of a baseline law toward the goal image: ``law(goal=y*, radius=rho
+    believed, gain=control.baseline_gain, **{name: option(config)})``."""
+
+    def factory(builder: DiagramBuilder, config: ScenarioConfig, features) -> LeafSystem:
+        return builder.AddSystem(
+            law(
+                goal=config.goal_features(),
+                radius=config.believed_radius,
+                gain=config.control.baseline_gain,
+                **{name: option(config) for name, option in options.items()},
+            )
         )
-    )
 
-
-def _pbvs(builder: DiagramBuilder, config: ScenarioConfig, features) -> LeafSystem:
-    return builder.AddSystem(
-        PbvsController(
-            goal=config.goal_features(),
-            radius=config.believed_radius,
-            gain=config.control.baseline_gain,
-        )
-    )
-
-
-def _spherical(builder: DiagramBuilder, config: ScenarioConfig, features) -> LeafSystem:
-    return builder.AddSystem(
-        SphericalFeatureController(
-            goal=config.goal_features(),
-            radius=config.believed_radius,
-            gain=config.control.baseline_gain,
-        )
-    )
+    return factory
 
 
 TWIST_CONTROLLERS: dict[str, TwistControllerFactory] = {
-    "ibvs": _ibvs,
-    "pbvs": _pbvs,
-    "spherical": _spherical,
+    "ibvs": _baseline(IbvsController, depth=lambda config: config.control.ibvs_depth),
+    "pbvs": _baseline(PbvsController),
+    "spherical": _baseline(SphericalFeatureController),
 }
 
 
