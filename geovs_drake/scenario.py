@@ -34,7 +34,16 @@ __all__ = [
     "MOUNTS",
     "PLANTS",
     "SENSORS",
+    "CARRIERS",
+    "LAW_VARIANTS",
     "CameraConfig",
+    "Ibvs",
+    "LawConfig",
+    "Nf",
+    "PathFollowing",
+    "Pbvs",
+    "ResolvedScenario",
+    "Spherical",
     "ControlConfig",
     "DomainConfig",
     "NavigationGainsConfig",
@@ -46,7 +55,11 @@ __all__ = [
     "SuiteScenario",
     "default_suite_path",
     "load_scenario",
+    "damping_of",
+    "law_name",
+    "law_of",
     "load_suite",
+    "resolve",
 ]
 
 
@@ -60,6 +73,83 @@ CONTROLLERS = ("nf", "ibvs", "pbvs", "spherical", "path")
 MOUNTS = ("hand", "fixed")
 #: How the loop sees the target (``ScenarioConfig.camera.sensor``).
 SENSORS = ("exact", "rendered", "pinhole")
+#: What carries the camera (``ScenarioConfig.carrier``): the free rigid body of
+#: Appendix C (its ``mount`` and ``plant`` say how).
+CARRIERS = ("free",)
+
+
+# --------------------------------------------------------------------------
+# The control laws, one variant each (``ScenarioConfig.controller``)
+# --------------------------------------------------------------------------
+# Each law holds its own fields; in YAML a law is tagged with its class name, as
+# in Drake's hardware_sim scenarios: ``controller: !Ibvs {depth: mean}``. The bare
+# name (``controller: ibvs``) is the law with its defaults, and keeps the fields
+# of the earlier, global form (``control.ibvs_depth``, ``path``): see
+# :func:`law_of`.
+@dataclass
+class Nf:
+    """The navigation function: Eq. (45)'s wrench on a force-driven carrier, the
+    twist ``-Tc^-1 grad phi`` (Eqs. 18-19) on a twist-driven one. Its gains are
+    ``control.potential_gain``, the damping and ``control.kinematic_gain``."""
+
+
+@dataclass
+class Ibvs:
+    """Point IBVS on four points (:mod:`geovs_drake.geometry.baselines`). ``depth``:
+    "true" (the current interaction matrix with the true depths, from c^-1(y)),
+    "desired" (the matrix at the goal, L_e*) or "mean" ((L_e + L_e*) / 2)."""
+
+    depth: str = "true"
+
+
+@dataclass
+class Pbvs:
+    """PBVS on ``(c*t_c, theta u)``, the pose from c^-1(y) (Eq. 23)."""
+
+
+@dataclass
+class Spherical:
+    """The sphere features ``(s / lambda, theta u)`` and their interaction matrix."""
+
+
+@dataclass
+class PathFollowing:
+    """The path follower (Sec. 4, Eq. 18).
+
+    The planner plans y_d(t) from y(0) to y* in ``duration`` seconds (geodesic
+    in I, quintic time law; if that leaves D and ``fallback``, the NF's
+    gradient flow). ``feedback_gain`` k [1/s] adds ``k log_y(y_d)`` to the
+    feed-forward; 0 is Eq. (18) as written, open loop. ``radius_scale`` scales
+    the radius the follower believes (1: the loop's believed radius; 1.1: rho
+    off by 10% more, a model error).
+    """
+
+    duration: float = 8.0
+    feedback_gain: float = 2.0
+    fallback: bool = True
+    radius_scale: float = 1.0
+
+
+#: A law's configuration: one of the variants above.
+LawConfig = Nf | Ibvs | Pbvs | Spherical | PathFollowing
+#: The law of each name in :data:`CONTROLLERS` (``path`` is :class:`PathFollowing`).
+LAW_VARIANTS: dict[str, type] = {
+    "nf": Nf,
+    "ibvs": Ibvs,
+    "pbvs": Pbvs,
+    "spherical": Spherical,
+    "path": PathFollowing,
+}
+
+
+def law_name(law: object) -> str:
+    """The name in :data:`CONTROLLERS` of a law given by name or as a variant."""
+    if isinstance(law, str):
+        return law
+    for name, variant in LAW_VARIANTS.items():
+        if type(law) is variant:
+            return name
+    raise ValueError(f"controller: {law!r} is not a law ({', '.join(CONTROLLERS)})")
 
 
 @dataclass
@@ -160,21 +250,10 @@ class ControlConfig:
 
 
 @dataclass
-class PathConfig:
-    """The path follower (``controller: path``, Sec. 4, Eq. 18).
-
-    The planner plans y_d(t) from y(0) to y* in ``duration`` seconds (geodesic
-    in I, quintic time law; if that leaves D and ``fallback``, the NF's
-    gradient flow). ``feedback_gain`` k [1/s] adds ``k log_y(y_d)`` to the
-    feed-forward; 0 is Eq. (18) as written, open loop. ``radius_scale`` is the
-    radius the controller assumes, relative to the true ``radius`` (1: an exact
-    model; 1.1: rho off by 10%, a model error).
-    """
-
-    duration: float = 8.0
-    feedback_gain: float = 2.0
-    fallback: bool = True
-    radius_scale: float = 1.0
+class PathConfig(PathFollowing):
+    """The path follower's settings in the earlier, global form (``path:``), which
+    apply when ``controller`` is the name ``path``; ``controller: !PathFollowing
+    {...}`` holds them in the law itself (:class:`PathFollowing`)."""
 
 
 @dataclass
@@ -340,15 +419,21 @@ class ScenarioConfig:
     #: The plant: "dynamic" (the MultibodyPlant free body of Appendix C, driven by a
     #: wrench) or "kinematic" (the camera's body twist is commanded, Eqs. 17-19).
     plant: str = "dynamic"
-    #: The control law (:data:`CONTROLLERS`): "nf", the navigation function of this
-    #: project, or a baseline that commands the camera's twist: "ibvs" (four
-    #: points, depth estimate ``control.ibvs_depth``), "pbvs" or "spherical"; or "path", following a
-    #: planned image path (Eq. 18, ``path`` below).
-    controller: str = "nf"
+    #: The control law: a name in :data:`CONTROLLERS` (the law with its defaults) or
+    #: a variant holding its own fields (:data:`LawConfig`), in YAML e.g.
+    #: ``controller: !Ibvs {depth: mean}``. "nf" is the navigation function of this
+    #: project; "ibvs" (four points), "pbvs" and "spherical" are baselines that
+    #: command the camera's twist; "path" follows a planned image path (Eq. 18).
+    controller: str | Nf | Ibvs | Pbvs | Spherical | PathFollowing = "nf"
+    #: What carries the camera (:data:`CARRIERS`): "free", the rigid body of
+    #: Appendix C.
+    carrier: str = "free"
     #: "hand": the camera rides on the driven body (eye-in-hand); "fixed": the
     #: camera is fixed in the world and the target sphere is the driven body
     #: (eye-to-hand, G = H^-1 of Eq. 16).
     mount: str = "hand"
+    #: The path follower's settings when ``controller`` is the name "path" (the
+    #: earlier form; :class:`PathFollowing` holds them in the law).
     path: PathConfig = field(default_factory=PathConfig)
     duration: float = 30.0
     #: Samples per second of the logged signals.
@@ -356,42 +441,42 @@ class ScenarioConfig:
     simulator: SimulatorConfig = field(default_factory=_default_simulator)
 
     def validate(self) -> None:
-        """Raise ValueError naming the first bad field and its value."""
-        if self.plant not in PLANTS:
-            raise ValueError(f"plant must be one of {', '.join(PLANTS)}, got {self.plant!r}")
-        if self.controller in PLANTS:
-            raise ValueError(
-                f"controller {self.controller!r} names a plant: write plant: {self.controller} "
-                f"(the controller is the law, one of {', '.join(CONTROLLERS)})"
-            )
-        if self.controller not in CONTROLLERS:
-            raise ValueError(
-                f"controller must be one of {', '.join(CONTROLLERS)}, got {self.controller!r}"
-            )
-        if self.mount not in MOUNTS:
-            raise ValueError(f"mount must be one of {', '.join(MOUNTS)}, got {self.mount!r}")
-        if not (math.isfinite(self.path.duration) and self.path.duration > 0):
-            raise ValueError(
-                f"path.duration must be finite and > 0 [s]: path.duration = {self.path.duration}"
-            )
-        if not (math.isfinite(self.path.feedback_gain) and self.path.feedback_gain >= 0):
-            raise ValueError(
-                "path.feedback_gain must be finite and >= 0 [1/s]: "
-                f"path.feedback_gain = {self.path.feedback_gain}"
-            )
-        if not (math.isfinite(self.path.radius_scale) and self.path.radius_scale > 0):
-            raise ValueError(
-                "path.radius_scale must be finite and > 0: "
-                f"path.radius_scale = {self.path.radius_scale}"
-            )
-        if not (math.isfinite(self.radius) and self.radius > 0):
-            raise ValueError(f"radius must be finite and > 0: radius = {self.radius}")
-        if not (math.isfinite(self.duration) and self.duration > 0):
-            raise ValueError(f"duration must be finite and > 0 [s]: duration = {self.duration}")
-        if not (math.isfinite(self.log_rate) and self.log_rate > 0):
-            raise ValueError(f"log_rate must be finite and > 0 [1/s]: log_rate = {self.log_rate}")
-        if not (math.isfinite(self.rig.mass) and self.rig.mass > 0):
-            raise ValueError(f"rig.mass must be finite and > 0 [kg]: rig.mass = {self.rig.mass}")
+        """Raise ValueError naming the first bad field and its value.
+
+        Called once at each edge (:func:`load_scenario`, the command line,
+        :func:`resolve` and so the public ``simulate`` and ``build_loop``); what
+        is built from a :class:`ResolvedScenario` trusts it.
+        """
+        for name, choices in (
+            ("plant", PLANTS),
+            ("carrier", CARRIERS),
+            ("mount", MOUNTS),
+        ):
+            value = getattr(self, name)
+            if value not in choices:
+                raise ValueError(f"{name} must be one of {', '.join(choices)}, got {value!r}")
+        if isinstance(self.controller, str):
+            if self.controller in PLANTS:
+                raise ValueError(
+                    f"controller {self.controller!r} names a plant: write plant: "
+                    f"{self.controller} (the controller is the law, one of "
+                    f"{', '.join(CONTROLLERS)})"
+                )
+            if self.controller not in CONTROLLERS:
+                raise ValueError(
+                    f"controller must be one of {', '.join(CONTROLLERS)}, got {self.controller!r}"
+                )
+        law = law_of(self)
+        for path, (low, strict, unit) in _POSITIVE.items():
+            value = _field(self, path)
+            ok = isinstance(value, int | float) and not isinstance(value, bool)
+            if not (ok and math.isfinite(value) and (value > low if strict else value >= low)):
+                where = path.removeprefix("control.")  # the gains by their own names
+                raise ValueError(
+                    f"{path} must be finite and {'>' if strict else '>='} {low:g}{unit}: "
+                    f"{where} = {value!r}"
+                )
+        _check_law(law, self)
         inertia = _finite_numbers(self.rig.inertia_diagonal, 3)
         if inertia is None or not all(v > 0 for v in inertia):
             raise ValueError(
@@ -410,15 +495,6 @@ class ScenarioConfig:
                 "control.tracking_gains must be 6 finite numbers > 0, "
                 f"got {self.control.tracking_gains!r}"
             )
-        if self.control.ibvs_depth not in IBVS_DEPTHS:
-            raise ValueError(
-                f"control.ibvs_depth must be one of {', '.join(IBVS_DEPTHS)}, "
-                f"got {self.control.ibvs_depth!r}"
-            )
-        for name in ("potential_gain", "kinematic_gain", "baseline_gain"):
-            value = getattr(self.control, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"control.{name} must be finite and > 0: {name} = {value}")
         schemes = GetIntegrationSchemes()
         if self.simulator.integration_scheme not in schemes:
             raise ValueError(
@@ -469,9 +545,8 @@ class ScenarioConfig:
 
     @property
     def damping(self) -> list[float]:
-        """The damping B the loop runs with: ``camera.damping`` with a camera, else
-        ``control.damping``."""
-        return self.control.damping if self.camera.sensor == "exact" else self.camera.damping
+        """The damping B the loop runs with (:func:`damping_of`)."""
+        return damping_of(self)
 
     @property
     def believed_radius(self) -> float:
@@ -485,6 +560,134 @@ class ScenarioConfig:
     def initial_features(self) -> ImageFeatures:
         """y(0) = c((X_BC(0))^-1), the initial image."""
         return camera_map(self.X_BC_initial.inverse(), self.radius)
+
+
+#: The scalar fields that must be finite and above a bound: path -> (bound, strict, unit).
+_POSITIVE: dict[str, tuple[float, bool, str]] = {
+    "radius": (0.0, True, ""),
+    "duration": (0.0, True, " [s]"),
+    "log_rate": (0.0, True, " [1/s]"),
+    "rig.mass": (0.0, True, " [kg]"),
+    "control.potential_gain": (0.0, True, ""),
+    "control.kinematic_gain": (0.0, True, ""),
+    "control.baseline_gain": (0.0, True, ""),
+}
+
+
+def _field(config: object, path: str) -> object:
+    for key in path.split("."):
+        config = getattr(config, key)
+    return config
+
+
+def _check_law(law: LawConfig, config: ScenarioConfig) -> None:
+    """The law's own fields, and the earlier global ones (checked whatever the law,
+    as they always were), each named where the scenario gives it."""
+    laws = [("control.ibvs_depth", Ibvs(config.control.ibvs_depth)), ("path", config.path)]
+    if not isinstance(config.controller, str):
+        laws.append(("controller", law))
+    for where, values in laws:
+        if isinstance(values, Ibvs) and values.depth not in IBVS_DEPTHS:
+            name = where if where == "control.ibvs_depth" else f"{where}.depth"
+            raise ValueError(
+                f"{name} must be one of {', '.join(IBVS_DEPTHS)}, got {values.depth!r}"
+            )
+        if isinstance(values, PathFollowing):
+            for name, strict, unit in (
+                ("duration", True, " [s]"),
+                ("feedback_gain", False, " [1/s]"),
+                ("radius_scale", True, ""),
+            ):
+                value = getattr(values, name)
+                if not (math.isfinite(value) and (value > 0 if strict else value >= 0)):
+                    raise ValueError(
+                        f"{where}.{name} must be finite and {'>' if strict else '>='} 0{unit}: "
+                        f"{where}.{name} = {value}"
+                    )
+
+
+def law_of(config: ScenarioConfig) -> LawConfig:
+    """The scenario's law as its variant: ``controller`` itself when it is one;
+    for a name, that law with the earlier global fields folded in
+    (``control.ibvs_depth`` for "ibvs", ``path`` for "path").
+
+    A variant beside a non-default global field is ambiguous and refused in one
+    line that names the law's own field.
+    """
+    law = config.controller
+    if isinstance(law, str):
+        if law == "ibvs":
+            return Ibvs(depth=config.control.ibvs_depth)
+        if law == "path":
+            return PathFollowing(**dataclasses.asdict(config.path))
+        variant = LAW_VARIANTS.get(law)
+        return variant() if variant is not None else Nf()  # a registered extension law
+    if config.control.ibvs_depth != ControlConfig.ibvs_depth:
+        raise ValueError(
+            f"control.ibvs_depth = {config.control.ibvs_depth!r} applies to controller: ibvs "
+            "given by name; with a law variant write controller: !Ibvs {depth: ...}"
+        )
+    if config.path != PathConfig():
+        raise ValueError(
+            "path: applies to controller: path given by name; with a law variant write "
+            "controller: !PathFollowing {duration: ..., feedback_gain: ...}"
+        )
+    if type(law) not in LAW_VARIANTS.values():
+        raise ValueError(f"controller: {law!r} is not a law ({', '.join(CONTROLLERS)})")
+    return law
+
+
+def damping_of(config: ScenarioConfig) -> list[float]:
+    """The damping B the loop runs with, decided here only: ``camera.damping`` with a
+    camera (rendered, pinhole), else ``control.damping`` (see :class:`CameraConfig`
+    for why a sampled camera needs more)."""
+    return config.control.damping if config.camera.sensor == "exact" else config.camera.damping
+
+
+@dataclass(frozen=True)
+class ResolvedScenario:
+    """A validated scenario with its derived quantities, resolved once (:func:`resolve`).
+
+    The loop builders, the simulator and the batch engine read these, never the
+    rules that make them: ``law`` (the variant, :func:`law_of`), ``believed_radius``
+    (what every law and C(y) believe), ``damping`` (:func:`damping_of`), the goal
+    image ``y_goal`` = c(X_CB*) for the believed radius, and the safe domain ``domain``.
+    """
+
+    config: ScenarioConfig
+    law: LawConfig
+    believed_radius: float
+    damping: tuple[float, ...]
+    y_goal: ImageFeatures
+    domain: SafeDomain
+    gains: NavigationGains
+
+    @property
+    def controller(self) -> str:
+        """The law's name (:data:`CONTROLLERS`, or a registered extension's)."""
+        return (
+            self.config.controller
+            if isinstance(self.config.controller, str)
+            else (law_name(self.law))
+        )
+
+
+def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> ResolvedScenario:
+    """Validate ``config`` (default: the default scenario) and resolve what follows from
+    it, in one step; a :class:`ResolvedScenario` passes through unchanged."""
+    if isinstance(config, ResolvedScenario):
+        return config
+    config = ScenarioConfig() if config is None else config
+    config.validate()
+    return ResolvedScenario(
+        config=config,
+        law=law_of(config),
+        believed_radius=config.believed_radius,
+        damping=tuple(float(v) for v in damping_of(config)),
+        y_goal=config.goal_features(),
+        domain=config.domain.to_domain(),
+        gains=config.navigation.to_gains(),
+    )
 
 
 def _describe(value: Any) -> str:
@@ -516,9 +719,65 @@ def _schema_fields(default: Any) -> dict[str, Any] | None:
     return None
 
 
+#: The YAML tag of each law variant (``controller: !Ibvs {depth: mean}``).
+_LAW_TAGS = {f"!{variant.__name__}": variant for variant in LAW_VARIANTS.values()}
+#: The key under which a tagged mapping keeps its tag once read (as pydrake's loader does).
+_TAG = "_tag"
+
+
+class _TaggedLoader(yaml.SafeLoader):
+    """PyYAML's safe loader that keeps a mapping's tag (a law variant) as ``_tag``."""
+
+
+def _construct_tagged(loader: yaml.SafeLoader, suffix: str, node: yaml.Node) -> dict:
+    tag = f"!{suffix}"
+    if not isinstance(node, yaml.MappingNode):
+        raise yaml.constructor.ConstructorError(
+            None, None, f"the tag {tag} needs a mapping, e.g. {tag} {{}}", node.start_mark
+        )
+    return {_TAG: tag, **loader.construct_mapping(node, deep=True)}
+
+
+_TaggedLoader.add_multi_constructor("!", _construct_tagged)
+
+
+class _TaggedDumper(yaml.SafeDumper):
+    """Writes a mapping with a ``_tag`` back as a tagged mapping, for Drake's loader."""
+
+
+def _represent_dict(dumper: yaml.SafeDumper, data: dict) -> yaml.Node:
+    if _TAG in data:
+        body = {k: v for k, v in data.items() if k != _TAG}
+        return dumper.represent_mapping(data[_TAG], body)
+    return dumper.represent_dict(data)
+
+
+_TaggedDumper.add_representer(dict, _represent_dict)
+
+
+def _load_yaml(text: str) -> Any:
+    """YAML text as a tree; tagged mappings keep their tag (``_tag``)."""
+    return yaml.load(text, Loader=_TaggedLoader)  # noqa: S506 - a SafeLoader subclass
+
+
+def _dump_yaml(tree: Any) -> str:
+    """A tree from :func:`_load_yaml` back as YAML text, tags included."""
+    return yaml.dump(tree, Dumper=_TaggedDumper)
+
+
 def _check_node(value: Any, default: Any, where: str) -> None:
     """Raise ValueError ``where: expected ..., got ...`` if ``value`` cannot fill a field
     whose default is ``default`` (the defaults have the shapes the fields need)."""
+    if where == "controller" and isinstance(value, dict) and isinstance(default, str):
+        # A law variant, by its tag; its fields are checked against the variant.
+        tag = value.get(_TAG)
+        if tag not in _LAW_TAGS:
+            raise ValueError(
+                f"controller: expected a law's name ({', '.join(CONTROLLERS)}) or a tagged "
+                f"variant ({', '.join(_LAW_TAGS)}), got {_describe(value)}"
+            )
+        _check_node({k: v for k, v in value.items() if k != _TAG}, _LAW_TAGS[tag](), where)
+        return
     fields = _schema_fields(default)
     if fields is not None:
         if not isinstance(value, dict):
@@ -591,7 +850,7 @@ def load_scenario(path: str | Path | None = None, data: str | None = None) -> Sc
         except (OSError, UnicodeDecodeError) as e:
             raise ValueError(f"{source}: cannot read: {e}") from None
     try:
-        tree = yaml.safe_load(data)
+        tree = _load_yaml(data)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         problem = getattr(e, "problem", None) or str(e).splitlines()[0]
@@ -611,7 +870,7 @@ def load_scenario(path: str | Path | None = None, data: str | None = None) -> Sc
         _complete_pose(tree, pose)
     try:
         return yaml_load_typed(
-            schema=ScenarioConfig, data=yaml.safe_dump(tree), defaults=ScenarioConfig()
+            schema=ScenarioConfig, data=_dump_yaml(tree), defaults=ScenarioConfig()
         )
     except (RuntimeError, ValueError, TypeError) as e:  # Drake's long messages: first line
         lines = str(e).strip().splitlines() or [type(e).__name__]
