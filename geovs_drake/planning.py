@@ -54,7 +54,7 @@ from geovs_drake.geometry.camera import ImageFeatures, silhouette_margin, valida
 from geovs_drake.geometry.domain import DomainMargins, SafeDomain, domain_margins
 from geovs_drake.geometry.image_path import QUINTIC_TIME_LAW, exp_image, image_distance
 from geovs_drake.geometry.navigation import NavigationFunction
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import PathFollowing, ScenarioConfig, law_of
 
 __all__ = [
     "PathExit",
@@ -386,17 +386,21 @@ def _plan_cached(key: tuple) -> PathPlan:
     )
 
 
-def plan_for_scenario(config: ScenarioConfig) -> PathPlan:
-    """The plan of ``config``: from y(0) = c(X_BC(0)^-1) to y* in ``config.path.duration``,
-    falling back on the NF's gradient flow if ``config.path.fallback``. Cached per
+def plan_for_scenario(config: ScenarioConfig, law: PathFollowing | None = None) -> PathPlan:
+    """The plan of ``config``: from y(0) = c(X_BC(0)^-1) to y* in the path law's
+    ``duration`` (``law``, default the scenario's, :func:`~geovs_drake.scenario.law_of`),
+    falling back on the NF's gradient flow if its ``fallback``. Cached per
     (start, goal, domain, gains, duration, fallback): the diagram builder and
     ``simulate`` ask for the same plan."""
+    law = law_of(config) if law is None else law
+    if not isinstance(law, PathFollowing):
+        raise ValueError(f"controller {law!r} follows no path: controller path plans one")
     key = (
         tuple(config.initial_features().to_vector().tolist()),
         tuple(config.goal_features().to_vector().tolist()),
         config.domain.to_domain(),
         config.navigation.to_gains(),
-        float(config.path.duration),
-        bool(config.path.fallback),
+        float(law.duration),
+        bool(law.fallback),
     )
     return _plan_cached(key)

@@ -53,8 +53,10 @@ from geovs_drake.diagrams import (
     make_kinematic_servo_diagram,
 )
 from geovs_drake.geometry import kernels
+from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.simulation import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
+from geovs_drake.systems.spherical_camera import CAMERA_OFFSET
 
 __all__ = [
     "DEFAULT_STEP",
@@ -135,7 +137,7 @@ def loop_parameters(config: ScenarioConfig) -> LoopParameters:
         navigation=np.array(nav.navigation_parameters(nav.GetMyContextFromRoot(root))),
         controller=params("image_jacobian_force" if dynamic else "kinematic_controller"),
         body=np.array([config.rig.mass, *config.rig.inertia_diagonal], dtype=float),
-        pose_error=np.concatenate([camera[13:25], goal]),
+        pose_error=np.concatenate([camera[CAMERA_OFFSET], goal]),
         potential_gain=config.control.potential_gain if dynamic else 1.0,
     )
 
@@ -179,6 +181,17 @@ class BatchResult:
         return {name: int(np.sum(self.status_code == k)) for k, name in enumerate(self.names)}
 
 
+# The kernels' output layouts as compile-time integers (numba freezes module globals).
+_NU = CAMERA_IMAGE.nu
+_Y0, _Y1 = CAMERA_IMAGE.y.start, CAMERA_IMAGE.y.stop
+_M0, _M1 = CAMERA_IMAGE.margins.start, CAMERA_IMAGE.margins.stop
+_D0, _D1 = NAVIGATION.dphi.start, NAVIGATION.dphi.stop
+_PHI = NAVIGATION.phi
+_F0, _F1 = SERVO_FORCE.generalized.start, SERVO_FORCE.generalized.stop
+_KINETIC = FREE_BODY.kinetic_energy
+_POSE, _FREE_STATE, _KINEMATIC_STATE = 7, 13, 7
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
 def _rhs(kinematic, x, out, p_cam, p_nav, p_ctrl, p_body):
     """The loop's xdot into ``out``; returns (nu, margins, phi, kinetic energy) at x.
@@ -188,19 +201,19 @@ def _rhs(kinematic, x, out, p_cam, p_nav, p_ctrl, p_body):
     that numba caches it (a closure over the right-hand side would recompile in
     every process).
     """
-    cam = _camera(x[0:7], p_cam)
-    y = cam[1:14]
+    cam = _camera(x[0:_POSE], p_cam)
+    y = cam[_Y0:_Y1]
     nav = _navigation(y, p_nav)
     if kinematic:
-        xdot = _kinematic_body(x, _kinematic_velocity(y, nav[1:8], p_ctrl))
-        for j in range(7):
+        xdot = _kinematic_body(x, _kinematic_velocity(y, nav[_D0:_D1], p_ctrl))
+        for j in range(_KINEMATIC_STATE):
             out[j] = xdot[j]
-        return cam[0], cam[14:18], nav[8], 0.0
-    force = _force(x, y, nav[1:8], p_ctrl)
-    body = _free_body(x, force[6:12], p_body)
-    for j in range(13):
+        return cam[_NU], cam[_M0:_M1], nav[_PHI], 0.0
+    force = _force(x, y, nav[_D0:_D1], p_ctrl)
+    body = _free_body(x, force[_F0:_F1], p_body)
+    for j in range(_FREE_STATE):
         out[j] = body[j]
-    return cam[0], cam[14:18], nav[8], body[13]
+    return cam[_NU], cam[_M0:_M1], nav[_PHI], body[_KINETIC]
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -281,7 +294,7 @@ def _integrate(
                 max_rise[i] = max(max_rise[i], lyapunov - previous)
             previous = lyapunov
             max_ratio[i] = max(max_ratio[i], lyapunov / k_p)
-            e = _pose_error(x[0:7], p_err)
+            e = _pose_error(x[0:_POSE], p_err)
             err_p[i] = math.sqrt(e[0])
             err_r[i] = 2.0 * math.asin(min(1.0, math.sqrt(e[1] / 8.0)))
             if e[0] > tol_p2 or e[1] > tol_r2:

@@ -43,7 +43,11 @@ import numpy as np
 from geovs_drake.geometry._generated import kernels as _generated
 
 __all__ = [
+    "CAMERA_IMAGE",
+    "FREE_BODY",
+    "NAVIGATION",
     "NUMBA",
+    "SERVO_FORCE",
     "camera_image",
     "for_scalar_type",
     "free_body",
@@ -100,6 +104,27 @@ def for_scalar_type(kernel: Callable, T: type) -> Callable:
     """
     return kernel.compiled if T is float else kernel.python
 
+
+class _Layout:
+    """Named slices of a kernel's flat output (``out[CAMERA_IMAGE.y]``), so that no
+    caller reads a kernel by bare index."""
+
+    def __init__(self, **fields: int | slice) -> None:
+        self.__dict__.update(fields)
+
+    def __repr__(self) -> str:
+        return f"_Layout({self.__dict__})"
+
+
+#: ``camera_image``: nu(H) (Eq. 5), y = c(H) (13), the safe domain's margins (4).
+CAMERA_IMAGE = _Layout(nu=0, y=slice(1, 14), margins=slice(14, 18))
+#: ``navigation``: 1 - phi, dphi (7), phi.
+NAVIGATION = _Layout(one_minus_phi=0, dphi=slice(1, 8), phi=8)
+#: ``servo_force`` and ``tracking_force``: the wrench in C (6), then at the rig's
+#: origin in W as the plant's generalized force (6).
+SERVO_FORCE = _Layout(wrench_C=slice(0, 6), generalized=slice(6, 12))
+#: ``free_body``: the state's derivative (13), the kinetic energy.
+FREE_BODY = _Layout(xdot=slice(0, 13), kinetic_energy=13)
 
 camera_image = _dispatch("camera_image")
 navigation = _dispatch("navigation")

@@ -15,7 +15,11 @@ import numpy as np
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 
 from geovs_drake.geometry.camera import ImageFeatures
-from geovs_drake.systems._common import image_usable, inputs_and_parameters, twist_law_parameters
+from geovs_drake.systems._parameters import (
+    image_usable,
+    inputs_and_parameters,
+    twist_law_parameters,
+)
 
 # Layout of the one numeric parameter: y* (13), rho, lambda.
 GOAL, RHO, GAIN = slice(0, 13), 13, 14

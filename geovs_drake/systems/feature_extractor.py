@@ -51,7 +51,7 @@ from geovs_drake.geometry.features import (
     silhouette_cone,
 )
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
-from geovs_drake.systems._sampled import declare_sampled_features, frame_index
+from geovs_drake.systems._held_frames import declare_sampled_features, frame_index
 
 #: OpenCV (the ``vision`` extra), imported on first use by :func:`_require_cv2`, so that
 #: the rest of the package works without it.
@@ -243,7 +243,7 @@ def FeatureExtractor_(T):
         why (:data:`~geovs_drake.geometry.features.FEATURE_FAILURES`) and
         ``lost`` counts the failed frames in a row; ``valid`` drops to 0 when
         more than ``max_lost_frames`` have failed (or none has succeeded). See
-        :mod:`geovs_drake.systems._sampled`.
+        :mod:`geovs_drake.systems._held_frames`.
 
         Double only: ``RgbdSensor`` does not convert to AutoDiffXd or
         Expression, and an image has no derivative to propagate.

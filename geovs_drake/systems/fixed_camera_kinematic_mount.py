@@ -8,7 +8,7 @@ from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.rigid import fixed_camera_relative_pose, target_twist_from_camera
-from geovs_drake.systems._common import POSE_SIZE, read
+from geovs_drake.systems._parameters import POSE_SIZE, read
 from geovs_drake.systems.fixed_camera_mount import fixed_camera_param
 
 __all__ = ["FixedCameraKinematicMount", "FixedCameraKinematicMount_"]

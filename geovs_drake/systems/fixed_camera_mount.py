@@ -8,9 +8,12 @@ from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.rigid import camera_state_in_target, target_wrench_from_camera
-from geovs_drake.systems._common import STATE_SIZE, pose_to_param, read
+from geovs_drake.systems._parameters import STATE_SIZE, pose_to_param, read
 
 __all__ = ["FixedCameraMount", "FixedCameraMount_", "fixed_camera_param"]
+
+# Layout of the one numeric parameter: X_WC as R_WC (9, row-major), p_WC, q_WC (wxyz).
+_R_WC, _P_WC, _Q_WC = slice(0, 9), slice(9, 12), slice(12, 16)
 
 
 def fixed_camera_param(X_WC: RigidTransform) -> list[float]:
@@ -93,13 +96,13 @@ def FixedCameraMount_(T):
         def CalcCameraState(self, context, output) -> None:
             x = self.target_state_input.Eval(context).tolist()
             p = read(context, self._params_index)
-            output.SetFromVector(camera_state_in_target(x, p[12:16], p[9:12], namespace(x[0])))
+            output.SetFromVector(camera_state_in_target(x, p[_Q_WC], p[_P_WC], namespace(x[0])))
 
         def CalcGeneralizedForce(self, context, output) -> None:
             x = self.target_state_input.Eval(context).tolist()
             F_C = self.wrench_C_input.Eval(context).tolist()
             p = read(context, self._params_index)
-            output.SetFromVector(target_wrench_from_camera(F_C, x, p[0:9], p[9:12]))
+            output.SetFromVector(target_wrench_from_camera(F_C, x, p[_R_WC], p[_P_WC]))
 
     return Impl
 

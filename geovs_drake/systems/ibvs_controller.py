@@ -16,7 +16,7 @@ from geovs_drake.geometry.baselines import (
     target_points,
 )
 from geovs_drake.geometry.camera import ImageFeatures
-from geovs_drake.systems._common import (
+from geovs_drake.systems._parameters import (
     floats,
     image_usable,
     inputs_and_parameters,

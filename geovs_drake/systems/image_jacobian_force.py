@@ -10,7 +10,7 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry.kernels import for_scalar_type, servo_force
-from geovs_drake.systems._common import (
+from geovs_drake.systems._parameters import (
     STATE_SIZE,
     inputs_and_parameters,
     param_vector,
@@ -49,7 +49,7 @@ def ImageJacobianForce_(T):
             - wrench_C
 
         ``body_state`` is the rig's 13-vector free-body state (see
-        :mod:`geovs_drake.systems._common`), from which the camera's body
+        :mod:`geovs_drake.systems._parameters`), from which the camera's body
         velocity ``(Omega, V) = G^-1 Gdot`` (Eq. 16) is formed at the camera
         frame C = X_RC on the rig. ``image_features`` is expected in I (the
         :class:`NavigationController` on the same y checks it; NaN passes

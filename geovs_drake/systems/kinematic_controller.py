@@ -8,7 +8,7 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry.kernels import for_scalar_type, kinematic_velocity
-from geovs_drake.systems._common import inputs_and_parameters, param_vector
+from geovs_drake.systems._parameters import inputs_and_parameters, param_vector
 
 __all__ = ["KinematicController", "KinematicController_"]
 

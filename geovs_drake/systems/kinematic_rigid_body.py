@@ -8,7 +8,7 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry.kernels import for_scalar_type, kinematic_body
-from geovs_drake.systems._common import POSE_SIZE
+from geovs_drake.systems._parameters import POSE_SIZE
 
 __all__ = ["KinematicRigidBody", "KinematicRigidBody_", "pose_state"]
 

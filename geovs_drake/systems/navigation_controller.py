@@ -17,7 +17,7 @@ from geovs_drake.geometry.navigation import (
     NavigationGains,
     navigation_parameters,
 )
-from geovs_drake.systems._common import (
+from geovs_drake.systems._parameters import (
     domain_to_param,
     floats,
     inputs_and_parameters,

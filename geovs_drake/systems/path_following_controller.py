@@ -11,7 +11,7 @@ from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.camera import image_violation
 from geovs_drake.geometry.image_path import image_error
 from geovs_drake.geometry.servo import path_following_velocity
-from geovs_drake.systems._common import inputs_and_parameters, read, values_or_none
+from geovs_drake.systems._parameters import inputs_and_parameters, read, values_or_none
 
 __all__ = ["PathFollowingController", "PathFollowingController_", "check_path_gains"]
 
@@ -64,7 +64,7 @@ def PathFollowingController_(T):
         assumes (it may differ from the true one, for model-error studies) and
         the feedback gain k [1/s]. An image outside I (an integrator's trial
         stage past the limb, or NaN from an invisible pose) gives NaN outputs,
-        never an exception (see :mod:`geovs_drake.systems._common`).
+        never an exception (see :mod:`geovs_drake.systems._parameters`).
         """
 
         def _construct(self, radius: float = 0.1, gain: float = 0.0, converter=None):

@@ -13,8 +13,8 @@ from geovs_drake.geometry._ops import MATH
 from geovs_drake.geometry.features import TargetMarks, pinhole_measurement
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
 from geovs_drake.geometry.rigid import cross, quaternion_to_rotation, target_in_camera
-from geovs_drake.systems._common import POSE_SIZE, pose_to_param
-from geovs_drake.systems._sampled import declare_sampled_features, frame_index
+from geovs_drake.systems._held_frames import declare_sampled_features, frame_index
+from geovs_drake.systems._parameters import POSE_SIZE, pose_to_param
 
 __all__ = ["PinholeFeatureSensor", "PinholeFeatureSensor_"]
 
@@ -54,7 +54,7 @@ def PinholeFeatureSensor_(T):
         one asks about (noise, calibration, latency) and costs about 0.1 ms a
         frame, so robustness sweeps run through the Drake loop quickly.
         Outputs, latency and hold as :class:`FeatureExtractor`
-        (:mod:`geovs_drake.systems._sampled`). Double only (a measurement with
+        (:mod:`geovs_drake.systems._held_frames`). Double only (a measurement with
         random noise; nothing to differentiate).
 
         ``body_pose`` is the rig's ``[qw, qx, qy, qz, x, y, z]`` (as for

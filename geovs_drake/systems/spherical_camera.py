@@ -11,9 +11,9 @@ from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.domain import DEFAULT_DOMAIN, SafeDomain
-from geovs_drake.geometry.kernels import camera_image, for_scalar_type
+from geovs_drake.geometry.kernels import CAMERA_IMAGE, camera_image, for_scalar_type
 from geovs_drake.geometry.rigid import cross, quaternion_to_rotation, target_in_camera
-from geovs_drake.systems._common import (
+from geovs_drake.systems._parameters import (
     POSE_SIZE,
     domain_to_param,
     floats,
@@ -28,6 +28,10 @@ __all__ = ["SphericalCamera", "SphericalCamera_"]
 
 # Layout of the one numeric parameter: radius, X_WB, X_RC, domain.
 _RADIUS, _X_WB, _X_RC, _DOMAIN = 0, slice(1, 13), slice(13, 25), slice(25, 29)
+#: A pose parameter's rotation (row-major) and translation.
+_ROTATION, _TRANSLATION = slice(0, 9), slice(9, 12)
+#: Where X_RC sits in the parameter vector (the batch engine reads it there).
+CAMERA_OFFSET = _X_RC
 
 
 @TemplateSystem.define("SphericalCamera_")
@@ -57,7 +61,7 @@ def SphericalCamera_(T):
         occlusion]`` of :class:`~geovs_drake.geometry.domain.SafeDomain` (all
         >= 0 in D). When the pose is not visible y is undefined:
         ``image_features`` is all NaN (so an integrator rejects such a trial
-        stage, see :mod:`geovs_drake.systems._common`) and
+        stage, see :mod:`geovs_drake.systems._parameters`) and
         every margin reads nu <= 0. The pure
         :func:`~geovs_drake.geometry.camera.camera_map` raises
         ``ValueError: pose not visible ...`` instead.
@@ -148,7 +152,9 @@ def SphericalCamera_(T):
             x = self.body_pose_input.Eval(context).tolist()
             p = read(context, self._params_index)
             R_WR = quaternion_to_rotation(x[0:4], namespace(x[0]))
-            r2, r3, d = target_in_camera(R_WR, x[4:7], p[13:22], p[22:25], p[1:10], p[10:13])
+            R_RC, p_RC = p[_X_RC][_ROTATION], p[_X_RC][_TRANSLATION]
+            R_WB, p_WB = p[_X_WB][_ROTATION], p[_X_WB][_TRANSLATION]
+            r2, r3, d = target_in_camera(R_WR, x[4:7], R_RC, p_RC, R_WB, p_WB)
             return p[_RADIUS], r2, r3, d
 
         def X_CB(self, context) -> np.ndarray:
@@ -167,20 +173,22 @@ def SphericalCamera_(T):
 
         def CalcImageFeatures(self, context, output) -> None:
             out = self._image(context)
-            nu = scalar_value(out[0])
+            nu = scalar_value(out[CAMERA_IMAGE.nu])
             if nu is not None and not nu > 0:  # not visible (or NaN): y is undefined
                 output.SetFromVector([math.nan] * 13)
                 return
-            output.SetFromVector(out[1:14])
+            output.SetFromVector(out[CAMERA_IMAGE.y])
 
         def CalcVisibility(self, context, output) -> None:
-            output.SetFromVector(self._image(context)[0:1])
+            output.SetFromVector([self._image(context)[CAMERA_IMAGE.nu]])
 
         def CalcDomainMargins(self, context, output) -> None:
             out = self._image(context)
-            nu = scalar_value(out[0])
+            nu = scalar_value(out[CAMERA_IMAGE.nu])
             # Every margin reads nu where the pose is not visible (y undefined).
-            output.SetFromVector(out[0:1] * 4 if nu is not None and not nu > 0 else out[14:18])
+            margins = out[CAMERA_IMAGE.margins]
+            not_visible = nu is not None and not nu > 0
+            output.SetFromVector([out[CAMERA_IMAGE.nu]] * 4 if not_visible else margins)
 
     return Impl
 

@@ -8,7 +8,7 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry.kernels import for_scalar_type, tracking_force
-from geovs_drake.systems._common import (
+from geovs_drake.systems._parameters import (
     STATE_SIZE,
     inputs_and_parameters,
     param_vector,

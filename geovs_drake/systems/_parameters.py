@@ -1,4 +1,4 @@
-"""Pieces shared by the LeafSystems: state layout, parameter packing, NaN on trial stages.
+"""Helpers the LeafSystems share: state layout, parameter packing, NaN on trial stages.
 
 Free-body state layout (MultibodyPlant, quaternion floating joint)::
 

@@ -1,0 +1,313 @@
+"""Carriers: what moves the camera (a loop is carrier + sensor + law, :mod:`.build`).
+
+A carrier adds its bodies to the builder and returns :class:`CarrierParts`:
+what it *offers* (the pose the camera system reads, the body state a force law
+damps, its own state for the loggers) and what it *takes* (a wrench through
+:attr:`CarrierParts.connect_force`, or a twist at :attr:`CarrierParts.twist_input`).
+:data:`CARRIERS` registers one factory per ``(carrier, mount, plant)``; adding a
+carrier is one factory and one entry.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.geometry import Meshcat, MeshcatVisualizer, Role, SceneGraph
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
+from pydrake.multibody.tree import RigidBody, RotationalInertia, SpatialInertia
+from pydrake.systems.framework import Context, DiagramBuilder, InputPort, LeafSystem, OutputPort
+from pydrake.systems.primitives import Demultiplexer
+from pydrake.visualization import AddFrameTriadIllustration
+
+from geovs_drake.geometry._ops import MATH, NUMPY
+from geovs_drake.geometry.rigid import fixed_camera_relative_pose
+from geovs_drake.loop.state import POSE, fixed_camera_pose, initial_rig_pose, initial_rig_state
+from geovs_drake.scenario import ResolvedScenario, ScenarioConfig
+from geovs_drake.systems import FixedCameraKinematicMount, FixedCameraMount, KinematicRigidBody
+from geovs_drake.visualization import (
+    add_camera_geometry,
+    add_goal_ghost,
+    add_marked_target_geometry,
+    add_target_geometry,
+)
+
+__all__ = [
+    "CARRIERS",
+    "RIG_BODY_NAME",
+    "TARGET_BODY_NAME",
+    "CarrierParts",
+    "carrier_key",
+]
+
+RIG_BODY_NAME = "camera_rig"
+TARGET_BODY_NAME = "target_sphere"
+#: The frame triad drawn at the camera in Meshcat [m].
+_TRIAD_LENGTH, _TRIAD_RADIUS = 0.08, 0.003
+
+
+@dataclass
+class CarrierParts:
+    """What a carrier offers the loop and what it takes.
+
+    Offers: ``body_pose``, the ``[q, p]`` (7) of the body the camera rides on, in
+    the camera system's world, where the target stands at ``X_WB`` and the camera
+    at ``X_RC`` on the body; ``body_state`` (13, a free body's layout), what a
+    force law's damping reads; ``state``, the carrier's own state for the loggers
+    (logged as ``state_log_name``). Takes, by ``drive``: "wrench", a force system
+    (``ImageJacobianForce`` or ``VelocityTrackingForce``) that ``connect_force``
+    wires in; or "twist", the camera's body twist (Omega, V) at ``twist_input``.
+
+    ``pose_of_states`` maps the loop's continuous states (n,) or (N, n) to the
+    components of ``body_pose`` without evaluating the diagram (the monitor's and
+    the logs' fast path); ``set_initial_state`` puts the start into a simulator's
+    context. ``plant``, ``scene_graph`` and ``body`` (where the camera rides, for
+    the rendered sensor) are None for a carrier without geometry.
+    """
+
+    drive: str
+    body_pose: OutputPort
+    state: OutputPort
+    state_log_name: str
+    X_WB: RigidTransform
+    X_RC: RigidTransform
+    pose_of_states: Callable[[np.ndarray, object], tuple]
+    set_initial_state: Callable[[Context], None]
+    body_state: OutputPort | None = None
+    twist_input: InputPort | None = None
+    connect_force: Callable[[DiagramBuilder, LeafSystem], None] | None = None
+    add_meshcat: Callable[[DiagramBuilder, Meshcat], None] | None = None
+    plant: MultibodyPlant | None = None
+    scene_graph: SceneGraph | None = None
+    body: RigidBody | None = None
+
+
+#: A carrier factory: ``factory(builder, resolved, draws_marks)`` adds the carrier;
+#: ``draws_marks`` asks for the target drawn in the extractor's colours (a camera sensor).
+CarrierFactory = Callable[[DiagramBuilder, ResolvedScenario, bool], CarrierParts]
+
+
+def carrier_key(config: ScenarioConfig) -> tuple[str, str, str]:
+    """The :data:`CARRIERS` key of a scenario: ``(carrier, mount, plant)``."""
+    return config.carrier, config.mount, config.plant
+
+
+def _leading_pose(states: np.ndarray, ops: object) -> tuple:
+    """The pose at the head of a state (the body the camera system reads)."""
+    x = np.asarray(states, dtype=float)
+    return tuple(x[..., POSE].T) if x.ndim > 1 else x[POSE]
+
+
+def _no_initial_state(context: Context) -> None:
+    """The carrier's system holds its start as its default state."""
+
+
+def _free_body(builder: DiagramBuilder, config: ScenarioConfig, name: str):
+    """A continuous MultibodyPlant with one free body of the rig's mass model, gravity off
+    (the paper's Appendix C assumes it cancelled)."""
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+    body = plant.AddRigidBody(
+        name,
+        SpatialInertia.MakeFromCentralInertia(
+            config.rig.mass, np.zeros(3), RotationalInertia(*config.rig.inertia_diagonal)
+        ),
+    )
+    plant.mutable_gravity_field().set_gravity_vector(np.zeros(3))
+    return plant, scene_graph, body
+
+
+def _set_plant_state(plant: MultibodyPlant, config: ScenarioConfig) -> Callable[[Context], None]:
+    def set_initial_state(root: Context) -> None:
+        # The plant has no default velocity: the start's twist is set here.
+        plant.SetPositionsAndVelocities(
+            plant.GetMyMutableContextFromRoot(root), initial_rig_state(config)
+        )
+
+    return set_initial_state
+
+
+def _free_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool):
+    """Eye-in-hand, dynamic: the rig is a MultibodyPlant free body pushed by a wrench.
+
+    The rig's body frame R has its origin at the centre of mass; the camera sits at
+    X_RC on it (Appendix C.0.6). With ``draws_marks`` the target is drawn in the
+    extractor's colours and the camera's own drawing and the goal ghost are kept out
+    of the renderer (illustration only).
+    """
+    config = resolved.config
+    plant, scene_graph, rig = _free_body(builder, config, RIG_BODY_NAME)
+    theta = resolved.domain.fov_half_angle
+    (add_marked_target_geometry if draws_marks else add_target_geometry)(plant, config)
+    drawing = add_camera_geometry(plant, rig, config.X_RC, theta) + add_goal_ghost(plant, config)
+    plant.Finalize()
+    plant.SetDefaultFloatingBaseBodyPose(rig, initial_rig_pose(config))
+    if draws_marks:
+        for geometry_id in drawing:
+            scene_graph.RemoveRole(plant.get_source_id(), geometry_id, Role.kPerception)
+    demux = builder.AddNamedSystem("state_demux", Demultiplexer([7, 6]))
+    builder.Connect(plant.get_state_output_port(), demux.get_input_port())
+
+    def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
+        # The force system shifts its wrench to the rig's origin in W itself: one
+        # kernel call gives both (no system in between on the hot path).
+        builder.Connect(plant.get_state_output_port(), force.body_state_input)
+        builder.Connect(
+            force.generalized_force_output, plant.get_applied_generalized_force_input_port()
+        )
+
+    def add_meshcat(builder: DiagramBuilder, meshcat: Meshcat) -> None:
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+        AddFrameTriadIllustration(
+            scene_graph=scene_graph,
+            body=rig,
+            X_FT=config.X_RC,
+            length=_TRIAD_LENGTH,
+            radius=_TRIAD_RADIUS,
+            name="C",
+        )
+
+    return CarrierParts(
+        drive="wrench",
+        body_pose=demux.get_output_port(0),
+        state=plant.get_state_output_port(),
+        state_log_name="log_body_state",
+        X_WB=config.X_WB,
+        X_RC=config.X_RC,
+        pose_of_states=_leading_pose,
+        set_initial_state=_set_plant_state(plant, config),
+        body_state=plant.get_state_output_port(),
+        connect_force=connect_force,
+        add_meshcat=add_meshcat,
+        plant=plant,
+        scene_graph=scene_graph,
+        body=rig,
+    )
+
+
+def _kinematic_body(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool):
+    """Eye-in-hand, kinematic (Eqs. 17-19): the body *is* the camera frame (X_RC = I),
+    its body twist commanded."""
+    config = resolved.config
+    body = builder.AddNamedSystem(
+        "kinematic_rigid_body", KinematicRigidBody(X_WC0=config.X_WB @ config.X_BC_initial)
+    )
+    return CarrierParts(
+        drive="twist",
+        body_pose=body.body_pose_output,
+        state=body.body_pose_output,
+        state_log_name="log_body_pose",
+        X_WB=config.X_WB,
+        X_RC=RigidTransform(),
+        pose_of_states=_leading_pose,
+        set_initial_state=_no_initial_state,
+        twist_input=body.camera_velocity_input,
+    )
+
+
+def _relative_pose(X_WC: RigidTransform) -> Callable[[np.ndarray, object], tuple]:
+    """The fixed camera reads G = X_WB^-1 X_WC from the target's state."""
+    q_WC = tuple(X_WC.rotation().ToQuaternion().wxyz().tolist())
+    p_WC = tuple(X_WC.translation().tolist())
+
+    def pose_of_states(states: np.ndarray, ops: object) -> tuple:
+        x = np.asarray(states, dtype=float)
+        if x.ndim > 1:
+            return fixed_camera_relative_pose(tuple(x[..., POSE].T), q_WC, p_WC, NUMPY)
+        return fixed_camera_relative_pose(tuple(x[POSE].tolist()), q_WC, p_WC, MATH)
+
+    return pose_of_states
+
+
+def _fixed_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool):
+    """Fixed camera (eye-to-hand), dynamic: the target sphere is the free body, with the
+    rig's mass model about its centre, and the camera stands at
+    :func:`~geovs_drake.loop.state.fixed_camera_pose`. The camera system and the laws
+    see the relative pose G = H^-1 (Eq. 16), with the target frame as their world
+    (X_WB = X_RC = I); a :class:`~geovs_drake.systems.FixedCameraMount` turns the
+    target's state into the camera's relative state and the law's camera wrench
+    into the reaction on the target."""
+    config = resolved.config
+    X_WC = fixed_camera_pose(config)
+    plant, scene_graph, target = _free_body(builder, config, TARGET_BODY_NAME)
+    add_target_geometry(plant, config, body=target)
+    add_target_geometry(plant, config, X_WB=config.X_WB, alpha=0.25, prefix="goal_")
+    add_camera_geometry(plant, plant.world_body(), X_WC, resolved.domain.fov_half_angle)
+    plant.Finalize()
+    x0 = initial_rig_state(config)
+    plant.SetDefaultFloatingBaseBodyPose(target, RigidTransform(Quaternion(x0[0:4]), x0[4:7]))
+    mount = builder.AddNamedSystem("fixed_camera_mount", FixedCameraMount(X_WC=X_WC))
+    builder.Connect(plant.get_state_output_port(), mount.target_state_input)
+    demux = builder.AddNamedSystem("state_demux", Demultiplexer([7, 6]))
+    builder.Connect(mount.camera_state_output, demux.get_input_port())
+
+    def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
+        builder.Connect(mount.camera_state_output, force.body_state_input)
+        builder.Connect(force.wrench_C_output, mount.wrench_C_input)
+        builder.Connect(
+            mount.generalized_force_output, plant.get_applied_generalized_force_input_port()
+        )
+
+    def add_meshcat(builder: DiagramBuilder, meshcat: Meshcat) -> None:
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+        AddFrameTriadIllustration(
+            scene_graph=scene_graph,
+            body=plant.world_body(),
+            X_FT=X_WC,
+            length=_TRIAD_LENGTH,
+            radius=_TRIAD_RADIUS,
+            name="C",
+        )
+
+    return CarrierParts(
+        drive="wrench",
+        body_pose=demux.get_output_port(0),
+        state=plant.get_state_output_port(),
+        state_log_name="log_body_state",
+        X_WB=RigidTransform(),
+        X_RC=RigidTransform(),
+        pose_of_states=_relative_pose(X_WC),
+        set_initial_state=_set_plant_state(plant, config),
+        body_state=mount.camera_state_output,
+        connect_force=connect_force,
+        add_meshcat=add_meshcat,
+        plant=plant,
+        scene_graph=scene_graph,
+        body=target,
+    )
+
+
+def _fixed_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool):
+    """Fixed camera, kinematic: the target is a kinematic body whose twist a
+    :class:`~geovs_drake.systems.FixedCameraKinematicMount` makes from the law's
+    camera twist (Eq. 16)."""
+    config = resolved.config
+    X_WC = fixed_camera_pose(config)
+    body = builder.AddNamedSystem(
+        "kinematic_rigid_body", KinematicRigidBody(X_WC0=X_WC @ config.X_BC_initial.inverse())
+    )
+    mount = builder.AddNamedSystem("fixed_camera_mount", FixedCameraKinematicMount(X_WC=X_WC))
+    builder.Connect(body.body_pose_output, mount.target_pose_input)
+    builder.Connect(mount.target_velocity_output, body.camera_velocity_input)
+    return CarrierParts(
+        drive="twist",
+        body_pose=mount.camera_pose_output,
+        state=body.body_pose_output,
+        state_log_name="log_body_pose",
+        X_WB=RigidTransform(),
+        X_RC=RigidTransform(),
+        pose_of_states=_relative_pose(X_WC),
+        set_initial_state=_no_initial_state,
+        twist_input=mount.camera_velocity_input,
+    )
+
+
+#: The carriers, by ``(carrier, mount, plant)`` (:func:`carrier_key`).
+CARRIERS: dict[tuple[str, str, str], CarrierFactory] = {
+    ("free", "hand", "dynamic"): _free_rig,
+    ("free", "hand", "kinematic"): _kinematic_body,
+    ("free", "fixed", "dynamic"): _fixed_rig,
+    ("free", "fixed", "kinematic"): _fixed_kinematic,
+}

@@ -1,0 +1,181 @@
+"""Laws: what the loop does with y (a loop is carrier + sensor + law, :mod:`.build`).
+
+A law takes y and offers either a twist (Omega, V) in C or, on a
+force-driven carrier, a force system. :data:`LAWS` holds one entry per law
+name; ``add(builder, resolved, y, nav, carrier)`` adds the law's systems and
+returns the twist's output port, or the force system (``ImageJacobianForce``)
+for the carrier to wire in. The loop builder adapts a twist to a force-driven
+carrier with the velocity-tracking force.
+
+* ``nf``: the navigation function. On a force-driven carrier Eq. (45)'s wrench
+  ``F = C(y)^T dphi k_p - B (Omega, V)`` (``image_jacobian_force``); on a
+  twist-driven one the kinematic law ``-k Tc^-1 dphi`` (Eqs. 18-19,
+  ``kinematic_controller``).
+* ``ibvs``, ``pbvs``, ``spherical``: the baselines toward the goal image (the
+  subsystem ``controller``).
+* ``path``: the planned y_d(t) (``desired_image``) followed by Eq. (18).
+
+Every law believes the same radius, ``resolved.believed_radius``, in C(y) and
+in y*; the damping is ``resolved.damping``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, MutableMapping
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
+from pydrake.systems.primitives import TrajectorySource
+
+from geovs_drake.loop.carriers import CarrierParts
+from geovs_drake.planning import plan_for_scenario
+from geovs_drake.scenario import ResolvedScenario, ScenarioConfig
+from geovs_drake.systems import (
+    IbvsController,
+    ImageJacobianForce,
+    KinematicController,
+    NavigationController,
+    PathFollowingController,
+    PbvsController,
+    SphericalFeatureController,
+)
+
+__all__ = ["LAWS", "TWIST_CONTROLLERS", "Law", "TwistControllerFactory"]
+
+#: What a law adds: the twist's output port, or a force system for the carrier.
+LawOutput = OutputPort | LeafSystem
+
+
+@dataclass(frozen=True)
+class Law:
+    """A law: ``add(builder, resolved, y, nav, carrier)`` (``y`` the port the sensor
+    offers, ``nav`` the ``navigation_controller``) adds its systems and returns
+    :data:`LawOutput`."""
+
+    add: Callable[
+        [DiagramBuilder, ResolvedScenario, OutputPort, NavigationController, CarrierParts],
+        LawOutput,
+    ]
+
+
+def _nf(builder, resolved, y, nav, carrier) -> LawOutput:
+    config = resolved.config
+    if carrier.drive == "wrench":
+        force = builder.AddNamedSystem(
+            "image_jacobian_force",
+            ImageJacobianForce(
+                radius=resolved.believed_radius,
+                potential_gain=config.control.potential_gain,
+                damping=np.asarray(resolved.damping),
+                X_RC=carrier.X_RC,
+            ),
+        )
+        law = force
+    else:
+        law = builder.AddNamedSystem(
+            "kinematic_controller",
+            KinematicController(
+                radius=resolved.believed_radius, gain=config.control.kinematic_gain
+            ),
+        )
+    builder.Connect(y, law.image_features_input)
+    builder.Connect(nav.dphi_output, law.dphi_input)
+    return law if carrier.drive == "wrench" else law.camera_velocity_output
+
+
+def _twist_law(make: Callable[[DiagramBuilder, ResolvedScenario], LeafSystem]) -> Law:
+    """A law that commands a twist: its system, named ``controller``, reads y."""
+
+    def add(builder, resolved, y, nav, carrier) -> LawOutput:
+        law = make(builder, resolved)
+        law.set_name("controller")
+        if law.HasInputPort("image_features"):
+            builder.Connect(y, law.GetInputPort("image_features"))
+        return law.GetOutputPort("camera_velocity")
+
+    return Law(add)
+
+
+def _baseline(law: type, **options: Callable[[ResolvedScenario], object]) -> Law:
+    """A baseline law toward the goal image: ``law(goal=y*, radius=rho believed,
+    gain=control.baseline_gain, **{name: option(resolved)})``."""
+
+    def make(builder: DiagramBuilder, resolved: ResolvedScenario) -> LeafSystem:
+        return builder.AddSystem(
+            law(
+                goal=resolved.y_goal,
+                radius=resolved.believed_radius,
+                gain=resolved.config.control.baseline_gain,
+                **{name: option(resolved) for name, option in options.items()},
+            )
+        )
+
+    return _twist_law(make)
+
+
+def _path_following(builder: DiagramBuilder, resolved: ResolvedScenario) -> LeafSystem:
+    """The planned y_d(t) (:func:`~geovs_drake.planning.plan_for_scenario`) through a
+    ``TrajectorySource`` named ``desired_image`` (value and derivative) into a
+    :class:`PathFollowingController` (Eq. 18, with the law's ``feedback_gain``).
+    Raises PathPlanningError (a ValueError) if there is no path inside D."""
+    law = resolved.law
+    plan = plan_for_scenario(resolved.config, law)
+    source = builder.AddNamedSystem(
+        "desired_image", TrajectorySource(plan.trajectory, output_derivative_order=1)
+    )
+    follower = builder.AddSystem(
+        PathFollowingController(
+            radius=resolved.believed_radius * law.radius_scale, gain=law.feedback_gain
+        )
+    )
+    builder.Connect(source.get_output_port(), follower.desired_image_input)
+    return follower
+
+
+#: The laws, by name (``ScenarioConfig.controller``, :data:`~geovs_drake.scenario.CONTROLLERS`).
+LAWS: dict[str, Law] = {
+    "nf": Law(_nf),
+    "ibvs": _baseline(IbvsController, depth=lambda resolved: resolved.law.depth),
+    "pbvs": _baseline(PbvsController),
+    "spherical": _baseline(SphericalFeatureController),
+    "path": _twist_law(_path_following),
+}
+
+#: The earlier extension point: ``factory(builder, config, features)`` adds a
+#: twist-commanding law's system to ``builder`` and returns it (output port
+#: ``camera_velocity``; an ``image_features`` input, if any, is connected for it).
+TwistControllerFactory = Callable[[DiagramBuilder, ScenarioConfig, OutputPort], LeafSystem]
+
+
+class _TwistControllers(MutableMapping):
+    """:data:`LAWS`' twist-commanding laws as ``name -> factory``: registering a
+    factory here registers a law there, so there is one registry."""
+
+    def __init__(self) -> None:
+        self._factories: dict[str, TwistControllerFactory] = {}
+
+    def __getitem__(self, name: str) -> TwistControllerFactory:
+        return self._factories[name]
+
+    def __setitem__(self, name: str, factory: TwistControllerFactory) -> None:
+        self._factories[name] = factory
+
+        def make(builder: DiagramBuilder, resolved: ResolvedScenario) -> LeafSystem:
+            return factory(builder, resolved.config, None)
+
+        LAWS[name] = _twist_law(make)
+
+    def __delitem__(self, name: str) -> None:
+        del self._factories[name]
+        del LAWS[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._factories)
+
+    def __len__(self) -> int:
+        return len(self._factories)
+
+
+#: Register a twist-commanding law by name (see :data:`TwistControllerFactory`).
+TWIST_CONTROLLERS: MutableMapping[str, TwistControllerFactory] = _TwistControllers()

@@ -1,0 +1,191 @@
+"""Sensors: how the loop sees the target (a loop is carrier + sensor + law, :mod:`.build`).
+
+Every loop has the exact camera ``spherical_camera`` (y = c(H) of the true
+pose): the truth the safe-domain monitor and the logs read. A sensor offers
+the y the *law* acts on: the exact camera's own (``exact``), or a camera
+model's measurement, sampled at the camera's rate and held
+(``pinhole``: :class:`~geovs_drake.systems.PinholeFeatureSensor` on projected
+points; ``rendered``: Drake's ``RgbdSensor`` through RenderEngineVtk into
+:class:`~geovs_drake.systems.FeatureExtractor`). A camera model is the
+subsystem ``feature_sensor``. :data:`SENSORS` registers one entry each.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from pydrake.geometry import (
+    ClippingRange,
+    ColorRenderCamera,
+    DepthRange,
+    DepthRenderCamera,
+    LightParameter,
+    MakeRenderEngineVtk,
+    RenderCameraCore,
+    RenderEngineVtkParams,
+)
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
+from pydrake.systems.primitives import LogVectorOutput
+from pydrake.systems.sensors import CameraInfo, RgbdSensor
+
+from geovs_drake.geometry.pinhole import PinholeIntrinsics
+from geovs_drake.loop.carriers import CarrierParts
+from geovs_drake.scenario import ResolvedScenario
+from geovs_drake.systems import FeatureExtractor, PinholeFeatureSensor
+from geovs_drake.systems.feature_extractor import SCENE_COLOURS
+
+__all__ = [
+    "RENDERER_NAME",
+    "SENSORS",
+    "VTK_PRINCIPAL_POINT_SHIFT",
+    "Sensor",
+    "scene_lights",
+    "vtk_camera_info",
+]
+
+#: The name of the VTK render engine the rendered loop adds to SceneGraph.
+RENDERER_NAME = "geovs_vtk"
+#: Where Drake's RenderEngineVtk (drake 1.51) puts the optical axis, in pixel-centre
+#: coordinates, relative to ``CameraInfo``'s ``(center_x, center_y)``: half a pixel up
+#: and left, OpenGL's convention of pixel corners at integers. Measured (a test renders
+#: a small sphere on the optical axis and finds its centroid there).
+VTK_PRINCIPAL_POINT_SHIFT = -0.5
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A sensor: ``add(builder, resolved, carrier, camera)`` returns the port of the y
+    the law acts on (``camera`` is the exact ``spherical_camera``); ``draws_marks``
+    asks the carrier to draw the target in the extractor's colours."""
+
+    add: Callable[[DiagramBuilder, ResolvedScenario, CarrierParts, LeafSystem], OutputPort]
+    draws_marks: bool = False
+
+
+def _exact(builder, resolved, carrier, camera) -> OutputPort:
+    return camera.image_features_output
+
+
+def _sampled_settings(resolved: ResolvedScenario) -> dict:
+    """The frame timing, noise and loss tolerance every camera model shares."""
+    cam = resolved.config.camera
+    return dict(
+        period=1.0 / cam.rate,
+        latency_frames=int(cam.latency_frames),
+        max_lost_frames=int(cam.max_lost_frames),
+        pixel_noise=cam.pixel_noise,
+        seed=int(cam.seed),
+    )
+
+
+def _pinhole(builder, resolved, carrier, camera) -> OutputPort:
+    """The rendered loop's measurement (camera rate, latency, pixel noise, focal error,
+    the same fit) on exactly projected points, without a renderer."""
+    config = resolved.config
+    theta = resolved.domain.fov_half_angle
+    sensor = builder.AddNamedSystem(
+        "feature_sensor",
+        PinholeFeatureSensor(
+            radius=config.radius,
+            intrinsics=config.camera.intrinsics(theta),
+            believed=config.camera.believed_intrinsics(theta),
+            X_WB=carrier.X_WB,
+            X_RC=carrier.X_RC,
+            **_sampled_settings(resolved),
+        ),
+    )
+    builder.Connect(carrier.body_pose, sensor.body_pose_input)
+    return sensor.image_features_output
+
+
+def vtk_camera_info(intrinsics: PinholeIntrinsics) -> CameraInfo:
+    """The ``CameraInfo`` with which RenderEngineVtk renders an image that ``intrinsics``
+    (pixel centres at integers, :mod:`geovs_drake.geometry.pinhole`) describes exactly."""
+    return CameraInfo(
+        intrinsics.width,
+        intrinsics.height,
+        intrinsics.fx,
+        intrinsics.fy,
+        intrinsics.cx - VTK_PRINCIPAL_POINT_SHIFT,
+        intrinsics.cy - VTK_PRINCIPAL_POINT_SHIFT,
+    )
+
+
+def scene_lights() -> list[LightParameter]:
+    """A headlight and four side lights, all in the camera frame, intensity 0.5 each.
+
+    Why not Drake's default headlight alone: it shades by the cosine between the
+    normal and the view, so near the limb a mark turns black and the extractor
+    loses it (a mark seen at 82 deg from face-on read 1 dark pixel). With side lights
+    from +-x and +-y a diffuse surface gets between 0.5 and 0.87 of full light
+    wherever it is seen, the limb included.
+    """
+    directions = ([0, 0, 1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0])
+    return [
+        LightParameter(type="directional", frame="camera", intensity=0.5, direction=d)
+        for d in directions
+    ]
+
+
+def _rendered(builder, resolved, carrier, camera) -> OutputPort:
+    """SceneGraph -> ``RgbdSensor`` (RenderEngineVtk, EGL backend: headless) -> the
+    extractor, a frame every ``1 / camera.rate`` s. The camera's intrinsics are
+    :meth:`~geovs_drake.scenario.CameraConfig.intrinsics` (its inscribed cone is D's
+    field of view, so no pose of D cuts the sphere), the extractor's those times
+    ``1 + camera.focal_error``. Double only (``RgbdSensor`` does not convert)."""
+    config = resolved.config
+    cam = config.camera
+    theta = resolved.domain.fov_half_angle
+    intrinsics = cam.intrinsics(theta)
+    carrier.scene_graph.AddRenderer(
+        RENDERER_NAME,
+        MakeRenderEngineVtk(
+            RenderEngineVtkParams(
+                backend="EGL",
+                default_clear_color=list(SCENE_COLOURS["background"]),
+                lights=scene_lights(),
+            )
+        ),
+    )
+    # Clip well short of the nearest sphere of D and well beyond the farthest.
+    d = config.domain
+    near = 0.5 * config.radius * (1 / d.lam_max - 1)
+    far = 2.0 * config.radius * (1 / d.lam_min + 1)
+    core = RenderCameraCore(
+        RENDERER_NAME, vtk_camera_info(intrinsics), ClippingRange(near, far), RigidTransform()
+    )
+    rgbd = builder.AddNamedSystem(
+        "rgbd_sensor",
+        RgbdSensor(
+            carrier.plant.GetBodyFrameIdOrThrow(carrier.body.index()),
+            carrier.X_RC,
+            ColorRenderCamera(core, False),
+            DepthRenderCamera(core, DepthRange(1.01 * near, 0.99 * far)),
+        ),
+    )
+    builder.Connect(carrier.scene_graph.get_query_output_port(), rgbd.query_object_input_port())
+    sensor = builder.AddNamedSystem(
+        "feature_sensor",
+        FeatureExtractor(intrinsics=cam.believed_intrinsics(theta), **_sampled_settings(resolved)),
+    )
+    builder.Connect(rgbd.color_image_output_port(), sensor.color_image_input)
+    return sensor.image_features_output
+
+
+#: The sensors, by ``camera.sensor``.
+SENSORS: dict[str, Sensor] = {
+    "exact": Sensor(_exact),
+    "pinhole": Sensor(_pinhole, draws_marks=True),
+    "rendered": Sensor(_rendered, draws_marks=True),
+}
+
+
+def add_feature_loggers(builder: DiagramBuilder, sensor: LeafSystem, rate: float) -> None:
+    """Loggers of a camera model's measured y and frame status."""
+    for port, name in (
+        (sensor.image_features_output, "log_measured_features"),
+        (sensor.feature_status_output, "log_feature_status"),
+    ):
+        LogVectorOutput(port, builder, publish_period=1.0 / rate).set_name(name)

@@ -1,0 +1,313 @@
+"""The safe-domain monitor and the simulator it watches; the camera's signals along states.
+
+The monitor reads the loop's parts (:func:`geovs_drake.loop.loop_of`): the
+carrier says which pose the camera reads from a state, the exact camera holds
+the parameters of the kernel that checks it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+from pydrake.systems.framework import Diagram, EventStatus
+from pydrake.trajectories import PiecewisePolynomial
+
+from geovs_drake.geometry._ops import MATH, NUMPY
+from geovs_drake.geometry.baselines import point_fov_margins, points_in_camera
+from geovs_drake.geometry.features import FEATURE_FAILURES
+from geovs_drake.geometry.kernels import (
+    CAMERA_IMAGE,
+    NAVIGATION,
+    camera_image,
+    for_scalar_type,
+    navigation,
+)
+from geovs_drake.geometry.rigid import quaternion_to_rotation
+from geovs_drake.loop.build import loop_of
+from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.simulation.result import MARGIN_NAMES
+
+__all__ = [
+    "FeaturePointCheck",
+    "SafeDomainMonitor",
+    "camera_signals",
+    "feature_point_check",
+    "make_simulator",
+]
+
+_camera_kernel = for_scalar_type(camera_image, float)
+_NU, _MARGINS = CAMERA_IMAGE.nu, CAMERA_IMAGE.margins
+
+
+class FeaturePointCheck:
+    """Whether a law's feature points (point IBVS's four) are in the field of view.
+
+    ``lost(x)`` takes the body pose the camera rides on (pose first: X_WR of the
+    rig, X_WC of the kinematic body, or, for the fixed camera, X_BC with X_WB =
+    X_RC = identity) and returns None while every point lies in the
+    cone of half-angle theta about the optical axis (so in front of the camera),
+    else one line naming the first point out and its angle.
+    """
+
+    def __init__(
+        self,
+        P_B: np.ndarray,
+        X_WB: RigidTransform,
+        X_RC: RigidTransform,
+        fov_half_angle: float,
+        names: tuple[str, ...] | None = None,
+    ) -> None:
+        self.P_B = np.asarray(P_B, dtype=float)
+        self._R_WB = X_WB.rotation().matrix()
+        self._p_WB = X_WB.translation()
+        self._R_RC = X_RC.rotation().matrix()
+        self._p_RC = X_RC.translation()
+        self._theta = fov_half_angle
+        self._cos = math.cos(fov_half_angle)
+        self.names = names or tuple(f"point {i}" for i in range(len(self.P_B)))
+
+    def points_in_camera(self, x: np.ndarray) -> np.ndarray:
+        """The points in C (n, 3) for one state x."""
+        q = np.asarray(x[0:4], dtype=float)
+        R_WR = np.array(quaternion_to_rotation(tuple(q.tolist()), MATH)).reshape(3, 3)
+        R_WC = R_WR @ self._R_RC
+        p_WC = np.asarray(x[4:7], dtype=float) + R_WR @ self._p_RC
+        # X_CB = X_WC^-1 X_WB.
+        return points_in_camera(R_WC.T @ self._R_WB, R_WC.T @ (self._p_WB - p_WC), self.P_B)
+
+    def margins(self, x: np.ndarray) -> np.ndarray:
+        """``Z / |p| - cos(theta)`` per point (>= 0 in view)."""
+        return point_fov_margins(self.points_in_camera(x), self._cos)
+
+    def lost(self, x: np.ndarray) -> str | None:
+        """None while every point is in view, else a line naming the first one out."""
+        P_C = self.points_in_camera(x)
+        margins = point_fov_margins(P_C, self._cos)
+        if np.all(margins >= 0):
+            return None
+        i = int(np.argmin(margins))
+        angle = math.degrees(math.acos(max(-1.0, min(1.0, margins[i] + self._cos))))
+        where = "behind the camera" if P_C[i, 2] <= 0 else "outside the field of view"
+        return (
+            f"feature {self.names[i]} {where}: {angle:.4g} deg from the optical axis "
+            f"> {math.degrees(self._theta):.4g} deg"
+        )
+
+
+def feature_point_check(diagram: Diagram, config: ScenarioConfig) -> FeaturePointCheck | None:
+    """The check of the law's feature points, if its system has any (point IBVS):
+    its ``target_points_B`` in the diagram's default context, seen from the body
+    the carrier moves (where the camera system sees the target and the camera)."""
+    if not diagram.HasSubsystemNamed("controller"):
+        return None
+    law = diagram.GetSubsystemByName("controller")
+    if not hasattr(law, "target_points_B"):
+        return None
+    P_B = law.target_points_B(law.CreateDefaultContext())
+    names = getattr(law, "TARGET_POINT_NAMES", None)
+    carrier = loop_of(diagram).carrier
+    theta = config.domain.to_domain().fov_half_angle
+    return FeaturePointCheck(P_B, carrier.X_WB, carrier.X_RC, theta, names)
+
+
+class SafeDomainMonitor:
+    """The simulator monitor: stops a run that leaves D, and records every step.
+
+    Called by Drake after every accepted step (and at initialisation). It ends
+    the run with ``ReachedTermination`` when the camera loses sight of the
+    marked point (nu <= 0), leaves D (a margin < 0), or the state is not
+    finite, so a run never continues into NaN; with a ``feature_points`` check
+    (point IBVS), also when one of the law's points leaves the field-of-view
+    cone (``lost_visibility``, naming the point). :meth:`termination` reports
+    ``(status, message)`` of the last termination, if any. These read the true
+    pose (the exact camera map), whatever sensor the loop uses. A loop with a
+    camera (a ``feature_sensor`` subsystem) also stops with ``feature_lost``
+    when the frame the controller acts on gave no y, naming why
+    (:data:`~geovs_drake.geometry.features.FEATURE_FAILURES`).
+
+    It also records ``(t, x)`` at every accepted step. That is how
+    :func:`simulate` logs: interpolating the steps at the log rate afterwards
+    costs one state copy per step, where Drake's periodic loggers would cut
+    every integrator step at each sample time (about 50% more steps at the
+    default 50 Hz) and evaluate every logged port there.
+
+    ``on_step``, if given, is called with the time of every accepted step: how
+    :func:`simulate` reports progress without cutting the integration into
+    pieces (each ``AdvanceTo`` boundary would end a step early and change the run).
+    """
+
+    def __init__(
+        self,
+        diagram: Diagram,
+        record: bool = True,
+        feature_points: FeaturePointCheck | None = None,
+        on_step: Callable[[float], None] | None = None,
+    ) -> None:
+        self._diagram = diagram
+        self._camera = diagram.GetSubsystemByName("spherical_camera")
+        self._sensor = (
+            diagram.GetSubsystemByName("feature_sensor")
+            if diagram.HasSubsystemNamed("feature_sensor")
+            else None
+        )
+        self._record = record
+        self._feature_points = feature_points
+        self._on_step = on_step
+        self._reason: dict[str, str] = {}
+        self._params_of: tuple = (None, None)
+        self._pose_of_states = loop_of(diagram).carrier.pose_of_states
+        self.times: list[float] = []
+        self.states: list[np.ndarray] = []
+
+    def termination(self) -> tuple[str, str]:
+        """``(status, message)`` of the last termination, ``(, )`` if none."""
+        return self._reason.get("status", ""), self._reason.get("message", "")
+
+    def _stop(self, status: str, message: str) -> EventStatus:
+        self._reason.update(status=status, message=message)
+        return EventStatus.ReachedTermination(self._diagram, message)
+
+    def __call__(self, root_context) -> EventStatus:
+        # The diagram's only continuous state is the body's, pose first.
+        x = root_context.get_continuous_state_vector().CopyToVector()
+        if self._on_step is not None:
+            self._on_step(root_context.get_time())
+        if self._record:
+            t = root_context.get_time()
+            if self.times and t <= self.times[-1]:  # Initialize() and a first step at t = 0
+                self.times.pop()
+                self.states.pop()
+            self.times.append(t)
+            self.states.append(x)
+        # One call of the camera's compiled kernel on the accepted state: nu and
+        # the margins, without evaluating the diagram's ports (which would
+        # rebuild their caches for this state, at several times the cost).
+        if root_context is not self._params_of[0]:
+            # A live read-only view of the camera's parameters in this context.
+            camera_context = self._camera.GetMyContextFromRoot(root_context)
+            self._params_of = (root_context, camera_context.get_numeric_parameter(0).get_value())
+        # The pose the camera reads from this state (the carrier says which).
+        pose = self._pose_of_states(x, MATH)
+        out = _camera_kernel(pose, self._params_of[1])
+        margins = out[_MARGINS]
+        if out[_NU] > 0 and min(margins) > 0:
+            if self._feature_points is not None:
+                lost = self._feature_points.lost(pose)
+                if lost is not None:
+                    t = root_context.get_time()
+                    return self._stop("lost_visibility", f"lost visibility: {lost} at t = {t:.4g}")
+            return self._check_sensor(root_context)
+        t = root_context.get_time()
+        if not np.all(np.isfinite(x)):
+            return self._stop("non_finite", f"non-finite state at t = {t:.4g}")
+        nu = out[_NU]
+        if not nu > 0:
+            return self._stop(
+                "lost_visibility", f"lost visibility: nu(H) = {nu:.4g} <= 0 at t = {t:.4g}"
+            )
+        if not all(math.isfinite(m) for m in margins):
+            return self._stop("non_finite", f"non-finite domain margins at t = {t:.4g}")
+        i = int(np.argmin(margins))
+        if margins[i] < 0:
+            return self._stop(
+                "left_domain",
+                f"left D: {MARGIN_NAMES[i]} margin = {margins[i]:.4g} < 0 at t = {t:.4g}",
+            )
+        return self._check_sensor(root_context)  # on the boundary of D, still in it
+
+    def _check_sensor(self, root_context) -> EventStatus:
+        """``feature_lost`` if the held frame gave no y (a camera's loop), else go on."""
+        if self._sensor is None:
+            return EventStatus.Succeeded()
+        status = self._sensor.feature_status_output.Eval(
+            self._sensor.GetMyContextFromRoot(root_context)
+        )
+        if status[0] > 0:
+            return EventStatus.Succeeded()
+        code, lost = int(status[1]), int(status[2])
+        reason = FEATURE_FAILURES[code] if 0 < code < len(FEATURE_FAILURES) else f"code {code}"
+        return self._stop(
+            "feature_lost",
+            f"feature lost at t = {root_context.get_time():.4g}: {reason} "
+            f"({lost} frame{'s' if lost != 1 else ''} in a row)",
+        )
+
+    def resample(self, rate: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(times, states)`` at ``rate`` Hz from t = 0, plus the last step.
+
+        A cubic spline with continuous second derivatives through the steps
+        (Drake's ``PiecewisePolynomial``): its error is fourth order in the
+        step, below the integrator's own at its accuracy setting. Quaternions
+        are interpolated componentwise; every consumer normalises them.
+        """
+        T = np.asarray(self.times)
+        X = np.asarray(self.states).T
+        end = T[-1]
+        times = np.arange(0.0, end, 1.0 / rate)
+        times = np.append(times[times < end - 1e-9], end)
+        if len(T) >= 3:
+            spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(T, X, False)
+        elif len(T) == 2:
+            spline = PiecewisePolynomial.FirstOrderHold(T, X)
+        else:
+            return T, X.T
+        return times, spline.vector_values(times).T
+
+
+def make_simulator(
+    diagram: Diagram,
+    config: ScenarioConfig,
+    record: bool = False,
+    on_step: Callable[[float], None] | None = None,
+) -> tuple[Simulator, SafeDomainMonitor]:
+    """A Simulator with the config's integrator and a :class:`SafeDomainMonitor`.
+
+    ``record`` makes the monitor keep every accepted step (for logs); ``on_step``
+    is called with each accepted step's time (progress). A law with feature
+    points (point IBVS) gets them checked too (:func:`feature_point_check`). For the
+    dynamic loop (a diagram with a ``plant``) the context starts in
+    the carrier's start (:attr:`~geovs_drake.loop.carriers.CarrierParts.set_initial_state`):
+    for the free rig its pose and the velocity that gives the camera
+    ``config.initial_velocity``.
+    """
+    simulator = Simulator(diagram)
+    ApplySimulatorConfig(config.simulator, simulator)
+    loop_of(diagram).carrier.set_initial_state(simulator.get_mutable_context())
+    monitor = SafeDomainMonitor(
+        diagram,
+        record=record,
+        feature_points=feature_point_check(diagram, config),
+        on_step=on_step,
+    )
+    simulator.set_monitor(monitor)
+    return simulator, monitor
+
+
+def camera_signals(diagram: Diagram, root_context, states: np.ndarray) -> dict[str, np.ndarray]:
+    """The camera's and the NF's outputs along a batch of states, in one call each.
+
+    ``states`` is (N, n) in the diagram's continuous-state layout (a free body's
+    13 or the kinematic body's 7, pose first). The same generated kernels as
+    the systems, on components of shape (N,), with the systems' parameters
+    from ``root_context``. Returns ``image_features`` (N, 13), ``visibility``
+    (N,), ``margins`` (N, 4) and ``phi`` (N,); where nu <= 0, y and phi are NaN
+    and every margin reads nu, as on the systems' ports.
+    """
+    camera = diagram.GetSubsystemByName("spherical_camera")
+    nav = diagram.GetSubsystemByName("navigation_controller")
+    p_cam = camera.GetMyContextFromRoot(root_context).get_numeric_parameter(0).CopyToVector()
+    p_nav = nav.navigation_parameters(nav.GetMyContextFromRoot(root_context))
+    # The poses the camera reads from these states (the carrier says which).
+    x = loop_of(diagram).carrier.pose_of_states(np.atleast_2d(states), NUMPY)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = camera_image(x, p_cam)
+        nu = np.asarray(out[_NU], dtype=float)
+        visible = nu > 0
+        y = np.where(visible, np.stack(np.broadcast_arrays(*out[CAMERA_IMAGE.y])), np.nan)
+        margins = np.where(visible, np.stack(np.broadcast_arrays(*out[_MARGINS])), nu)
+        phi = np.asarray(navigation(tuple(y), p_nav)[NAVIGATION.phi])
+    return dict(image_features=y.T, visibility=nu, margins=margins.T, phi=phi)

@@ -1,0 +1,267 @@
+"""A run's result: its logs, its summary in one line and as JSON, and the tolerances that
+judge it."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.math import RigidTransform
+
+from geovs_drake.geometry.domain import DomainMargins
+from geovs_drake.scenario import Ibvs, ScenarioConfig, law_name, law_of
+
+__all__ = [
+    "CONVERGENCE_POSITION_M",
+    "CONVERGENCE_ROTATION_RAD",
+    "MARGIN_NAMES",
+    "SADDLE_NOTE_ANGLE_RAD",
+    "SimulationResult",
+    "convergence_tolerance",
+    "energy_note",
+    "pose_error",
+    "saddle_note",
+]
+
+CONVERGENCE_POSITION_M = 1e-3
+CONVERGENCE_ROTATION_RAD = 1e-3
+#: A loop with a camera converges to what the camera resolves at the goal: within this
+#: many pixels of lateral offset at the goal's distance, and this many pixel angles of
+#: rotation (:func:`convergence_tolerance`).
+CAMERA_TOLERANCE_PX = 2.0
+CAMERA_ROTATION_TOLERANCE_PX = 5.0
+MARGIN_NAMES = DomainMargins._fields
+
+
+#: A start or an unconverged end whose arrow is within this roll [rad] of the saddle's
+#: gets :func:`saddle_note`.
+SADDLE_NOTE_ANGLE_RAD = math.radians(3.0)
+
+
+def saddle_note(angle: float) -> str:
+    """Why a run near the navigation function's saddle may not converge, in words."""
+    where = "at" if math.degrees(angle) < 0.01 else f"{math.degrees(angle):.2g} deg from"
+    return (
+        f"note: the arrow is {where} the navigation function's "
+        "saddle (the goal with the arrow reversed); starts on the saddle's stable manifold, "
+        "a measure-zero set, go to the saddle, not the goal: a small change of the roll "
+        "converges"
+    )
+
+
+def energy_note(initial_energy: float, bound: float) -> str:
+    """What the energy guarantee says about a dynamic run's start, in words.
+
+    Appendix C: E = 1/2 nu^T M nu + k_p phi never increases and k_p phi <= E, so
+    E0 < k_p keeps phi < 1 (phi = 1 exactly on the boundary of D) for all time.
+    A start with E0 >= k_p may still converge, but nothing guarantees that.
+    """
+    covered = initial_energy < bound
+    return (
+        f"E0 = {initial_energy:.4g} {'<' if covered else '>='} k_p = {bound:.4g}: "
+        f"the energy guarantee {'covers' if covered else 'does not cover'} this start"
+    )
+
+
+def convergence_tolerance(config: ScenarioConfig) -> tuple[float, float]:
+    """``(position [m], rotation [rad])`` within which a run counts as converged.
+
+    The exact sensor: 1 mm and 1 mrad. A camera cannot do better than it resolves:
+    a pixel subtends ``1 / f`` rad, so the tolerances are ``CAMERA_TOLERANCE_PX``
+    pixels of lateral offset at the goal's distance and
+    ``CAMERA_ROTATION_TOLERANCE_PX`` pixel angles of rotation (at 320x240, 5.9 mm
+    and 30 mrad; at 640x480 half that), never below the exact sensor's. Why so
+    many pixel angles for rotation: the roll is read from the two marks, about
+    8.5 px apart at 320x240 at the goal, so a tenth of a pixel on their
+    centroids is 2 pixel angles of roll.
+    """
+    if config.camera.sensor == "exact":
+        return CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
+    f = config.camera.intrinsics(config.domain.to_domain().fov_half_angle).fx
+    distance = float(np.linalg.norm(config.X_BC_goal.translation()))
+    return (
+        max(CONVERGENCE_POSITION_M, CAMERA_TOLERANCE_PX * distance / f),
+        max(CONVERGENCE_ROTATION_RAD, CAMERA_ROTATION_TOLERANCE_PX / f),
+    )
+
+
+def pose_error(X_BC: RigidTransform, X_BC_goal: RigidTransform) -> tuple[float, float]:
+    """(position error [m], rotation angle error [rad]) between two camera poses."""
+    dp = float(np.linalg.norm(X_BC.translation() - X_BC_goal.translation()))
+    R_err = X_BC_goal.rotation().inverse() @ X_BC.rotation()
+    # Angle from the Frobenius distance to I (exact, and accurate near 0).
+    d = np.linalg.norm(R_err.matrix() - np.eye(3)) / (2 * math.sqrt(2))
+    return dp, 2 * math.asin(min(1.0, d))
+
+
+@dataclass
+class SimulationResult:
+    """A run's logs and summary. Arrays are sampled at ``config.log_rate``."""
+
+    config: ScenarioConfig
+    status: str
+    message: str
+    sim_time_s: float
+    wall_time_s: float
+    steps: int
+    times: np.ndarray
+    image_features: np.ndarray
+    phi: np.ndarray
+    margins: np.ndarray
+    visibility: np.ndarray
+    X_BC: np.ndarray  # (N, 4, 4) camera poses in the target frame
+    energy: np.ndarray | None = None
+    final_X_BC: RigidTransform = field(default_factory=RigidTransform)
+    saddle_note: str | None = None  # set when the start (or an unconverged end) is near the saddle
+
+    @property
+    def lyapunov(self) -> np.ndarray:
+        """phi (kinematic) or the energy E (dynamic) along the run."""
+        return self.energy if self.energy is not None else self.phi
+
+    @property
+    def lyapunov_tolerance(self) -> float:
+        """Allowed per-sample increase: 10x the integrator's accuracy, relative to the
+        initial value (the error control bounds the local error to that)."""
+        return 10 * self.config.simulator.accuracy * max(1.0, float(abs(self.lyapunov[0])))
+
+    @property
+    def lyapunov_monotone(self) -> bool:
+        """The Lyapunov function (energy, or phi on the kinematic loop) never rose by more
+        than :attr:`lyapunov_tolerance` between two samples.
+        """
+        L = self.lyapunov
+        return bool(len(L) < 2 or np.max(np.diff(L)) <= self.lyapunov_tolerance)
+
+    @property
+    def initial_energy(self) -> float | None:
+        """E0 = 1/2 nu^T M nu + k_p phi(y0) (dynamic loop), else None."""
+        return None if self.energy is None else float(self.energy[0])
+
+    @property
+    def energy_bound(self) -> float | None:
+        """k_p, the level below which E0 keeps the loop in D (dynamic loop), else None."""
+        return None if self.energy is None else float(self.config.control.potential_gain)
+
+    @property
+    def energy_guarantee(self) -> bool | None:
+        """E0 < k_p: Appendix C's guarantee that phi < 1 throughout (dynamic), else None."""
+        if self.energy is None:
+            return None
+        return bool(self.initial_energy < self.energy_bound)
+
+    @property
+    def final_errors(self) -> tuple[float, float]:
+        """``(position [m], rotation [rad])`` errors of the final pose from the goal."""
+        return pose_error(self.final_X_BC, self.config.X_BC_goal)
+
+    @property
+    def convergence_time(self) -> float:
+        """The first logged time from which the pose error stays within the
+        convergence tolerances to the end; NaN unless the run converged."""
+        if self.status != "converged":
+            return math.nan
+        t_converged = math.nan
+        for t, X in zip(self.times[::-1], self.X_BC[::-1], strict=True):
+            dp, dr = pose_error(RigidTransform(X), self.config.X_BC_goal)
+            if dp > CONVERGENCE_POSITION_M or dr > CONVERGENCE_ROTATION_RAD:
+                break
+            t_converged = float(t)
+        return t_converged
+
+    @property
+    def left_domain(self) -> bool:
+        """The run stopped because it left D or lost sight of the marked point."""
+        return self.status in ("left_domain", "lost_visibility")
+
+    @property
+    def converged(self) -> bool:
+        """Stayed in D and ended within :data:`CONVERGENCE_POSITION_M` and
+        :data:`CONVERGENCE_ROTATION_RAD` of the goal.
+        """
+        dp, dr = self.final_errors
+        tol_p, tol_r = convergence_tolerance(self.config)
+        return (
+            not self.left_domain and self.status != "feature_lost" and dp <= tol_p and dr <= tol_r
+        )
+
+    def one_line(self) -> str:
+        """The run in one line: status, final errors, minimum margins, timing."""
+        s = self.summary()
+        cam = self.config.camera
+        sensor = ""
+        if cam.sensor != "exact":
+            width, height = (int(v) for v in cam.resolution)
+            sensor = f", {cam.sensor} camera {width}x{height} at {cam.rate:g} Hz"
+        energy = ""
+        if self.energy is not None:
+            energy = f" | {energy_note(self.initial_energy, self.energy_bound)}"
+        if self.saddle_note:
+            energy += f" | {self.saddle_note}"
+        law = s["controller"]
+        if s["ibvs_depth"] is not None:
+            law += f" ({s['ibvs_depth']} depth)"
+        if self.status == "feature_lost":  # say which feature and why
+            energy += f" | {self.message}"
+        return (
+            f"{law} on the {s['plant']} plant{sensor}"
+            f"{', camera fixed' if s['mount'] == 'fixed' else ''}: {s['status']} | position error "
+            f"{s['final_position_error_m']:.2e} m, rotation error "
+            f"{s['final_rotation_error_rad']:.2e} rad | min margins: "
+            f"fov {s['min_fov_margin']:.3g}, occlusion {s['min_occlusion_margin']:.3g}, "
+            f"nu {s['min_visibility']:.3g} | Lyapunov monotone: {s['lyapunov_monotone']}"
+            f"{energy} | "
+            f"{s['sim_time_s']:.1f} s simulated in {s['wall_time_s']:.1f} s, {s['steps']} steps"
+        )
+
+    def summary(self) -> dict:
+        """The run as JSON-ready values. The energy fields (``initial_energy``,
+        ``energy_bound`` = k_p, ``energy_guarantee`` = E0 < k_p, ``max_energy``) are
+        None for the kinematic loop, which has no energy, and for laws other than
+        the NF, whose energy is not k_p phi. ``ibvs_depth`` is the IBVS depth
+        estimate for the law ``ibvs``, else None."""
+        dp, dr = self.final_errors
+        tol_p, tol_r = convergence_tolerance(self.config)
+        law = law_of(self.config)
+        out = {
+            "plant": self.config.plant,
+            "controller": law_name(self.config.controller),
+            "mount": self.config.mount,
+            "ibvs_depth": law.depth if isinstance(law, Ibvs) else None,
+            "sensor": self.config.camera.sensor,
+            "converged": self.converged,
+            "status": self.status,
+            "message": self.message,
+            "final_position_error_m": dp,
+            "final_rotation_error_rad": dr,
+            "tolerance_position_m": tol_p,
+            "tolerance_rotation_rad": tol_r,
+            "final_phi": float(self.phi[-1]),
+            "min_fov_margin": float(np.min(self.margins[:, 0])),
+            "min_lambda_margin": float(np.min(self.margins[:, 1:3])),
+            "min_occlusion_margin": float(np.min(self.margins[:, 3])),
+            "min_visibility": float(np.min(self.visibility)),
+            "left_domain": self.left_domain,
+            "lyapunov_monotone": self.lyapunov_monotone,
+            "near_saddle": self.saddle_note is not None,
+            "max_lyapunov_increase": float(np.max(np.diff(self.lyapunov), initial=0.0)),
+            "sim_time_s": self.sim_time_s,
+            "wall_time_s": self.wall_time_s,
+            "steps": self.steps,
+            "initial_energy": self.initial_energy,
+            "energy_bound": self.energy_bound,
+            "energy_guarantee": self.energy_guarantee,
+            "max_energy": None if self.energy is None else float(np.max(self.energy)),
+        }
+        if self.config.camera.sensor != "exact":
+            cam = self.config.camera
+            out["camera"] = {
+                "rate_hz": cam.rate,
+                "resolution": [int(v) for v in cam.resolution],
+                "pixel_noise_px": cam.pixel_noise,
+                "focal_error": cam.focal_error,
+                "latency_frames": int(cam.latency_frames),
+            }
+        out["radius_error"] = self.config.camera.radius_error
+        return out

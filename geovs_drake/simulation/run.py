@@ -1,0 +1,166 @@
+"""simulate(config): run a servo loop with a safe-domain monitor and return its logs."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from geovs_drake.geometry.navigation import NavigationFunction
+from geovs_drake.loop.build import build_loop
+from geovs_drake.loop.state import camera_pose_in_target, poses_in_target
+from geovs_drake.planning import plan_for_scenario
+from geovs_drake.scenario import Nf, PathFollowing, ResolvedScenario, ScenarioConfig, resolve
+from geovs_drake.simulation.monitor import camera_signals, make_simulator
+from geovs_drake.simulation.result import (
+    MARGIN_NAMES,
+    SADDLE_NOTE_ANGLE_RAD,
+    SimulationResult,
+    convergence_tolerance,
+    energy_note,
+    pose_error,
+    saddle_note,
+)
+
+__all__ = ["StartOutsideDomain", "check_start", "simulate"]
+
+
+class StartOutsideDomain(ValueError):
+    """The initial pose is not in the safe domain D (or not visible)."""
+
+
+def check_start(config: ScenarioConfig | ResolvedScenario) -> None:
+    """Raise StartOutsideDomain naming the first violated constraint."""
+    if isinstance(config, ResolvedScenario):
+        config = config.config
+    try:
+        y0 = config.initial_features()
+    except ValueError as e:
+        raise StartOutsideDomain(f"start outside D: {e}") from e
+    margins = config.domain.to_domain().margins(y0)
+    for name, value in zip(MARGIN_NAMES, margins, strict=True):
+        if float(value) < 0:
+            raise StartOutsideDomain(f"start outside D: {name} margin = {float(value):.4g} < 0")
+    try:
+        NavigationFunction(config.domain.to_domain(), config.goal_features())
+    except ValueError as e:
+        raise StartOutsideDomain(f"goal invalid: {e}") from e
+
+
+def simulate(
+    config: ScenarioConfig | ResolvedScenario | None = None,
+    meshcat=None,
+    progress: Callable[[float], None] | None = None,
+) -> SimulationResult:
+    """Simulate the configured loop (``config.plant``, ``config.camera.sensor``) for
+    ``config.duration``.
+
+    Raises StartOutsideDomain if the start is not in D. A run that leaves D
+    stops early with ``status`` ``left_domain`` / ``lost_visibility``; a loop with
+    a camera whose frame gives no y stops with ``feature_lost``. With a camera the
+    logs (y, phi, margins, energy) are the true pose's; the controller acted on
+    the measured y. The
+    dynamic loop starts with the camera's body twist ``config.initial_velocity``;
+    if its energy E0 is not below k_p, the message says that Appendix C's energy
+    guarantee does not cover the start (see :func:`energy_note`).
+    ``progress`` (default None: off), if given, is called with the simulated
+    time after every accepted step, from the safe-domain monitor; e.g. a
+    :class:`geovs_drake.progress.HorizonProgress`. It does not change the run.
+    The logs are sampled at ``config.log_rate`` from the recorded steps (see
+    :class:`SafeDomainMonitor`); ``wall_time_s`` times the integration alone.
+    """
+    resolved = resolve(config)  # validated here, once; the builder trusts it
+    config = resolved.config
+    check_start(config)
+    loop = build_loop(resolved, meshcat=meshcat, log=False)
+    diagram = loop.diagram
+    dynamic = config.plant == "dynamic"
+    simulator, monitor = make_simulator(diagram, config, record=True, on_step=progress)
+    root = simulator.get_mutable_context()
+    if meshcat is not None:
+        diagram.ForcedPublish(root)
+    status, message = "completed", ""
+    # Initialize() also loads the compiled kernels: not part of the timing. Its
+    # monitor call may already stop the run (a law's feature point out of view, or a
+    # camera whose first frame gives no y, at t = 0); AdvanceTo would otherwise take
+    # one step regardless (on a held y of NaN).
+    initial = simulator.Initialize()
+    stopped = initial.reason() == initial.ReturnReason.kReachedTerminationCondition
+    start = time.perf_counter()
+    failure = None
+    try:
+        if not stopped:
+            simulator.AdvanceTo(config.duration)
+    except RuntimeError as e:
+        # Drake's error control found no step it could accept: the derivatives
+        # grow without bound (a law's command near its singularity). The batch
+        # engine calls the same event non_finite; the run ends here with that status.
+        if "step smaller than minimum" not in str(e):
+            raise
+        failure = str(e).strip().splitlines()[0]
+    wall = time.perf_counter() - start
+    term_status, term_message = monitor.termination()
+    if term_status:
+        status, message = term_status, term_message
+    elif failure is not None:
+        status = "non_finite"
+        message = (
+            f"no accurate step exists at t = {root.get_time():.4g}: the derivatives grow "
+            f"without bound (Drake: {failure})"
+        )
+
+    times, states = monitor.resample(config.log_rate)
+    signals = camera_signals(diagram, root, states)
+    energy = None
+    nf_law = isinstance(resolved.law, Nf)
+    if loop.carrier.plant is not None and nf_law:
+        # Drake's own kinetic energy of the free body, plus the potential k_p phi.
+        plant = loop.carrier.plant
+        pctx = plant.CreateDefaultContext()
+        kinetic = np.empty(len(states))
+        for k, x in enumerate(states):
+            plant.SetPositionsAndVelocities(pctx, x)
+            kinetic[k] = plant.CalcKineticEnergy(pctx)
+        energy = kinetic + config.control.potential_gain * signals["phi"]
+    x_final = root.get_continuous_state_vector().CopyToVector()
+    final_X_BC = camera_pose_in_target(config, x_final, dynamic)
+    if status == "completed":
+        dp, dr = pose_error(final_X_BC, config.X_BC_goal)
+        tol_p, tol_r = convergence_tolerance(config)
+        converged = dp <= tol_p and dr <= tol_r
+        status = "converged" if converged else "not_converged"
+        message = (
+            f"{'converged' if converged else 'did not converge'}: position error {dp:.3g} m, "
+            f"rotation error {dr:.3g} rad after {root.get_time():.3g} s"
+        )
+    result = SimulationResult(
+        config=config,
+        status=status,
+        message=message,
+        sim_time_s=root.get_time(),
+        wall_time_s=wall,
+        steps=simulator.get_num_steps_taken(),
+        times=times,
+        image_features=signals["image_features"],
+        phi=signals["phi"],
+        margins=signals["margins"],
+        visibility=signals["visibility"],
+        X_BC=poses_in_target(config, states),
+        energy=energy,
+        final_X_BC=final_X_BC,
+    )
+    if result.energy_guarantee is False:
+        result.message += f" ({energy_note(result.initial_energy, result.energy_bound)})"
+    if isinstance(resolved.law, PathFollowing):  # what the planner found (cached)
+        result.message += f" (plan: {plan_for_scenario(config, resolved.law).message})"
+    if not nf_law:  # the energy and the saddle belong to the NF's law
+        return result
+    nf = NavigationFunction(resolved.domain, resolved.y_goal, resolved.gains)
+    angle = float(nf.angle_to_saddle(config.initial_features()))
+    if status == "not_converged" and np.all(np.isfinite(result.image_features[-1])):
+        angle = min(angle, float(nf.angle_to_saddle(result.image_features[-1])))
+    if angle < SADDLE_NOTE_ANGLE_RAD:
+        result.saddle_note = saddle_note(angle)
+        result.message += f" ({result.saddle_note})"
+    return result
