@@ -16,9 +16,9 @@ import numba
 import numpy as np
 from pydrake.math import RigidTransform
 
-from geovs_drake.analysis.nf_study import random_features_in_domain
 from geovs_drake.batch import loop_parameters, run_batch
 from geovs_drake.geometry.camera import camera_map_inverse
+from geovs_drake.sampling import random_features_in_domain
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 from geovs_drake.simulation import simulate
 

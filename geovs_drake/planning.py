@@ -388,13 +388,14 @@ def _plan_cached(key: tuple) -> PathPlan:
 
 def plan_for_scenario(config: ScenarioConfig, law: PathFollowing | None = None) -> PathPlan:
     """The plan of ``config``: from y(0) = c(X_BC(0)^-1) to y* in the path law's
-    ``duration`` (``law``, default the scenario's, :func:`~geovs_drake.scenario.law_of`),
+    ``duration`` (``law``, default the scenario's path law, :func:`~geovs_drake.scenario.law_of`,
+    or its ``path`` settings under another law),
     falling back on the NF's gradient flow if its ``fallback``. Cached per
     (start, goal, domain, gains, duration, fallback): the diagram builder and
     ``simulate`` ask for the same plan."""
     law = law_of(config) if law is None else law
-    if not isinstance(law, PathFollowing):
-        raise ValueError(f"controller {law!r} follows no path: controller path plans one")
+    if not isinstance(law, PathFollowing):  # another law: the scenario's path settings
+        law = config.path
     key = (
         tuple(config.initial_features().to_vector().tolist()),
         tuple(config.goal_features().to_vector().tolist()),

@@ -23,13 +23,16 @@ __all__ = [
     "plot_camera_frames",
     "plot_image_view",
     "plot_navigation_slices",
+    "pyplot",
     "plot_run",
     "plot_sensor_comparison",
     "write_block_diagram",
 ]
 
 
-def _pyplot():
+def pyplot():
+    """matplotlib's pyplot on a non-interactive backend (Agg) unless a notebook's inline one
+    is active: the one place the package picks a backend."""
     import matplotlib
 
     if matplotlib.get_backend().lower() not in ("agg", "module://matplotlib_inline.backend_inline"):
@@ -67,7 +70,7 @@ def plot_navigation_slices(nf: NavigationFunction, path: str | Path | None = Non
     (or once around the circle) and plots phi against the physical quantity.
     Returns the figure; saves a PNG when ``path`` is given.
     """
-    plt = _pyplot()
+    plt = pyplot()
     m0 = model_coordinates(nf.goal, nf.domain)
     t = np.linspace(-0.999999, 0.999999, 801)
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5))
@@ -159,7 +162,7 @@ def _silhouette(s: np.ndarray, lam: float, n: int = 200) -> np.ndarray:
 
 def plot_image_view(result, path: str | Path | None = None, snapshots: int = 8):
     """What the camera sees: silhouettes, q1 and the q2 arrow over time (gnomonic view)."""
-    plt = _pyplot()
+    plt = pyplot()
     from geovs_drake.geometry.camera import ImageFeatures
 
     y = ImageFeatures.from_vector(result.image_features)
@@ -198,7 +201,7 @@ def plot_image_view(result, path: str | Path | None = None, snapshots: int = 8):
 
 def plot_run(result, path: str | Path | None = None):
     """phi and the energy, every domain margin, and the pose error over time."""
-    plt = _pyplot()
+    plt = pyplot()
     from pydrake.math import RigidTransform
 
     from geovs_drake.geometry.domain import DomainMargins
@@ -238,7 +241,7 @@ def plot_run(result, path: str | Path | None = None):
 def plot_sensor_comparison(runs: dict, path: str | Path | None = None):
     """The pose error of runs from the same start with different sensors (label -> result),
     with each run's convergence tolerance."""
-    plt = _pyplot()
+    plt = pyplot()
     from pydrake.math import RigidTransform
 
     from geovs_drake.simulation import convergence_tolerance, pose_error
@@ -267,7 +270,7 @@ def plot_sensor_comparison(runs: dict, path: str | Path | None = None):
 def plot_camera_frames(frames, features, intrinsics, times, path: str | Path | None = None):
     """Rendered frames (N, H, W, 4) with what the extractor read from each (features: (N, 13)
     rows or None): the fitted silhouette, the marked point q1 and the q2 arrow."""
-    plt = _pyplot()
+    plt = pyplot()
     n = len(frames)
     fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 3.6))
     for ax, frame, y, t in zip(np.atleast_1d(axes), frames, features, times, strict=True):

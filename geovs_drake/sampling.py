@@ -9,7 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from geovs_drake.geometry.camera import ImageFeatures
+from geovs_drake.geometry.navigation import ModelCoordinates, features_from_model
+
 __all__ = [
+    "random_features_in_domain",
     "random_features_in_image_space",
     "random_unit_vectors",
     "random_visible_poses",
@@ -90,3 +94,20 @@ def random_features_in_image_space(
     q2 = _random_orthogonal_unit(rng, q1)
     q3 = np.cross(q1, q2)
     return np.concatenate([q1, q2, q3, lam[:, None], s], axis=-1)
+
+
+def random_features_in_domain(
+    rng: np.random.Generator, n: int, nf_or_domain: object, shrink: float = 0.98
+) -> ImageFeatures:
+    """Random images in D, uniform in the model coordinates scaled by ``shrink``."""
+    domain = getattr(nf_or_domain, "domain", nf_or_domain)
+    u = shrink * rng.uniform(-1, 1, size=n)
+
+    def disc() -> np.ndarray:
+        r = shrink * np.sqrt(rng.uniform(0, 1, size=n))
+        a = rng.uniform(0, 2 * np.pi, size=n)
+        return np.stack([r * np.cos(a), r * np.sin(a)], axis=-1)
+
+    angle = rng.uniform(0, 2 * np.pi, size=n)
+    circle = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    return features_from_model(ModelCoordinates(u, disc(), disc(), circle), domain)

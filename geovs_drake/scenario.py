@@ -42,6 +42,7 @@ __all__ = [
     "Nf",
     "PathFollowing",
     "Pbvs",
+    "RegisteredLaw",
     "ResolvedScenario",
     "Spherical",
     "ControlConfig",
@@ -130,6 +131,14 @@ class PathFollowing:
     radius_scale: float = 1.0
 
 
+@dataclass
+class RegisteredLaw:
+    """A law registered by name at run time (``geovs_drake.loop.TWIST_CONTROLLERS``),
+    with no fields of its own; not a YAML variant."""
+
+    name: str = ""
+
+
 #: A law's configuration: one of the variants above.
 LawConfig = Nf | Ibvs | Pbvs | Spherical | PathFollowing
 #: The law of each name in :data:`CONTROLLERS` (``path`` is :class:`PathFollowing`).
@@ -146,6 +155,8 @@ def law_name(law: object) -> str:
     """The name in :data:`CONTROLLERS` of a law given by name or as a variant."""
     if isinstance(law, str):
         return law
+    if isinstance(law, RegisteredLaw):
+        return law.name
     for name, variant in LAW_VARIANTS.items():
         if type(law) is variant:
             return name
@@ -621,7 +632,7 @@ def law_of(config: ScenarioConfig) -> LawConfig:
         if law == "path":
             return PathFollowing(**dataclasses.asdict(config.path))
         variant = LAW_VARIANTS.get(law)
-        return variant() if variant is not None else Nf()  # a registered extension law
+        return variant() if variant is not None else RegisteredLaw(law)
     if config.control.ibvs_depth != ControlConfig.ibvs_depth:
         raise ValueError(
             f"control.ibvs_depth = {config.control.ibvs_depth!r} applies to controller: ibvs "
@@ -655,7 +666,7 @@ class ResolvedScenario:
     """
 
     config: ScenarioConfig
-    law: LawConfig
+    law: LawConfig | RegisteredLaw
     believed_radius: float
     damping: tuple[float, ...]
     y_goal: ImageFeatures

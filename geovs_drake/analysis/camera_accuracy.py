@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from geovs_drake.analysis.nf_study import random_features_in_domain
 from geovs_drake.diagrams import initial_body_states, make_rendered_servo_diagram
 from geovs_drake.geometry.camera import camera_map_inverse
 from geovs_drake.geometry.features import FEATURE_FAILURES, TargetMarks
+from geovs_drake.sampling import random_features_in_domain
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems.feature_extractor import extract_features
 

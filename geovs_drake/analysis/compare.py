@@ -28,16 +28,14 @@ from __future__ import annotations
 import copy
 import csv
 import math
-import multiprocessing
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from pydrake.common.yaml import yaml_dump_typed
 
+from geovs_drake.analysis._pool import map_scenarios
 from geovs_drake.geometry.baselines import (
     DEFAULT_SQUARE_SIDE,
     TARGET_POINT_NAMES,
@@ -45,7 +43,7 @@ from geovs_drake.geometry.baselines import (
     points_in_camera,
     target_points,
 )
-from geovs_drake.scenario import PLANTS, ScenarioConfig, SuiteConfig, load_scenario, load_suite
+from geovs_drake.scenario import PLANTS, ScenarioConfig, SuiteConfig, load_suite
 from geovs_drake.simulation import simulate
 
 __all__ = [
@@ -207,9 +205,8 @@ def run_case(scenario: str, law: str, config: ScenarioConfig) -> Run:
     return Run(row, result.times, X_BC[:, :3, 3].copy(), directions)
 
 
-def _run_case_from_yaml(scenario: str, law: str, config_yaml: str) -> Run:
-    """A worker's entry point: the config travels as YAML (Drake's structs do not pickle)."""
-    return run_case(scenario, law, load_scenario(data=config_yaml))
+def _run_case(config: ScenarioConfig, scenario: str, law: str) -> Run:
+    return run_case(scenario, law, config)
 
 
 def run_compare(
@@ -235,23 +232,11 @@ def run_compare(
     cases = suite_cases(suite, plant, duration, base)
     start = time.perf_counter()
     runs: list[Run | None] = [None] * len(cases)
-    if workers == 1:
-        for i, case in enumerate(cases):
-            runs[i] = run_case(*case)
-            if on_run:
-                on_run(runs[i])
-    else:
-        # spawn: a fresh interpreter per worker, no forked Drake or numba state.
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-            futures = {
-                pool.submit(_run_case_from_yaml, name, law, yaml_dump_typed(config)): i
-                for i, (name, law, config) in enumerate(cases)
-            }
-            for future, i in futures.items():
-                runs[i] = future.result()
-                if on_run:
-                    on_run(runs[i])
+    tasks = [(config, name, law) for name, law, config in cases]
+    for i, run in enumerate(map_scenarios(_run_case, tasks, workers)):
+        runs[i] = run
+        if on_run:
+            on_run(run)
     return CompareResult(suite, plant, list(runs), time.perf_counter() - start)
 
 
@@ -359,16 +344,6 @@ def _is_nan(value: object) -> bool:
 # --------------------------------------------------------------------------
 # Figures
 # --------------------------------------------------------------------------
-def _pyplot():
-    import matplotlib
-
-    if matplotlib.get_backend().lower() not in ("agg", "module://matplotlib_inline.backend_inline"):
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 #: Colour and line style per image-sphere trajectory.
 _IMAGE_STYLES = {
     "centre": ("k", "-"),
@@ -385,7 +360,9 @@ def plot_compare(result: CompareResult, out_dir: str | Path) -> list[Path]:
     scenario (orthographic view of the unit sphere along the optical axis, the
     field-of-view circle drawn); ``camera_paths.png``: per scenario, the camera's
     3-D path in B for every law."""
-    plt = _pyplot()
+    from geovs_drake.plotting import pyplot
+
+    plt = pyplot()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []

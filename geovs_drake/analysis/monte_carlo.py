@@ -17,19 +17,17 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Iterable
-from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import get_context
 
 import numpy as np
 from pydrake.common import RandomGenerator
-from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import MonteCarloSimulation
 
-from geovs_drake.analysis.nf_study import random_features_in_domain
+from geovs_drake.analysis._pool import map_scenarios
 from geovs_drake.diagrams import make_servo_diagram
 from geovs_drake.geometry.camera import camera_map_inverse
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
+from geovs_drake.sampling import random_features_in_domain
+from geovs_drake.scenario import PoseConfig, ScenarioConfig
 from geovs_drake.simulation import camera_pose_in_target, make_simulator, pose_error, simulate
 
 __all__ = [
@@ -63,8 +61,8 @@ def scenarios_from_starts(
     return out
 
 
-def _run_yaml(text: str) -> dict:
-    return simulate(load_scenario(data=text)).summary()
+def _summary(config: ScenarioConfig) -> dict:
+    return simulate(config).summary()
 
 
 def run_scenarios(configs: list[ScenarioConfig], processes: int = 1) -> list[dict]:
@@ -75,11 +73,7 @@ def run_scenarios(configs: list[ScenarioConfig], processes: int = 1) -> list[dic
     safe). A script that calls this must therefore guard its entry point with
     ``if __name__ == "__main__":``; notebooks need nothing.
     """
-    if processes <= 1:
-        return [simulate(c).summary() for c in configs]
-    texts = [yaml_dump_typed(c) for c in configs]
-    with ProcessPoolExecutor(max_workers=processes, mp_context=get_context("spawn")) as pool:
-        return list(pool.map(_run_yaml, texts))
+    return list(map_scenarios(_summary, [(c,) for c in configs], processes))
 
 
 def drake_monte_carlo(

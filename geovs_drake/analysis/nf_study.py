@@ -20,11 +20,10 @@ import numpy as np
 
 from geovs_drake.geometry.camera import ImageFeatures
 from geovs_drake.geometry.navigation import (
-    ModelCoordinates,
     NavigationFunction,
-    features_from_model,
 )
 from geovs_drake.geometry.so3 import so3_exp
+from geovs_drake.sampling import random_features_in_domain  # noqa: F401 - the earlier name
 
 __all__ = [
     "CriticalPoint",
@@ -34,26 +33,8 @@ __all__ = [
     "chart_hessian",
     "critical_point_search",
     "gradient_descent",
-    "random_features_in_domain",
     "retract",
 ]
-
-
-def random_features_in_domain(
-    rng: np.random.Generator, n: int, nf_or_domain: object, shrink: float = 0.98
-) -> ImageFeatures:
-    """Random images in D, uniform in the model coordinates scaled by ``shrink``."""
-    domain = getattr(nf_or_domain, "domain", nf_or_domain)
-    u = shrink * rng.uniform(-1, 1, size=n)
-
-    def disc() -> np.ndarray:
-        r = shrink * np.sqrt(rng.uniform(0, 1, size=n))
-        a = rng.uniform(0, 2 * np.pi, size=n)
-        return np.stack([r * np.cos(a), r * np.sin(a)], axis=-1)
-
-    angle = rng.uniform(0, 2 * np.pi, size=n)
-    circle = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
-    return features_from_model(ModelCoordinates(u, disc(), disc(), circle), domain)
 
 
 def chart_basis(s: np.ndarray) -> np.ndarray:

@@ -38,23 +38,22 @@ from __future__ import annotations
 import copy
 import json
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.analysis import DiscreteTimeApproximation
 from pydrake.systems.primitives import LinearSystem
 
+from geovs_drake.analysis._pool import map_scenarios
 from geovs_drake.analysis.linearization import rig_spatial_inertia
-from geovs_drake.analysis.nf_study import random_features_in_domain
 from geovs_drake.geometry.camera import camera_map, camera_map_inverse, image_jacobian
 from geovs_drake.geometry.features import FEATURE_FAILURES, TargetMarks, pinhole_measurement
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.geometry.so3 import so3_exp
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
+from geovs_drake.sampling import random_features_in_domain
+from geovs_drake.scenario import PoseConfig, ScenarioConfig
 from geovs_drake.simulation import (
     StartOutsideDomain,
     convergence_tolerance,
@@ -273,10 +272,10 @@ def _final_motion(result) -> tuple[float, float]:
     return float(errors[:, 0].max()), float(errors[:, 1].max())
 
 
-def _run_one(task: tuple) -> RobustnessRow:
-    """One run; the config travels as YAML (Drake's SimulatorConfig does not pickle)."""
-    config_yaml, parameter, level, start, gains = task
-    config = load_scenario(data=config_yaml)
+def _run_one(
+    config: ScenarioConfig, parameter: str, level: float, start: int, gains: str
+) -> RobustnessRow:
+    """One run of one case from one start."""
     try:
         result = simulate(config)
     except StartOutsideDomain as e:  # a start is in D by construction: say so if not
@@ -351,19 +350,12 @@ def robustness_sweep(
                 c = case_config(base, None if nominal else parameter, level, sensor)
                 c.initial = PoseConfig.from_rigid_transform(RigidTransform(X_BC[k]))
                 c.camera.seed = k
-                tasks.append((yaml_dump_typed(c), key[0], key[1], k, gains))
+                tasks.append((c, key[0], key[1], k, gains))
     rows: list[RobustnessRow] = []
-    if workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            for row in pool.map(_run_one, tasks, chunksize=4):
-                rows.append(row)
-                if progress:
-                    progress(len(rows), len(tasks))
-    else:
-        for task in tasks:
-            rows.append(_run_one(task))
-            if progress:
-                progress(len(rows), len(tasks))
+    for row in map_scenarios(_run_one, tasks, workers):
+        rows.append(row)
+        if progress:
+            progress(len(rows), len(tasks))
     out = []
     for parameter, values in levels.items():
         for level in values:
@@ -431,9 +423,9 @@ def summarize_robustness(
 def plot_robustness(table: Sequence[dict], path: str | Path | None = None):
     """The shares that stayed in D, settled and reached the goal, and the final position
     error of the runs in D, against each error's level."""
-    from geovs_drake.plotting import _pyplot
+    from geovs_drake.plotting import pyplot
 
-    plt = _pyplot()
+    plt = pyplot()
     columns = []
     for t in table:
         if (t["gains"], t["parameter"]) not in columns:
