@@ -119,6 +119,25 @@ def _free_body(builder: DiagramBuilder, config: ScenarioConfig, name: str):
     return plant, scene_graph, body
 
 
+def _meshcat_with_camera(
+    scene_graph: SceneGraph, body: RigidBody, X_BodyC: RigidTransform
+) -> Callable[[DiagramBuilder, Meshcat], None]:
+    """Meshcat for the scene, with the camera frame C's axes drawn on the body it rides."""
+
+    def add_meshcat(builder: DiagramBuilder, meshcat: Meshcat) -> None:
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+        AddFrameTriadIllustration(
+            scene_graph=scene_graph,
+            body=body,
+            X_FT=X_BodyC,
+            length=_TRIAD_LENGTH,
+            radius=_TRIAD_RADIUS,
+            name="C",
+        )
+
+    return add_meshcat
+
+
 def _set_plant_state(plant: MultibodyPlant, config: ScenarioConfig) -> Callable[[Context], None]:
     def set_initial_state(root: Context) -> None:
         # The plant has no default velocity: the start's twist is set here.
@@ -158,17 +177,6 @@ def _free_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: 
             force.generalized_force_output, plant.get_applied_generalized_force_input_port()
         )
 
-    def add_meshcat(builder: DiagramBuilder, meshcat: Meshcat) -> None:
-        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
-        AddFrameTriadIllustration(
-            scene_graph=scene_graph,
-            body=rig,
-            X_FT=config.X_RC,
-            length=_TRIAD_LENGTH,
-            radius=_TRIAD_RADIUS,
-            name="C",
-        )
-
     return CarrierParts(
         drive="wrench",
         body_pose=demux.get_output_port(0),
@@ -180,7 +188,7 @@ def _free_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: 
         set_initial_state=_set_plant_state(plant, config),
         body_state=plant.get_state_output_port(),
         connect_force=connect_force,
-        add_meshcat=add_meshcat,
+        add_meshcat=_meshcat_with_camera(scene_graph, rig, config.X_RC),
         plant=plant,
         scene_graph=scene_graph,
         body=rig,
@@ -250,17 +258,6 @@ def _fixed_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
             mount.generalized_force_output, plant.get_applied_generalized_force_input_port()
         )
 
-    def add_meshcat(builder: DiagramBuilder, meshcat: Meshcat) -> None:
-        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
-        AddFrameTriadIllustration(
-            scene_graph=scene_graph,
-            body=plant.world_body(),
-            X_FT=X_WC,
-            length=_TRIAD_LENGTH,
-            radius=_TRIAD_RADIUS,
-            name="C",
-        )
-
     return CarrierParts(
         drive="wrench",
         body_pose=demux.get_output_port(0),
@@ -272,7 +269,7 @@ def _fixed_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
         set_initial_state=_set_plant_state(plant, config),
         body_state=mount.camera_state_output,
         connect_force=connect_force,
-        add_meshcat=add_meshcat,
+        add_meshcat=_meshcat_with_camera(scene_graph, plant.world_body(), X_WC),
         plant=plant,
         scene_graph=scene_graph,
         body=target,
