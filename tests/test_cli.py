@@ -120,7 +120,7 @@ def test_simulate_exit_130_when_interrupted(monkeypatch, capsys):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "simulate", interrupted)
+    monkeypatch.setattr("geovs_drake.cli.simulate.simulate", interrupted)
     code, out, err = _run(["simulate", "--duration", "1"], capsys)
     assert code == 130
     _assert_one_line_error(err, "interrupted")
