@@ -28,8 +28,8 @@ EXIT_BROKEN_PIPE = 141
 EXIT_CODES: dict[int, str] = {
     EXIT_CONVERGED: "ran and converged (simulate, demo); the table finished (sweep, compare,\n"
     "robustness, camera-accuracy)",
-    EXIT_BAD_INPUT: "bad input: an argument, the --config file, a start outside D,\n"
-    "or a missing extra (one line on stderr, nothing run)",
+    EXIT_BAD_INPUT: "bad input: an argument, the --config file or --scenario-text, a start\n"
+    "outside D, or a missing extra (one line on stderr, nothing run)",
     EXIT_NOT_CONVERGED: "ran and did not converge (simulate, demo): status not_converged,\n"
     "left_domain, lost_visibility, feature_lost or non_finite",
     EXIT_INTERRUPTED: "interrupted (Ctrl-C)",
