@@ -12,6 +12,7 @@ radians, Drake's RollPitchYaw), the natural way to say where the camera is.
 import dataclasses
 import importlib.resources
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -840,18 +841,77 @@ def _complete_pose(tree: dict, path: tuple[str, ...]) -> None:
         node.setdefault("rpy", [0.0, 0.0, 0.0])
 
 
-def load_scenario(path: str | Path | None = None, data: str | None = None) -> ScenarioConfig:
+def _layer_tree(name: str, fragment: str | Mapping[str, Any]) -> dict:
+    """One layer as a checked tree of fields, its poses complete; errors start ``name: ``."""
+    tree = fragment
+    if isinstance(fragment, str):
+        try:
+            tree = _load_yaml(fragment)
+        except yaml.YAMLError as e:
+            mark = getattr(e, "problem_mark", None)
+            problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+            at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+            raise ValueError(f"{name}: malformed YAML{at}: {problem}") from None
+    if tree is None:
+        return {}
+    if not isinstance(tree, Mapping):
+        raise ValueError(
+            f"{name}: expected a mapping of ScenarioConfig fields, got {_describe(tree)}"
+        )
+    tree = _plain(tree)  # a copy: the poses are completed in place
+    try:
+        _check_node(tree, ScenarioConfig(), "")
+    except ValueError as e:
+        raise ValueError(f"{name}: {e}") from None
+    for pose in _POSE_FIELDS:
+        _complete_pose(tree, pose)
+    return tree
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with every mapping a new dict (and every list a new list)."""
+    if isinstance(value, Mapping):
+        return {key: _plain(item) for key, item in value.items()}
+    return [_plain(item) for item in value] if isinstance(value, list) else value
+
+
+def _merged(base: dict, over: Mapping[str, Any]) -> dict:
+    """``over`` on ``base``: mappings merge key by key, anything else (a list too) replaces."""
+    out = dict(base)
+    for key, value in over.items():
+        below = out.get(key)
+        if (
+            isinstance(value, Mapping)
+            and isinstance(below, Mapping)
+            and value.get(_TAG) == below.get(_TAG)  # another variant replaces, never merges
+        ):
+            out[key] = _merged(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def load_scenario(
+    path: str | Path | None = None,
+    data: str | None = None,
+    *,
+    overrides: Sequence[str | Mapping[str, Any] | tuple[str, str | Mapping[str, Any]]] = (),
+) -> ScenarioConfig:
     """A ScenarioConfig from a YAML file or string; unspecified fields keep defaults.
 
-    A pose (``target``, ``goal``, ``initial``, ``rig.camera_offset``) the file gives
-    is complete: its ``xyz`` or ``rpy``, if left out, is zero, not the default pose's.
+    ``overrides`` are layered over the file in order, each a YAML text or a mapping of
+    the same fields (or a pair ``(name, fragment)``, whose name its errors start
+    with; else ``overrides[k]``): mappings merge key by key, anything else replaces.
+    The command line passes ``--scenario-text`` and then each flag this way.
+
+    A pose (``target``, ``goal``, ``initial``, ``rig.camera_offset``) that the file or
+    a layer gives is complete: its ``xyz`` or ``rpy``, if left out, is zero, not the
+    default pose's nor a lower layer's.
 
     A missing file, malformed YAML, an unknown field or a value of the wrong type or
-    length raises ValueError with one line naming the file and the field. The values
-    themselves are checked by ``ScenarioConfig.validate``.
+    length raises ValueError with one line naming the file (or the layer) and the
+    field. The values themselves are checked by ``ScenarioConfig.validate``.
     """
-    if path is None and data is None:
-        return ScenarioConfig()
     source = "scenario" if path is None else str(path)
     if path is not None:
         try:
@@ -860,25 +920,16 @@ def load_scenario(path: str | Path | None = None, data: str | None = None) -> Sc
             raise ValueError(f"{source}: no such file") from None
         except (OSError, UnicodeDecodeError) as e:
             raise ValueError(f"{source}: cannot read: {e}") from None
-    try:
-        tree = _load_yaml(data)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise ValueError(f"{source}: malformed YAML{at}: {problem}") from None
-    if tree is None:
+    layers: list[tuple[str, str | Mapping[str, Any]]] = []
+    if data is not None:
+        layers.append((source, data))
+    for k, item in enumerate(overrides):
+        layers.append(item if isinstance(item, tuple) else (f"overrides[{k}]", item))
+    tree: dict = {}
+    for name, fragment in layers:
+        tree = _merged(tree, _layer_tree(name, fragment))
+    if not tree:
         return ScenarioConfig()
-    if not isinstance(tree, dict):
-        raise ValueError(
-            f"{source}: expected a mapping of ScenarioConfig fields, got {_describe(tree)}"
-        )
-    try:
-        _check_node(tree, ScenarioConfig(), "")
-    except ValueError as e:
-        raise ValueError(f"{source}: {e}") from None
-    for pose in _POSE_FIELDS:
-        _complete_pose(tree, pose)
     try:
         return yaml_load_typed(
             schema=ScenarioConfig, data=_dump_yaml(tree), defaults=ScenarioConfig()

@@ -2,22 +2,20 @@
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from pydrake.common.yaml import yaml_dump_typed
 
 from geovs_drake import cli
 from geovs_drake.cli import EXIT_CODES, main
-from geovs_drake.simulation import SimulationResult
-
-
-def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code = main(argv)
-    out, err = capsys.readouterr()
-    return code, out, err
+from geovs_drake.geometry.navigation import NavigationFunction
+from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.simulation import SimulationResult, simulate
 
 
 def _assert_one_line_error(err: str, *needles: str) -> None:
@@ -56,34 +54,34 @@ BAD_CONFIGS = {
 
 
 @pytest.mark.parametrize("name", list(BAD_CONFIGS))
-def test_simulate_bad_config_exits_2_with_one_line(name, tmp_path, capsys):
+def test_simulate_bad_config_exits_2_with_one_line(name, tmp_path, capsys, run_cli):
     text, needles = BAD_CONFIGS[name]
     path = tmp_path / "scenario.yaml"
     path.write_text(text)
-    code, out, err = _run(["simulate", "--config", str(path)], capsys)
+    code, out, err = run_cli("simulate", "--config", str(path))
     assert code == 2, err
     assert out == ""
     _assert_one_line_error(err, *needles)
 
 
-def test_simulate_missing_config_exits_2_with_one_line(tmp_path, capsys):
+def test_simulate_missing_config_exits_2_with_one_line(tmp_path, capsys, run_cli):
     missing = tmp_path / "nope.yaml"
-    code, out, err = _run(["simulate", "--config", str(missing)], capsys)
+    code, out, err = run_cli("simulate", "--config", str(missing))
     assert code == 2 and out == ""
     _assert_one_line_error(err, str(missing), "no such file")
 
 
-def test_simulate_good_config_overridden_by_options(tmp_path, capsys):
+def test_simulate_good_config_overridden_by_options(tmp_path, capsys, run_cli):
     path = tmp_path / "scenario.yaml"
     path.write_text("plant: kinematic\nduration: 0\nsimulator:\n  accuracy: 1e-6\n")
     # The file's bad duration is overridden by --duration: the run goes ahead.
-    code, out, err = _run(["simulate", "--config", str(path), "--duration", "12"], capsys)
+    code, out, err = run_cli("simulate", "--config", str(path), "--duration", "12")
     assert code == 0, err
     assert out.startswith("nf on the kinematic plant: converged")
 
 
-def test_simulate_exit_0_when_converged(capsys):
-    code, out, err = _run(["simulate", "--plant", "kinematic", "--duration", "12"], capsys)
+def test_simulate_exit_0_when_converged(capsys, run_cli):
+    code, out, err = run_cli("simulate", "--plant", "kinematic", "--duration", "12")
     assert code == 0, err
     assert out.startswith("nf on the kinematic plant: converged")
 
@@ -96,8 +94,8 @@ def test_simulate_exit_0_when_converged(capsys):
     ],
     ids=["not-converged", "left-domain"],
 )
-def test_simulate_exit_3_when_it_ran_and_did_not_converge(argv, status, capsys):
-    code, out, err = _run(["simulate", *argv], capsys)
+def test_simulate_exit_3_when_it_ran_and_did_not_converge(argv, status, capsys, run_cli):
+    code, out, err = run_cli("simulate", *argv)
     assert code == 3, err
     assert out.startswith(f"nf on the dynamic plant: {status} ")
 
@@ -116,17 +114,17 @@ def test_exit_code_of_every_status(status, code):
     assert cli.exit_code_of(status) == code
 
 
-def test_simulate_exit_130_when_interrupted(monkeypatch, capsys):
+def test_simulate_exit_130_when_interrupted(monkeypatch, capsys, run_cli):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "simulate", interrupted)
-    code, out, err = _run(["simulate", "--duration", "1"], capsys)
+    monkeypatch.setattr("geovs_drake.cli.simulate.simulate", interrupted)
+    code, out, err = run_cli("simulate", "--duration", "1")
     assert code == 130
     _assert_one_line_error(err, "interrupted")
 
 
-def test_demo_exit_3_when_the_run_did_not_converge(monkeypatch, tmp_path, capsys):
+def test_demo_exit_3_when_the_run_did_not_converge(monkeypatch, tmp_path, capsys, run_cli):
     import geovs_drake.demo
 
     class _Result:
@@ -138,7 +136,7 @@ def test_demo_exit_3_when_the_run_did_not_converge(monkeypatch, tmp_path, capsys
         return _Result()  # type: ignore[return-value]
 
     monkeypatch.setattr(geovs_drake.demo, "run_demo", fake_run_demo)
-    code, _, err = _run(["demo", "--out", str(tmp_path / "d"), "--duration", "1"], capsys)
+    code, _, err = run_cli("demo", "--out", str(tmp_path / "d"), "--duration", "1")
     assert code == 3, err
 
 
@@ -152,41 +150,41 @@ def test_demo_exit_3_when_the_run_did_not_converge(monkeypatch, tmp_path, capsys
     ],
     ids=["negative", "zero", "nan", "inf"],
 )
-def test_demo_bad_duration_exits_2_and_creates_nothing(argv, needles, tmp_path, capsys):
+def test_demo_bad_duration_exits_2_and_creates_nothing(argv, needles, tmp_path, capsys, run_cli):
     out_dir = tmp_path / "x"
-    code, out, err = _run(["demo", "--out", str(out_dir), *argv], capsys)
+    code, out, err = run_cli("demo", "--out", str(out_dir), *argv)
     assert code == 2 and out == ""
     _assert_one_line_error(err, *needles)
     assert not out_dir.exists()
     assert list(tmp_path.iterdir()) == []
 
 
-def test_demo_out_an_existing_file_exits_2(tmp_path, capsys):
+def test_demo_out_an_existing_file_exits_2(tmp_path, capsys, run_cli):
     target = tmp_path / "results"
     target.write_text("not a folder")
-    code, _, err = _run(["demo", "--out", str(target), "--duration", "1"], capsys)
+    code, _, err = run_cli("demo", "--out", str(target), "--duration", "1")
     assert code == 2
     _assert_one_line_error(err, "--out", str(target), "not a directory")
     assert target.read_text() == "not a folder"
 
 
-def test_demo_out_under_a_file_exits_2(tmp_path, capsys):
+def test_demo_out_under_a_file_exits_2(tmp_path, capsys, run_cli):
     blocker = tmp_path / "file"
     blocker.write_text("")
-    code, _, err = _run(["demo", "--out", str(blocker / "x"), "--duration", "1"], capsys)
+    code, _, err = run_cli("demo", "--out", str(blocker / "x"), "--duration", "1")
     assert code == 2
     _assert_one_line_error(err, "--out", str(blocker), "not a directory")
     assert sorted(tmp_path.iterdir()) == [blocker]
 
 
-def test_demo_out_under_a_read_only_folder_exits_2(tmp_path, capsys):
+def test_demo_out_under_a_read_only_folder_exits_2(tmp_path, capsys, run_cli):
     locked = tmp_path / "locked"
     locked.mkdir()
     locked.chmod(0o500)
     try:
         if _can_write(locked):
             pytest.skip("running as a user who can write anywhere (root)")
-        code, _, err = _run(["demo", "--out", str(locked / "x"), "--duration", "1"], capsys)
+        code, _, err = run_cli("demo", "--out", str(locked / "x"), "--duration", "1")
         assert code == 2
         _assert_one_line_error(err, "--out", "not writable")
         assert list(locked.iterdir()) == []
@@ -283,18 +281,16 @@ def test_progress_off_a_terminal_prints_sparse_integer_lines(capsys):
     assert len(lines) == 2  # the first, then nothing for an hour but the last
 
 
-def test_demo_progress_is_sparse_in_a_log(tmp_path):
+def test_demo_progress_is_sparse_in_a_log(tmp_path, run_cli):
     """`demo` with stderr to a file (not a TTY): plain progress lines, no tqdm bar."""
     out = tmp_path / "demo"
-    run = subprocess.run(
-        [sys.executable, "-m", "geovs_drake.cli", "demo", "--out", str(out), "--duration", "2",
-         "--no-meshcat", "--no-rendered"],
-        capture_output=True,
-        text=True,
+    run = run_cli(
+        "demo", "--out", str(out), "--duration", "2", "--no-meshcat", "--no-rendered",
+        subprocess=True,
     )  # fmt: skip
-    assert run.returncode == cli.EXIT_NOT_CONVERGED, run.stderr  # 2 s is too short
-    assert "\r" not in run.stderr
-    assert "dynamic servo: 100/100 %" in run.stderr
+    assert run.code == cli.EXIT_NOT_CONVERGED, run.err  # 2 s is too short
+    assert "\r" not in run.err
+    assert "dynamic servo: 100/100 %" in run.err
 
 
 def test_progress_waits_for_its_delay_and_stays_quiet_on_short_work(monkeypatch, capsys):
@@ -322,17 +318,17 @@ def test_progress_waits_for_its_delay_and_stays_quiet_on_short_work(monkeypatch,
     ]
 
 
-def test_simulate_progress_goes_to_stderr_and_changes_nothing_else(monkeypatch, capsys):
+def test_simulate_progress_goes_to_stderr_and_changes_nothing_else(monkeypatch, capsys, run_cli):
     """`simulate --json` off a terminal: progress lines on stderr only past the delay; stdout
     is the same one JSON line, and the run the same, steps included."""
     import json
     import re
 
     argv = ["simulate", "--json", "--duration", "5"]
-    code, out_quiet, err_quiet = _run(argv, capsys)
+    code, out_quiet, err_quiet = run_cli(*argv)
     assert err_quiet == ""  # well under SIMULATE_PROGRESS_DELAY_S: no progress at all
     monkeypatch.setattr(cli, "SIMULATE_PROGRESS_DELAY_S", 0.0)
-    code_shown, out, err = _run(argv, capsys)
+    code_shown, out, err = run_cli(*argv)
     assert code_shown == code
     lines = err.splitlines()
     assert 2 <= len(lines) <= 3 and "\r" not in err, err  # first, (maybe one more), last
@@ -397,3 +393,242 @@ def test_a_closed_pipe_ends_quietly_with_its_own_exit_code():
     err = proc.stderr.read()
     assert proc.wait() == 141, err
     assert "Traceback" not in err and "BrokenPipeError" not in err, err
+
+
+# ------------------------------------------ simulate's JSON and its one-line errors
+JSON_FIELDS = {
+    "converged",
+    "final_position_error_m",
+    "final_rotation_error_rad",
+    "min_fov_margin",
+    "min_occlusion_margin",
+    "min_visibility",
+    "left_domain",
+    "status",
+    "sim_time_s",
+    "wall_time_s",
+    "steps",
+    "lyapunov_monotone",
+    "max_energy",
+}
+
+
+def test_cli_json_has_every_field_and_is_true_to_the_run(run_cli):
+    initial = "-0.1,0.05,-0.7,0.1,-0.05,1.2"
+    out = run_cli("simulate", "--json", f"--initial={initial}", "--duration", "12")
+    assert out.code == 0, out.err
+    lines = out.out.strip().splitlines()
+    assert len(lines) == 1
+    s = json.loads(lines[0])
+    assert JSON_FIELDS <= set(s)
+    # The same run through the Python API is deterministic: same numbers.
+    values = [float(v) for v in initial.split(",")]
+    r = simulate(
+        ScenarioConfig(duration=12.0, initial=PoseConfig(xyz=values[:3], rpy=values[3:]))
+    ).summary()
+    for key in JSON_FIELDS - {"wall_time_s"}:
+        if isinstance(r[key], bool | str | int):
+            assert s[key] == r[key], key
+        else:
+            assert s[key] == pytest.approx(r[key], rel=1e-9, abs=1e-15), key
+    assert s["converged"] is True and s["left_domain"] is False
+    assert s["sim_time_s"] == 12.0
+
+
+def test_cli_one_line_and_kinematic(run_cli):
+    out = run_cli("simulate", "--plant", "kinematic", "--duration", "12")
+    assert out.code == 0, out.err
+    assert len(out.out.strip().splitlines()) == 1
+    assert out.out.startswith("nf on the kinematic plant: converged")
+
+
+def test_cli_start_outside_domain_exits_2_with_one_line(run_cli):
+    out = run_cli("simulate", "--initial=0,0,-3,0,0,0")
+    assert out.code == 2
+    assert out.out == ""
+    lines = out.err.strip().splitlines()
+    assert len(lines) == 1 and "lam_min margin" in lines[0]
+    bad = run_cli("simulate", "--initial=0,0,-0.5,0,0")
+    assert bad.code == 2 and "expected 6" in bad.err
+
+
+def test_cli_initial_velocity_json_round_trip(run_cli):
+    twist = "-0.2,0.1,0.3,0.05,-0.1,0.02"
+    out = run_cli("simulate", "--json", f"--initial-velocity={twist}", "--duration", "10")
+    assert out.code == 0, out.err
+    lines = out.out.strip().splitlines()
+    assert len(lines) == 1
+    s = json.loads(lines[0])
+    config = ScenarioConfig(duration=10.0, initial_velocity=[float(v) for v in twist.split(",")])
+    r = simulate(config).summary()
+    for key in (JSON_FIELDS | {"initial_energy", "energy_bound", "energy_guarantee"}) - {
+        "wall_time_s"
+    }:
+        if isinstance(r[key], bool | str | int):
+            assert s[key] == r[key], key
+        else:
+            assert s[key] == pytest.approx(r[key], rel=1e-9, abs=1e-15), key
+    # The flag reached the plant: E0 is the moving start's, above k_p phi0 at rest.
+    nf = NavigationFunction(
+        config.domain.to_domain(), config.goal_features(), config.navigation.to_gains()
+    )
+    at_rest = config.control.potential_gain * float(nf.value(config.initial_features()))
+    assert s["initial_energy"] > at_rest + 1e-6
+    assert s["energy_guarantee"] is True and s["converged"] is True
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["--initial-velocity=0,0,0,0.1,0"],
+        ["--initial-velocity", "abc"],
+        ["--initial-velocity", "-0.1,0,0,0,0,0"],
+        ["--plant", "kinematic", "--initial-velocity=0,0,0,0.1,0,0"],
+    ],
+    ids=["five-numbers", "abc", "negative-without-equals", "kinematic"],
+)
+def test_cli_bad_initial_velocity_exits_2_with_one_line(args, run_cli):
+    out = run_cli("simulate", *args, "--duration", "1")
+    assert out.code == 2
+    assert out.out == ""
+    lines = out.err.strip().splitlines()
+    assert len(lines) == 1, out.err
+    assert "initial-velocity" in lines[0] or "initial_velocity" in lines[0]
+    assert "Traceback" not in out.err
+
+
+# ------------------------------------------- the scenario in layers: --scenario-text
+@pytest.fixture
+def loaded(monkeypatch):
+    """The scenario `simulate` would run, instead of running it (the command then ends as
+    if interrupted: exit code 130)."""
+    seen: list[ScenarioConfig] = []
+
+    def capture(config, progress=None):
+        seen.append(config)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("geovs_drake.cli.simulate.simulate", capture)
+    return seen
+
+
+def test_layers_file_then_scenario_text_then_flags(tmp_path, run_cli, loaded):
+    path = tmp_path / "scenario.yaml"
+    path.write_text(
+        "plant: kinematic\nduration: 7\ncontrol: {kinematic_gain: 3, potential_gain: 5}\n"
+        "initial: {xyz: [0.1, 0, -0.7], rpy: [0, 0, 1]}\n"
+    )
+    text = "{duration: 9, control: {kinematic_gain: 2}, initial: {xyz: [0, 0.05, -0.6]}}"
+    run = run_cli(
+        "simulate", "--config", str(path), "--scenario-text", text, "--duration", "11",
+        "--ibvs-depth", "mean",
+    )  # fmt: skip
+    assert run.code == cli.EXIT_INTERRUPTED, run.err
+    (config,) = loaded
+    assert config.plant == "kinematic"  # the file's
+    assert config.control.potential_gain == 5  # the file's: mappings merge key by key
+    assert config.control.kinematic_gain == 2  # the text over the file
+    assert config.duration == 11  # the flag over the text and the file
+    assert config.control.ibvs_depth == "mean"  # a flag as a nested fragment
+    # The text's pose is whole: its rpy is zero, not the file's nor the default's.
+    assert config.initial == PoseConfig(xyz=[0.0, 0.05, -0.6], rpy=[0.0, 0.0, 0.0])
+
+
+def test_scenario_text_alone_runs(run_cli):
+    run = run_cli(
+        "simulate", "--scenario-text", "{plant: kinematic, control: {kinematic_gain: 2}}",
+        "--duration", "12",
+    )  # fmt: skip
+    assert run.code == 0, run.err
+    assert run.out.startswith("nf on the kinematic plant: converged")
+
+
+@pytest.mark.parametrize(
+    ("text", "needles"),
+    [
+        ("{plant: [kinematic", ["--scenario-text: malformed YAML", "line 1"]),
+        ("{colour: red}", ["--scenario-text: colour: unknown field"]),
+        ("{control: {damping: 3}}", ["--scenario-text: control.damping: expected a list"]),
+        ("[1, 2]", ["--scenario-text: expected a mapping"]),
+        ("{plant: wheeled}", ["plant must be one of", "'wheeled'"]),
+    ],
+    ids=["malformed", "unknown-field", "wrong-type", "not-a-mapping", "bad-value"],
+)
+def test_bad_scenario_text_exits_2_with_one_line(text, needles, run_cli, loaded):
+    run = run_cli("simulate", "--scenario-text", text)
+    assert run.code == 2 and run.out == "" and not loaded
+    _assert_one_line_error(run.err, *needles)
+
+
+def test_every_scenario_flag_shows_the_dataclass_default(run_cli, loaded, capsys):
+    """Each default that `simulate --help` shows, given back to its flag, is the default
+    scenario: the help reads the dataclasses, and says so for every scenario flag."""
+    with pytest.raises(SystemExit):
+        main(["simulate", "--help"])
+    entries = _option_entries(capsys.readouterr().out)
+    shown = {}
+    for name, entry in entries.items():
+        found = re.search(r"\(default: the config's, else (?:at rest )?(\S+)\)$", entry)
+        if found:
+            shown[name.split()[0]] = found.group(1)
+    plain = {"-h", "--config", "--scenario-text", "--json"}
+    assert set(shown) == set(entries) - plain  # every other flag sets a scenario field
+    for flag, value in shown.items():
+        loaded.clear()
+        run = run_cli("simulate", f"{flag}={value}")
+        assert run.code == cli.EXIT_INTERRUPTED, (flag, run.err)
+        # As YAML: Drake's SimulatorConfig compares by identity.
+        assert [yaml_dump_typed(c) for c in loaded] == [yaml_dump_typed(ScenarioConfig())], flag
+
+
+# ------------------------------------------------- robustness and camera-accuracy
+@pytest.mark.parametrize(
+    ("argv", "needles"),
+    [
+        (["--starts", "0"], ["--starts must be >= 1", "0"]),
+        (["--workers", "0"], ["--workers must be >= 1"]),
+        (["--duration", "nan"], ["--duration must be finite and > 0", "nan"]),
+        (["--soft-duration=-1"], ["--soft-duration must be finite and >= 0", "-1"]),
+        (["--shrink", "1.5"], ["--shrink must be in (0, 1]", "1.5"]),
+        (["--only", "gravity"], ["invalid choice", "gravity"]),
+        (["--scenario-text", "{colour: red}"], ["--scenario-text: colour: unknown field"]),
+        (["--config", "missing.yaml"], ["missing.yaml: no such file"]),
+    ],
+    ids=["starts", "workers", "duration", "soft-duration", "shrink", "only", "text", "config"],
+)
+def test_robustness_bad_input_exits_2_with_one_line_and_writes_nothing(
+    argv, needles, tmp_path, monkeypatch, run_cli
+):
+    monkeypatch.chdir(tmp_path)
+    run = run_cli("robustness", "--out", str(tmp_path / "r"), *argv)
+    assert run.code == 2 and run.out == ""
+    _assert_one_line_error(run.err, *needles)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_robustness_out_a_file_exits_2(tmp_path, run_cli):
+    target = tmp_path / "file"
+    target.write_text("")
+    run = run_cli("robustness", "--out", str(target))
+    assert run.code == 2
+    _assert_one_line_error(run.err, "--out", "not a directory")
+
+
+@pytest.mark.parametrize(
+    ("argv", "needles"),
+    [
+        (["--poses", "0"], ["--poses must be >= 1"]),
+        (["--resolution", "8x8"], ["expected WxH"]),
+        (["--scenario-text", "{plant: [1"], ["--scenario-text: malformed YAML"]),
+    ],
+    ids=["poses", "resolution", "text"],
+)
+def test_camera_accuracy_bad_input_exits_2_with_one_line(argv, needles, run_cli):
+    run = run_cli("camera-accuracy", *argv)
+    assert run.code == 2 and run.out == ""
+    _assert_one_line_error(run.err, *needles)
+
+
+def test_python_m_geovs_drake_cli_is_the_command(run_cli):
+    run = run_cli("--version", subprocess=True)
+    assert run.code == 0 and run.out.startswith("geovs-drake ")

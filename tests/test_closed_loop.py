@@ -1,9 +1,8 @@
-"""Closed loops: Drake's Linearize against the closed form, monitors, the CLI, Monte-Carlo."""
+"""Closed loops: Drake's Linearize against the closed form, monitors, Monte-Carlo (the CLI's
+tests are in test_cli.py)."""
 
 import copy
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -216,69 +215,6 @@ def test_scenario_yaml_round_trip_and_partial_files(tmp_path):
     assert c4.goal == ScenarioConfig().goal  # a pose the file does not give keeps its default
 
 
-# ---------------------------------------------------------------------- CLI
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "geovs_drake.cli", *args], capture_output=True, text=True
-    )
-
-
-JSON_FIELDS = {
-    "converged",
-    "final_position_error_m",
-    "final_rotation_error_rad",
-    "min_fov_margin",
-    "min_occlusion_margin",
-    "min_visibility",
-    "left_domain",
-    "status",
-    "sim_time_s",
-    "wall_time_s",
-    "steps",
-    "lyapunov_monotone",
-    "max_energy",
-}
-
-
-def test_cli_json_has_every_field_and_is_true_to_the_run():
-    initial = "-0.1,0.05,-0.7,0.1,-0.05,1.2"
-    out = _cli("simulate", "--json", f"--initial={initial}", "--duration", "12")
-    assert out.returncode == 0, out.stderr
-    lines = out.stdout.strip().splitlines()
-    assert len(lines) == 1
-    s = json.loads(lines[0])
-    assert JSON_FIELDS <= set(s)
-    # The same run through the Python API is deterministic: same numbers.
-    values = [float(v) for v in initial.split(",")]
-    r = simulate(
-        ScenarioConfig(duration=12.0, initial=PoseConfig(xyz=values[:3], rpy=values[3:]))
-    ).summary()
-    for key in JSON_FIELDS - {"wall_time_s"}:
-        if isinstance(r[key], bool | str | int):
-            assert s[key] == r[key], key
-        else:
-            assert s[key] == pytest.approx(r[key], rel=1e-9, abs=1e-15), key
-    assert s["converged"] is True and s["left_domain"] is False
-    assert s["sim_time_s"] == 12.0
-
-
-def test_cli_one_line_and_kinematic():
-    out = _cli("simulate", "--plant", "kinematic", "--duration", "12")
-    assert out.returncode == 0, out.stderr
-    assert len(out.stdout.strip().splitlines()) == 1
-    assert out.stdout.startswith("nf on the kinematic plant: converged")
-
-
-def test_cli_start_outside_domain_exits_2_with_one_line():
-    out = _cli("simulate", "--initial=0,0,-3,0,0,0")
-    assert out.returncode == 2
-    assert out.stdout == ""
-    lines = out.stderr.strip().splitlines()
-    assert len(lines) == 1 and "lam_min margin" in lines[0]
-    bad = _cli("simulate", "--initial=0,0,-0.5,0,0")
-    assert bad.returncode == 2 and "expected 6" in bad.stderr
-
-
 # ------------------------------------------------------------- Monte-Carlo
 @pytest.mark.parametrize("controller", ["dynamic", "kinematic"])
 def test_monte_carlo_random_starts_converge_inside_domain(controller):
@@ -438,47 +374,6 @@ def test_kinematic_loop_rejects_an_initial_velocity_and_has_no_energy_fields():
     c = load_scenario(data="initial_velocity: [0.1, 0, 0, 0, 0.2, 0]\n")
     assert c.initial_velocity == [0.1, 0.0, 0.0, 0.0, 0.2, 0.0]
     c.validate()
-
-
-def test_cli_initial_velocity_json_round_trip():
-    twist = "-0.2,0.1,0.3,0.05,-0.1,0.02"
-    out = _cli("simulate", "--json", f"--initial-velocity={twist}", "--duration", "10")
-    assert out.returncode == 0, out.stderr
-    lines = out.stdout.strip().splitlines()
-    assert len(lines) == 1
-    s = json.loads(lines[0])
-    config = ScenarioConfig(duration=10.0, initial_velocity=[float(v) for v in twist.split(",")])
-    r = simulate(config).summary()
-    for key in (JSON_FIELDS | {"initial_energy", "energy_bound", "energy_guarantee"}) - {
-        "wall_time_s"
-    }:
-        if isinstance(r[key], bool | str | int):
-            assert s[key] == r[key], key
-        else:
-            assert s[key] == pytest.approx(r[key], rel=1e-9, abs=1e-15), key
-    # The flag reached the plant: E0 is the moving start's, not k_p phi0 at rest.
-    assert s["initial_energy"] == pytest.approx(_expected_initial_energy(config), rel=1e-9)
-    assert s["energy_guarantee"] is True and s["converged"] is True
-
-
-@pytest.mark.parametrize(
-    "args",
-    [
-        ["--initial-velocity=0,0,0,0.1,0"],
-        ["--initial-velocity", "abc"],
-        ["--initial-velocity", "-0.1,0,0,0,0,0"],
-        ["--plant", "kinematic", "--initial-velocity=0,0,0,0.1,0,0"],
-    ],
-    ids=["five-numbers", "abc", "negative-without-equals", "kinematic"],
-)
-def test_cli_bad_initial_velocity_exits_2_with_one_line(args):
-    out = _cli("simulate", *args, "--duration", "1")
-    assert out.returncode == 2
-    assert out.stdout == ""
-    lines = out.stderr.strip().splitlines()
-    assert len(lines) == 1, out.stderr
-    assert "initial-velocity" in lines[0] or "initial_velocity" in lines[0]
-    assert "Traceback" not in out.stderr
 
 
 def _constant_twist_law(twist):

@@ -2,8 +2,6 @@
 
 import json
 import shutil
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -14,26 +12,13 @@ from geovs_drake.plotting import write_block_diagram
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
-def test_demo_writes_every_result(tmp_path):
-    out = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "geovs_drake.cli",
-            "demo",
-            "--out",
-            str(tmp_path),
-            "--duration",
-            "8",
-        ],
-        capture_output=True,
-        text=True,
-    )
-    assert out.returncode == 0, out.stderr
-    lines = out.stdout.strip().splitlines()
+def test_demo_writes_every_result(tmp_path, run_cli):
+    out = run_cli("demo", "--out", str(tmp_path), "--duration", "8", subprocess=True)
+    assert out.code == 0, out.err
+    lines = out.out.strip().splitlines()
     assert lines[0].startswith("nf on the dynamic plant: converged")
     # Where the recording is: the saved file, not Drake's localhost URL (dead at exit).
-    assert "localhost" not in out.stdout + out.stderr, out.stderr
+    assert "localhost" not in out.out + out.err, out.err
     assert lines[1] == f"Meshcat recording: {(tmp_path / 'servo.html').resolve()} " + (
         "(open it in a web browser; it needs no server)"
     )

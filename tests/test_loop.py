@@ -164,3 +164,22 @@ def test_law_variants_load_from_yaml_and_the_earlier_form_keeps_loading():
         with pytest.raises(ValueError, match=needle) as error:
             load_scenario(data=text).validate()
         assert len(str(error.value).splitlines()) == 1
+
+
+def test_the_command_line_validates_a_scenario_once(monkeypatch, run_cli):
+    """`geovs-drake simulate`: the file, --scenario-text and the flags are loaded as
+    layers and validated once; simulate() and build_loop() trust the result."""
+    calls = []
+    validate = ScenarioConfig.validate
+    monkeypatch.setattr(ScenarioConfig, "validate", lambda self: calls.append(1) or validate(self))
+    code, out, _ = run_cli(
+        "simulate",
+        "--scenario-text",
+        "{controller: !Pbvs {}}",
+        "--initial=0.05,-0.03,-0.55,0.1,-0.05,0.3",
+        "--duration",
+        "0.5",
+        "--json",
+    )
+    assert code in (0, 3) and '"controller": "pbvs"' in out
+    assert len(calls) == 1

@@ -17,7 +17,6 @@ from pydrake.math import RigidTransform
 
 from geovs_drake.analysis import sweep
 from geovs_drake.analysis.monte_carlo import random_initial_poses
-from geovs_drake.cli import main
 from geovs_drake.diagrams import initial_body_states, make_dynamic_servo_diagram
 from geovs_drake.geometry.camera import camera_map
 from geovs_drake.geometry.navigation import NavigationFunction
@@ -144,19 +143,10 @@ def test_drake_engine_gives_the_batch_engine_statuses():
     assert batch.rows[3]["initial_energy_ratio"] > 1
 
 
-def _cli(capsys, *argv: str) -> tuple[int, str, str]:
-    try:
-        code = main(["sweep", *argv])
-    except SystemExit as e:  # argparse's own errors
-        code = e.code
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def test_cli_end_to_end(tmp_path, capsys):
+def test_cli_end_to_end(tmp_path, capsys, run_cli):
     out_dir = tmp_path / "sweep"
-    code, out, err = _cli(
-        capsys,
+    code, out, err = run_cli(
+        "sweep",
         *("--starts", "6", "--duration", "2", "--workers", "1", "--chunk", "4"),
         *("--seed", "3", "--out", str(out_dir), "--json"),
     )
@@ -200,14 +190,14 @@ def test_cli_end_to_end(tmp_path, capsys):
         (["--starts", "many"], "invalid int value"),
     ],
 )
-def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, capsys, monkeypatch):
+def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, capsys, monkeypatch, run_cli):
     monkeypatch.setattr(sweep, "SCHEDULER_TIMEOUT_S", 1.0)
     a_file = tmp_path / "a_file"
     a_file.write_text("not a folder")
     argv = [str(a_file) if a == "FILE" else a for a in argv]
     if "--out" not in argv:
         argv += ["--out", str(tmp_path / "out")]
-    code, out, err = _cli(capsys, "--starts", "3", "--workers", "1", *argv)
+    code, out, err = run_cli("sweep", "--starts", "3", "--workers", "1", *argv)
     assert code == 2
     assert out == ""
     assert len(err.strip().splitlines()) == 1 and message in err, err
@@ -217,7 +207,7 @@ def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, capsys, mo
 
 @pytest.mark.parametrize("plant,covered", [("dynamic", "E0 < k_p"), ("kinematic", "phi0 < 1")])
 def test_cli_line_names_the_guarantee_of_its_plant_and_the_legend_counts(
-    plant, covered, tmp_path, capsys, monkeypatch
+    plant, covered, tmp_path, capsys, monkeypatch, run_cli
 ):
     """The kinematic loop has no energy: its line says phi0 < 1, not E0 < k_p. The starts
     plot's legend gives each marker's count (a marker with no points says 0)."""
@@ -225,8 +215,8 @@ def test_cli_line_names_the_guarantee_of_its_plant_and_the_legend_counts(
 
     figures = []
     monkeypatch.setattr(plt, "close", figures.append)
-    code, out, err = _cli(
-        capsys,
+    code, out, err = run_cli(
+        "sweep",
         *("--plant", plant, "--starts", "4", "--duration", "3", "--workers", "1"),
         *("--out", str(tmp_path)),
     )

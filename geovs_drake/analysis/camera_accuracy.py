@@ -136,23 +136,3 @@ def feature_accuracy(
         render_ms=render_ms,
         extract_ms=extract_ms,
     )
-
-
-def main(argv: list[str] | None = None) -> None:
-    """``python -m geovs_drake.analysis.camera_accuracy [--poses N] [--resolution WxH]
-    [--seed S]``: print :meth:`AccuracyResult.summary` as JSON."""
-    import argparse
-    import json
-
-    parser = argparse.ArgumentParser(description=main.__doc__)
-    parser.add_argument("--poses", type=int, default=200)
-    parser.add_argument("--resolution", default="640x480")
-    parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
-    width, height = (int(v) for v in args.resolution.lower().split("x"))
-    result = feature_accuracy(n=args.poses, resolution=(width, height), seed=args.seed)
-    print(json.dumps(result.summary(), indent=2))
-
-
-if __name__ == "__main__":
-    main()

@@ -479,8 +479,11 @@ def compare(
     workers: int = 2,
     duration: float | None = None,
     on_run: Callable[[Run], None] | None = None,
+    base: ScenarioConfig | None = None,
 ) -> tuple[CompareResult, list[Path]]:
     """The whole command: load the suite, run it, write the tables and the figures.
+
+    ``base``: the scenario the starts are put into, as in :func:`run_compare`.
 
     Returns the result and the files written; figures are skipped (not an
     error) when matplotlib is not installed.
@@ -489,7 +492,7 @@ def compare(
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} exists and is not a directory")
-    result = run_compare(suite, plant, workers, duration, on_run=on_run)
+    result = run_compare(suite, plant, workers, duration, base=base, on_run=on_run)
     written = list(write_tables(result, out))
     try:
         written += plot_compare(result, out)

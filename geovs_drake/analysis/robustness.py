@@ -69,6 +69,7 @@ __all__ = [
     "plot_robustness",
     "potential_stiffness",
     "predicted_equilibrium",
+    "robustness_study",
     "robustness_sweep",
     "sampled_spectral_radius",
     "soft_gains",
@@ -468,85 +469,42 @@ def plot_robustness(table: Sequence[dict], path: str | Path | None = None):
     return fig
 
 
-def main(argv: list[str] | None = None) -> None:
-    """``python -m geovs_drake.analysis.robustness [--starts N] [--duration T] [--seed S]
-    [--sensor pinhole|rendered] [--workers K] [--only PARAMETER] [--soft-duration T]
-    [--out DIR]``: every sweep of :data:`LEVELS`, and latency again with
-    :data:`SOFT_GAINS`; write DIR/rows.json, DIR/table.json and DIR/robustness.png, print
-    the table."""
-    import argparse
-    import sys
-    import time
-
-    parser = argparse.ArgumentParser(description=main.__doc__)
-    parser.add_argument("--starts", type=int, default=20)
-    parser.add_argument("--duration", type=float, default=10.0)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--shrink", type=float, default=SHRINK)
-    parser.add_argument("--sensor", choices=["pinhole", "rendered"], default="pinhole")
-    parser.add_argument("--workers", type=int, default=1)
-    parser.add_argument("--only", choices=list(LEVELS), default=None)
-    parser.add_argument(
-        "--soft-duration",
-        type=float,
-        default=20.0,
-        help="horizon of the latency sweep with SOFT_GAINS, which converge slower (0: skip it)",
-    )
-    parser.add_argument("--out", default="results/robustness")
-    args = parser.parse_args(argv)
-    if args.only is not None:
-        levels = {args.only: LEVELS[args.only]}
-    else:  # the errors; the camera rate is its own study (--only rate)
+def robustness_study(
+    config: ScenarioConfig | None = None,
+    out_dir: str | Path = "results/robustness",
+    starts: int = 20,
+    duration: float = 10.0,
+    seed: int = 0,
+    shrink: float = SHRINK,
+    sensor: str = "pinhole",
+    only: str | None = None,
+    soft_duration: float = 20.0,
+    workers: int = 1,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[dict]:
+    """Every sweep of :data:`LEVELS` but the camera rate (``only``: that one alone), and
+    latency again with :data:`SOFT_GAINS` for ``soft_duration`` seconds (0: not);
+    write ``out_dir``/rows.json, table.json and robustness.png once every run is done;
+    return the table (:func:`summarize_robustness`)."""
+    if only is not None:
+        levels = {only: LEVELS[only]}
+    else:  # the errors; the camera rate is its own study (only="rate")
         levels = {k: v for k, v in LEVELS.items() if k != "rate"}
-    start = time.perf_counter()
-
-    def progress(done: int, total: int) -> None:
-        if done == total or done % max(1, total // 20) == 0:
-            print(f"robustness: {done}/{total} runs", file=sys.stderr)
-
-    rows = robustness_sweep(
-        starts=args.starts,
-        duration=args.duration,
-        seed=args.seed,
-        shrink=args.shrink,
-        sensor=args.sensor,
-        levels=levels,
-        workers=args.workers,
-        progress=progress,
-    )
-    if "latency_frames" in levels and args.soft_duration > 0:
+    common = dict(starts=starts, seed=seed, shrink=shrink, sensor=sensor, workers=workers)
+    rows = robustness_sweep(config, duration=duration, levels=levels, progress=progress, **common)
+    if "latency_frames" in levels and soft_duration > 0:
         rows += robustness_sweep(
-            starts=args.starts,
-            duration=args.soft_duration,
-            seed=args.seed,
-            shrink=args.shrink,
-            sensor=args.sensor,
+            config,
+            duration=soft_duration,
             levels={"latency_frames": levels["latency_frames"]},
-            workers=args.workers,
             progress=progress,
             gains="soft",
+            **common,
         )
-    table = summarize_robustness(rows)
-    out = Path(args.out)
+    table = summarize_robustness(rows, config)
+    out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     (out / "rows.json").write_text(json.dumps([asdict(r) for r in rows], indent=1) + "\n")
     (out / "table.json").write_text(json.dumps(table, indent=1) + "\n")
     plot_robustness(table, out / "robustness.png")
-    for t in table:
-        predicted = t.get("predicted_position_error_m")
-        print(
-            f"{t['gains']:>7} {t['parameter']:>15} {t['level']:>6g}: "
-            f"stayed {t['stayed']}/{t['runs']}, settled {t['settled']}/{t['runs']}, "
-            f"at goal {t['converged']}/{t['runs']}, "
-            "position error median "
-            f"{t['position_error_median_m']:.2e} max {t['position_error_max_m']:.2e} m"
-            + ("" if predicted is None else f" (predicted {predicted:.2e})")
-            + f", rotation error median {t['rotation_error_median_rad']:.2e} max "
-            f"{t['rotation_error_max_rad']:.2e} rad, spectral radius "
-            f"{t['spectral_radius']:.3f}, {t['statuses']}"
-        )
-    print(f"{len(rows)} rows in {time.perf_counter() - start:.0f} s wall", file=sys.stderr)
-
-
-if __name__ == "__main__":
-    main()
+    return table

@@ -26,6 +26,7 @@ of workers or the chunk size (a test checks they are bit-identical).
 from __future__ import annotations
 
 import copy
+import csv
 import functools
 import logging
 import math
@@ -34,6 +35,7 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from pydrake.common.yaml import yaml_dump_typed
@@ -62,6 +64,7 @@ __all__ = [
     "SweepInterrupted",
     "SweepResult",
     "run_sweep",
+    "run_sweep_to_csv",
     "sample_starts",
     "summarize",
 ]
@@ -489,6 +492,57 @@ def run_sweep(
     if interrupted:
         raise SweepInterrupted(result)
     return result
+
+
+def run_sweep_to_csv(
+    config: ScenarioConfig,
+    X_BC: np.ndarray,
+    twists: np.ndarray | None,
+    out_dir: str | Path,
+    on_chunk: Callable[[list[dict]], None] | None = None,
+    **settings,
+) -> SweepResult:
+    """:func:`run_sweep` (``settings``: its keywords) writing ``out_dir/results.csv``.
+
+    Rows are written as chunks finish, so a crash leaves what finished; at the end the
+    file is rewritten sorted by start, also after Ctrl-C, before
+    :class:`SweepInterrupted` goes on up. ``out_dir`` is created with the first rows.
+    """
+    out = Path(out_dir)
+    path = out / "results.csv"
+    stream = {}
+
+    def streamed(rows: list[dict]) -> None:
+        if not stream:
+            out.mkdir(parents=True, exist_ok=True)
+            stream["file"] = open(path, "w", newline="")
+            stream["writer"] = csv.DictWriter(stream["file"], fieldnames=ROW_FIELDS)
+            stream["writer"].writeheader()
+        stream["writer"].writerows(rows)
+        stream["file"].flush()
+        if on_chunk is not None:
+            on_chunk(rows)
+
+    interrupted = None
+    try:
+        result = run_sweep(config, X_BC, twists, on_chunk=streamed, **settings)
+    except SweepInterrupted as e:
+        result, interrupted = e.result, e
+    finally:
+        if stream:
+            stream["file"].close()
+    _write_csv(path, result.rows)
+    if interrupted is not None:
+        raise interrupted
+    return result
+
+
+def _write_csv(path: Path, rows: list[dict]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=ROW_FIELDS)
+        writer.writeheader()
+        writer.writerows(rows)
 
 
 # --------------------------------------------------------------------------

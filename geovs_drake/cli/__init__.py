@@ -1,0 +1,112 @@
+"""Command line: ``geovs-drake simulate``, ``demo``, ``sweep``, ``compare``, ``robustness``
+and ``camera-accuracy``; one module per command, the shared options in ``_options``.
+
+Examples::
+
+    geovs-drake simulate --json
+    geovs-drake simulate --plant kinematic --initial=-0.1,0.05,-0.7,0.1,0,1.2
+    geovs-drake simulate --scenario-text "{plant: kinematic, control: {kinematic_gain: 2}}"
+    geovs-drake simulate --initial-velocity=-0.2,0,0.3,0.05,-0.1,0
+    geovs-drake simulate --sensor rendered --camera-rate 30 --resolution 320x240
+    geovs-drake demo --out results
+    geovs-drake sweep --starts 10000 --duration 10 --json
+    geovs-drake sweep --scheduler tcp://host:8786 --starts 100000
+    geovs-drake simulate --controller ibvs --ibvs-depth mean --initial=0,0,-0.5,0,0,3.1
+    geovs-drake compare --plant kinematic --out results/compare
+    geovs-drake robustness --starts 20 --workers 2
+    geovs-drake camera-accuracy --poses 200 --resolution 320x240
+
+A scenario is read once, in layers: ``--config FILE``, then ``--scenario-text YAML``,
+then each option that sets a field (``--plant kinematic`` is ``{plant: kinematic}``),
+with :func:`~geovs_drake.scenario.load_scenario`'s ``overrides``.
+
+Exit codes: see ``EXIT_CODES`` (shown by ``geovs-drake --help``). A command that
+needs an extra that is not installed says so in one line, e.g. ``geovs-drake sweep
+needs dask[distributed]: pip install "geovs-drake[sweep]"``, and exits with 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from geovs_drake import __version__
+from geovs_drake._optional import MissingExtra
+from geovs_drake.cli import camera_accuracy, compare, demo, robustness, simulate, sweep
+from geovs_drake.cli._options import (
+    EXIT_BAD_INPUT,
+    EXIT_BROKEN_PIPE,
+    EXIT_CODES,
+    EXIT_CONVERGED,
+    EXIT_INTERRUPTED,
+    EXIT_NOT_CONVERGED,
+    EpilogTableFormatter,
+    OneLineParser,
+    exit_code_of,
+    exit_codes_epilog,
+)
+
+__all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_BROKEN_PIPE",
+    "EXIT_CODES",
+    "EXIT_CONVERGED",
+    "EXIT_INTERRUPTED",
+    "EXIT_NOT_CONVERGED",
+    "SIMULATE_PROGRESS_DELAY_S",
+    "build_parser",
+    "exit_code_of",
+    "main",
+]
+
+#: ``simulate`` shows progress on stderr only once a run has taken this long [s wall]
+#: (the default 30 s run takes well under a second).
+SIMULATE_PROGRESS_DELAY_S = 3.0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``geovs-drake`` argument parser: its subcommands and their options."""
+    parser = OneLineParser(
+        prog="geovs-drake",
+        description="Geometric visual servoing (Cowan & Chang) on Drake.",
+        epilog=exit_codes_epilog(),
+        formatter_class=EpilogTableFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    # Read here, at build time, so that the package's constant is the one in effect.
+    simulate.add_parser(sub, SIMULATE_PROGRESS_DELAY_S)
+    demo.add_parser(sub)
+    sweep.add_parser(sub)
+    compare.add_parser(sub)
+    robustness.add_parser(sub)
+    camera_accuracy.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``geovs-drake`` with ``argv`` (default ``sys.argv[1:]``); return the exit code.
+
+    Bad input (an argument, the ``--config`` file or ``--scenario-text``, a start
+    outside D) and a missing extra are one line on stderr and exit code 2; see
+    :data:`EXIT_CODES`.
+    """
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except ValueError as e:  # bad configuration: one clear line, no traceback
+        print(f"geovs-drake: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except MissingExtra as e:  # e.g. geovs-drake demo needs matplotlib: pip install ...
+        print(e.message(f"geovs-drake {args.command}"), file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("geovs-drake: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # The reader closed the pipe: stop quietly, and point stdout at devnull so
+        # that the interpreter's final flush does not raise again.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE

@@ -1,0 +1,86 @@
+"""``geovs-drake compare``: every control law on every scenario of a suite."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from geovs_drake.cli._options import (
+    EXIT_CONVERGED,
+    add_command,
+    add_config,
+    add_duration,
+    add_json,
+    add_out,
+    add_plant,
+    add_workers,
+    check_at_least_1,
+    load_config,
+)
+from geovs_drake.progress import Progress
+from geovs_drake.scenario import load_suite
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """The ``compare`` command."""
+    p = add_command(
+        sub,
+        "compare",
+        "every control law (NF, IBVS, PBVS, sphere features) on every scenario of a suite",
+        "Run the navigation function and the baselines (point IBVS with each "
+        "depth estimate, PBVS, sphere features) from every start of a suite, in the same "
+        "plant with the same monitors; write DIR/table.md, DIR/table.csv and figures. Exit "
+        "code 0 when the table is finished, whatever the laws did; 2 for bad input.",
+    )
+    add_config(p)
+    add_plant(p, ", the baselines through the velocity-tracking wrench")
+    p.add_argument(
+        "--suite",
+        metavar="FILE",
+        default=None,
+        help="suite YAML (SuiteConfig: duration, conundrum, scenarios with name, xyz, "
+        "rpy_deg) (default: the package's geovs_drake/scenarios/suite.yaml)",
+    )
+    add_duration(p, "simulated time per run", None, "the suite's")
+    add_workers(p, 2)
+    add_out(
+        p,
+        "results/compare",
+        "output folder: table.md, table.csv, image_sphere_<conundrum>.png, camera_paths.png",
+    )
+    add_json(p, "the summary and rows as one JSON line")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``compare``; the exit code."""
+    from geovs_drake.analysis import compare
+
+    check_at_least_1(args, "workers")
+    base = load_config(args)  # the scenario every start of the suite is put into
+    suite = load_suite(args.suite)  # bad input before anything runs
+    runs = len(suite.scenarios) * len(compare.LAWS)
+    progress = Progress(runs, "runs", "geovs-drake compare")
+    try:
+        result, files = compare.compare(
+            args.suite,
+            plant=base.plant,
+            out_dir=args.out,
+            workers=args.workers,
+            duration=args.duration,
+            base=base,
+            on_run=lambda run: progress.update(1),
+        )
+    finally:
+        progress.close()
+    summary = compare.summarize(result, files)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        counts = ", ".join(f"{k} {v}" for k, v in summary["counts"].items())
+        print(
+            f"{result.plant}: {runs} runs ({len(suite.scenarios)} scenarios x "
+            f"{len(compare.LAWS)} laws): {counts} | {result.wall_time_s:.1f} s wall | "
+            f"{args.out}/table.md"
+        )
+    return EXIT_CONVERGED

@@ -1,0 +1,163 @@
+"""``geovs-drake simulate``: one scenario, one line (or one JSON object) on stdout."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from geovs_drake.cli._options import (
+    EXIT_BAD_INPUT,
+    add_command,
+    add_config,
+    add_field,
+    add_json,
+    add_plant,
+    exit_code_of,
+    field_default,
+    load_resolved,
+    numbers,
+    pose_arg,
+    resolution_arg,
+    twist_arg,
+)
+from geovs_drake.progress import HorizonProgress
+from geovs_drake.scenario import CONTROLLERS, IBVS_DEPTHS, MOUNTS, SENSORS
+from geovs_drake.simulation import StartOutsideDomain, simulate
+
+
+def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None:
+    """The ``simulate`` command; a run longer than ``progress_delay_s`` [s wall] shows
+    its progress on stderr."""
+    p = add_command(
+        sub,
+        "simulate",
+        "simulate a scenario and print a one-line result",
+        "Simulate a scenario and print its result on stdout: one line, or one JSON object "
+        f"with --json. A run that takes longer than {progress_delay_s:g} s of wall time "
+        "shows its progress on stderr.",
+    )
+    add_config(p)
+    add_plant(p)
+    add_field(
+        p,
+        "--controller",
+        ("controller",),
+        "the control law: nf (the navigation function), or a baseline commanding the "
+        "camera's twist: ibvs (four points), pbvs (pose from c^-1(y)), spherical (sphere "
+        "features)",
+        choices=CONTROLLERS,
+    )
+    add_field(
+        p,
+        "--ibvs-depth",
+        ("control", "ibvs_depth"),
+        "depth estimate of --controller ibvs: true (the current interaction matrix with "
+        "the true depths, from c^-1(y)), desired (the matrix at the goal) or mean (their mean)",
+        choices=IBVS_DEPTHS,
+    )
+    add_field(
+        p,
+        "--initial",
+        ("initial",),
+        "initial camera pose X_BC in the target frame [m, rad]; "
+        "write negative first values as --initial=-0.2,...",
+        type=pose_arg,
+        metavar="x,y,z,roll,pitch,yaw",
+    )
+    add_field(
+        p,
+        "--initial-velocity",
+        ("initial_velocity",),
+        "initial body twist (Omega, V) of the camera in its frame C [rad/s, m/s], "
+        "G^-1 dG/dt for G = X_BC (dynamic loop only); "
+        "write negative first values as --initial-velocity=-0.1,...",
+        shown="at rest " + numbers(field_default(("initial_velocity",))),
+        type=twist_arg,
+        metavar="wx,wy,wz,vx,vy,vz",
+    )
+    add_field(
+        p,
+        "--goal",
+        ("goal",),
+        "goal camera pose X_BC* in the target frame [m, rad]",
+        type=pose_arg,
+        metavar="x,y,z,roll,pitch,yaw",
+    )
+    add_field(p, "--duration", ("duration",), "simulated time [s]", type=float, metavar="T")
+    # Path following (--controller path) and the fixed camera (--mount): issue 12.
+    add_field(
+        p,
+        "--mount",
+        ("mount",),
+        "hand: the camera rides on the driven body (eye-in-hand); fixed: the camera is "
+        "fixed in the world and the target sphere is driven (eye-to-hand, G = H^-1 of Eq. 16)",
+        choices=MOUNTS,
+    )
+    add_field(
+        p,
+        "--path-duration",
+        ("path", "duration"),
+        "with --controller path: the planned image path's duration [s]",
+        type=float,
+        metavar="T",
+    )
+    add_field(
+        p,
+        "--path-feedback",
+        ("path", "feedback_gain"),
+        "with --controller path: the gain k [1/s] of the log-map feedback added to the "
+        "feed-forward of Eq. (18); 0 is Eq. (18) as written, open loop",
+        type=float,
+        metavar="GAIN",
+    )
+    # The camera (issue 13).
+    add_field(
+        p,
+        "--sensor",
+        ("camera", "sensor"),
+        "exact: the controller reads y = c(H); rendered: Drake renders the target "
+        "(RgbdSensor, VTK) and y is extracted from each frame; pinhole: that measurement "
+        "on exact image points, without rendering (dynamic plant only for the last two)",
+        choices=SENSORS,
+    )
+    add_field(
+        p,
+        "--camera-rate",
+        ("camera", "rate"),
+        "frames per second of the camera",
+        type=float,
+        metavar="HZ",
+        positive="Hz",
+    )
+    add_field(
+        p,
+        "--resolution",
+        ("camera", "resolution"),
+        "image size [px]; the focal length makes the inscribed cone the field of view",
+        shown="x".join(str(v) for v in field_default(("camera", "resolution"))),
+        type=resolution_arg,
+        metavar="WxH",
+    )
+    add_json(p)
+    p.set_defaults(func=run, progress_delay_s=progress_delay_s)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``simulate``; the exit code."""
+    resolved = load_resolved(args)  # validated once; simulate() trusts it
+    progress = HorizonProgress(
+        resolved.config.duration, "geovs-drake simulate", delay_s=args.progress_delay_s
+    )
+    try:
+        result = simulate(resolved, progress=progress)
+    except StartOutsideDomain as e:
+        print(f"geovs-drake: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    finally:
+        progress.close()
+    if args.json:
+        print(json.dumps(result.summary()))
+    else:
+        print(result.one_line())
+    return exit_code_of(result.status)
