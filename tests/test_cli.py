@@ -504,8 +504,8 @@ def loaded(monkeypatch):
     if interrupted: exit code 130)."""
     seen: list[ScenarioConfig] = []
 
-    def capture(config, progress=None):
-        seen.append(config)
+    def capture(resolved, progress=None):
+        seen.append(resolved.config)  # the command resolves the scenario once
         raise KeyboardInterrupt
 
     monkeypatch.setattr("geovs_drake.cli.simulate.simulate", capture)
