@@ -32,12 +32,13 @@ system-deps:
 demo: $(STAMP) system-deps
 	$(BIN)/geovs-drake demo --out results
 
-# GEOVS_FAST=1 shortens the notebooks' runs (same code paths, fewer samples).
+# GEOVS_FAST=1 shortens the notebooks' runs (same code paths, fewer samples); -n auto runs
+# one pytest process per core (pytest-xdist).
 test: $(STAMP) system-deps
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(MAKE) --no-print-directory docs
-	GEOVS_FAST=1 $(BIN)/python -m pytest --nbmake -q
+	GEOVS_FAST=1 $(BIN)/python -m pytest --nbmake -q -n auto
 	$(MAKE) --no-print-directory wheel-check
 
 # The API reference into docs/_build/html; a warning (a broken docstring, an

@@ -115,7 +115,12 @@ def _moved_along(X_BC: RigidTransform, twist: np.ndarray) -> RigidTransform_[Aut
     (t,) = InitializeAutoDiff(np.zeros(1)).ravel()
     Omega, V = twist[:3], twist[3:]
     n = float(np.linalg.norm(Omega))
-    axis = Omega / n if n > 0 else np.array([1.0, 0.0, 0.0])
+    # Below 1e-9 rad/s the rotation changes no tested digit, and Drake's AngleAxis
+    # refuses an axis whose norm underflows (hypothesis found Omega ~ 1e-162).
+    if n < 1e-9:
+        n, axis = 0.0, np.array([1.0, 0.0, 0.0])
+    else:
+        axis = Omega / n
     R = RotationMatrix_[AutoDiffXd](AngleAxis_[AutoDiffXd](t * n, axis.astype(object)))
     # The translation of exp differs from t V only at second order: same tangent at t = 0.
     step = RigidTransform_[AutoDiffXd](R, np.array([t * v for v in V]))
