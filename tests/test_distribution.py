@@ -28,6 +28,8 @@ DISTRIBUTION = {
     "matplotlib": "matplotlib",
     "tqdm": "tqdm",
     "distributed": "dask",
+    "pyarrow": "pyarrow",
+    "pandas": "pandas",
     "cv2": "opencv-python-headless",
     "sympy": "sympy",
 }

@@ -1,91 +1,54 @@
-"""The sweep: its starts, its independence of workers and chunks, its engines, its CLI.
+"""The sweep: its starts, its independence of workers and chunks, its parts and their
+summaries, resume, its engines, its CLI.
 
-Truth for the starts: SafeDomain.contains on the camera map of each pose, and
-E0 from Drake's MultibodyPlant (CalcKineticEnergy) plus k_p phi0 from
-NavigationFunction, independent of the kernels the sweep uses.
+Truth for the starts: SafeDomain.contains on the camera map of each pose, and E0 from
+Drake's MultibodyPlant (CalcKineticEnergy) plus k_p phi0 from NavigationFunction,
+independent of the kernels the sweep uses. Truth for the summaries: numpy on the rows
+themselves, read back from the Parquet files with pandas.
 """
 
 import copy
-import csv
 import json
-import math
+import os
 
 import numpy as np
+import pandas as pd
 import psutil
+import pyarrow.parquet as pq
 import pytest
-from pydrake.math import RigidTransform
+from pydrake.common.yaml import yaml_dump_typed
 
 from geovs_drake.analysis import sweep
-from geovs_drake.analysis.monte_carlo import random_initial_poses
 from geovs_drake.diagrams import initial_body_states, make_dynamic_servo_diagram
 from geovs_drake.geometry.camera import camera_map
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.scenario import ScenarioConfig
 
-
-def _same(a: dict, b: dict) -> bool:
-    """Equal rows, NaN equal to NaN, nothing rounded."""
-    if a.keys() != b.keys():
-        return False
-    for k in a:
-        x, y = a[k], b[k]
-        if isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y):
-            continue
-        if x != y or type(x) is not type(y):
-            return False
-    return True
+FAILED = ("left_domain", "lost_visibility", "non_finite")
 
 
-def _assert_same_rows(rows: list[dict], reference: list[dict]) -> None:
-    assert len(rows) == len(reference)
-    for r, ref in zip(rows, reference, strict=True):
-        assert _same(r, ref), (r, ref)
-
-
-def test_rows_do_not_depend_on_workers_or_chunks():
-    """40 starts x 3 s: in this process in one chunk, in chunks of 7, and on a
-    2-process LocalCluster in chunks of 7 give bit-identical rows; the cluster's
-    processes are gone afterwards."""
-    config = ScenarioConfig()
-    X_BC, twists = sweep.sample_starts(config, 40, seed=1, velocity="bounded")
-    reference = sweep.run_sweep(config, X_BC, twists, 3.0, workers=1, chunk=40)
-    assert [r["start"] for r in reference.rows] == list(range(40))
-    statuses = {r["status"] for r in reference.rows}
-    assert "converged" in statuses and "not_converged" in statuses  # both kinds of rows
-
-    chunks7 = sweep.run_sweep(config, X_BC, twists, 3.0, workers=1, chunk=7)
-    _assert_same_rows(chunks7.rows, reference.rows)
-
-    before = {p.pid for p in psutil.Process().children(recursive=True)}
-    sizes: list[int] = []
-    cluster = sweep.run_sweep(
-        config, X_BC, twists, 3.0, workers=2, chunk=7, on_chunk=lambda rows: sizes.append(len(rows))
-    )
-    _assert_same_rows(cluster.rows, reference.rows)
-    assert sorted(sizes) == [5, 7, 7, 7, 7, 7]
-    left = [
-        p
+def _children() -> set[int]:
+    return {
+        p.pid
         for p in psutil.Process().children(recursive=True)
-        if p.pid not in before and "resource_tracker" not in " ".join(p.cmdline())
-    ]
-    assert not left, [p.cmdline() for p in left]
+        if "resource_tracker" not in " ".join(p.cmdline())
+    }
 
 
-def test_interrupt_keeps_the_finished_chunks():
+# ------------------------------------------------------------------------------ starts
+def test_start_i_depends_on_the_seed_and_i_only():
+    """Any N, any first index: start i is the same bits (blocks drawn whole)."""
     config = ScenarioConfig()
-    X_BC, twists = sweep.sample_starts(config, 20, seed=2)
-    seen: list[int] = []
-
-    def stop_after_two(rows: list[dict]) -> None:
-        seen.append(len(rows))
-        if len(seen) == 2:
-            raise KeyboardInterrupt
-
-    with pytest.raises(sweep.SweepInterrupted) as info:
-        sweep.run_sweep(config, X_BC, twists, 1.0, workers=1, chunk=6, on_chunk=stop_after_two)
-    result = info.value.result
-    assert result.interrupted and [r["start"] for r in result.rows] == list(range(12))
-    assert sweep.summarize(result)["finished"] == 12
+    X_all, tw_all = sweep.sample_starts(config, 250, seed=7, velocity="bounded")
+    for n, first in ((1, 0), (7, 93), (130, 60), (3, 247)):
+        X, tw = sweep.sample_starts(config, n, seed=7, velocity="bounded", first=first)
+        assert np.array_equal(X, X_all[first : first + n])
+        assert np.array_equal(tw, tw_all[first : first + n])
+    X_other, _ = sweep.sample_starts(config, 250, seed=8, velocity="bounded")
+    assert not np.any(np.all(np.isclose(X_other, X_all), axis=(1, 2)))  # another seed
+    # The blocks are independent streams: no two blocks repeat each other.
+    b = sweep.START_BLOCK
+    assert not np.allclose(X_all[:b], X_all[b : 2 * b])
 
 
 def test_starts_lie_in_D_and_below_the_energy_bound():
@@ -96,6 +59,9 @@ def test_starts_lie_in_D_and_below_the_energy_bound():
     domain = config.domain.to_domain()
     y0 = camera_map(np.stack([np.linalg.inv(X) for X in X_BC]), config.radius)
     assert np.all(domain.contains(y0))
+    assert np.allclose(X_BC[:, 3], [0, 0, 0, 1]) and np.allclose(
+        np.einsum("nij,nkj->nik", X_BC[:, :3, :3], X_BC[:, :3, :3]), np.eye(3)
+    )
 
     # E0 from Drake: the plant's kinetic energy of each start's state, plus k_p phi0.
     plant = make_dynamic_servo_diagram(config, log=False).GetSubsystemByName("plant")
@@ -115,11 +81,8 @@ def test_starts_lie_in_D_and_below_the_energy_bound():
     assert fraction.min() < 0.05 and fraction.max() > 0.9
     assert abs(np.mean(fraction) - sweep.ENERGY_FACTOR / 2) < 0.05
 
-    # At rest: the same poses as random_initial_poses with the same seed, zero twists.
     X_rest, zero = sweep.sample_starts(config, 5, seed=4)
-    poses = random_initial_poses(np.random.default_rng(4), 5, config, shrink=sweep.SHRINK)
-    expected = np.stack([p.to_rigid_transform().GetAsMatrix4() for p in poses])
-    assert np.allclose(X_rest, expected, atol=1e-12) and not np.any(zero)
+    assert np.array_equal(X_rest, X_BC[:5]) and not np.any(zero)  # the same images at rest
 
     kinematic = copy.deepcopy(config)
     kinematic.plant = "kinematic"
@@ -127,28 +90,146 @@ def test_starts_lie_in_D_and_below_the_energy_bound():
         sweep.sample_starts(kinematic, 3, velocity="bounded")
 
 
+# ------------------------------------------------------------------- rows and summaries
+# dask's own Parquet reader uses a keyword that pandas 3.1 deprecates: not ours to fix.
+@pytest.mark.filterwarnings("ignore:The inplace keyword")
+def test_rows_do_not_depend_on_workers_or_chunks(tmp_path):
+    """40 starts x 3 s: in this process in one part, in parts of 7 written to Parquet,
+    and on a 2-process LocalCluster in parts of 7 give bit-identical rows and the same
+    summary; the cluster's processes are gone afterwards."""
+    config = ScenarioConfig()
+    starts = sweep.SampledStarts(40, seed=1, velocity="bounded")
+    reference = sweep.run_sweep(config, starts, 3.0, workers=1, chunk=40)
+    assert reference.table["start"].tolist() == list(range(40))
+    assert list(reference.table.columns) == list(sweep.ROW_FIELDS)
+    statuses = set(reference.table["status"])
+    assert "converged" in statuses and "not_converged" in statuses  # both kinds of rows
+
+    chunks7 = sweep.run_sweep(config, starts, 3.0, workers=1, chunk=7, out=tmp_path / "a")
+    pd.testing.assert_frame_equal(chunks7.table, reference.table)
+    assert sorted(p.name for p in (tmp_path / "a" / "results").iterdir()) == [
+        f"part-{i:05d}.parquet" for i in range(6)
+    ]
+
+    before = _children()
+    sizes: list[int] = []
+    cluster = sweep.run_sweep(
+        config, starts, 3.0, workers=2, chunk=7, out=tmp_path / "b", on_part=sizes.append
+    )
+    pd.testing.assert_frame_equal(cluster.table, reference.table)
+    assert sorted(sizes) == [5, 7, 7, 7, 7, 7]
+    assert cluster.report() | {"wall_time_s": 0, "chunk": 0, "workers": 0} == (
+        reference.report() | {"wall_time_s": 0, "chunk": 0, "workers": 0}
+    )
+    assert not _children() - before
+    # The dataset reads with dask.dataframe too, as a cluster's user would.
+    import dask.dataframe as dd
+
+    frame = dd.read_parquet(str(tmp_path / "b" / "results")).compute()
+    frame = frame.sort_values("start").reset_index(drop=True)
+    # (dask's string columns carry NaN, pandas' NA, for a missing value: none here.)
+    pd.testing.assert_frame_equal(frame, reference.table, check_dtype=False)
+
+
+def test_the_merged_summary_is_the_summary_of_the_rows():
+    """Counts, extrema and the guarantee's counts exactly; the convergence-time
+    quantiles within the histogram's stated bound of numpy's inverted-CDF quantiles."""
+    config = ScenarioConfig()
+    X_BC, twists = sweep.sample_starts(config, 120, seed=9, velocity="above")
+    result = sweep.run_sweep(config, (X_BC, twists), 4.0, workers=1, chunk=17)
+    rows, report = result.table, result.report()
+    status = rows["status"].to_numpy()
+    assert report["counts"] == {k: int(np.sum(status == k)) for k in report["counts"]}
+    assert sum(report["counts"][k] for k in FAILED) > 0  # above the bound: some leave D
+    covered = rows["initial_energy_ratio"].to_numpy() < 1
+    assert report["guarantee"] == {
+        "starts": int(covered.sum()),
+        **{k: int(np.sum(covered & (status == k))) for k in FAILED},
+    }
+    fov = rows["min_fov_margin"].to_numpy()
+    assert report["worst_margins"]["fov"] == float(np.min(fov[np.isfinite(fov)]))
+    ratio = rows["max_energy_ratio"].to_numpy()
+    assert report["max_energy_ratio"] == float(np.max(ratio[np.isfinite(ratio)]))
+    assert report["monotone"] == int(rows["monotone"].sum())
+    t = rows["t_converged"].to_numpy()[status == "converged"]
+    bound = report["t_converged_resolution_s"]
+    assert bound == 4.0 / (2 * sweep.TIME_BINS)
+    for key, q in (("median", 0.5), ("p90", 0.9), ("p99", 0.99)):
+        exact = float(np.quantile(t, q, method="inverted_cdf"))
+        assert abs(report["t_converged_s"][key] - exact) <= bound * (1 + 1e-12), key
+    assert report["t_converged_s"]["max"] == float(np.max(t))
+    slowest = [s[0] for s in result.summary.slowest]
+    assert slowest == sorted(t, reverse=True)[: len(slowest)]
+    assert int(result.summary.grid[0].sum()) == len(rows)
+    assert int(result.summary.grid[2].sum()) == sum(report["counts"][k] for k in FAILED)
+
+
+def test_interrupt_keeps_the_finished_parts_and_resume_finishes_identically(tmp_path):
+    """Ctrl-C after two parts keeps them on disk; resume runs the other parts only, and
+    the dataset and the summary are those of an uninterrupted run."""
+    config = ScenarioConfig()
+    starts = sweep.SampledStarts(20, seed=2)
+    whole = sweep.run_sweep(config, starts, 1.0, workers=1, chunk=6, out=tmp_path / "whole")
+    seen: list[int] = []
+
+    def stop_after_two(n: int) -> None:
+        seen.append(n)
+        if len(seen) == 2:
+            raise KeyboardInterrupt
+
+    out = tmp_path / "cut"
+    with pytest.raises(sweep.SweepInterrupted) as info:
+        sweep.run_sweep(config, starts, 1.0, workers=1, chunk=6, out=out, on_part=stop_after_two)
+    cut = info.value.result
+    assert cut.interrupted and cut.summary.finished == 12
+    assert cut.table["start"].tolist() == list(range(12))
+    # A damaged part is named, removed and run again.
+    (out / "results" / "part-00001.parquet").write_bytes(b"not parquet")
+    warned: list[str] = []
+    resumed = sweep.run_sweep(
+        config, starts, 1.0, workers=1, chunk=6, out=out, resume=True, warn=warned.append
+    )
+    assert len(warned) == 1 and "part-00001.parquet: unreadable part" in warned[0]
+    assert resumed.resumed_parts == 1
+    pd.testing.assert_frame_equal(resumed.table, whole.table)
+    ignore = {"wall_time_s": 0, "resumed_parts": 0}
+    assert resumed.report() | ignore == whole.report() | ignore
+    # A different sweep in the same folder is refused, naming what differs.
+    for change, needle in (
+        ({"starts": sweep.SampledStarts(21, seed=2)}, "starts 20, this run 21"),
+        ({"starts": sweep.SampledStarts(20, seed=3)}, "seed 2, this run 3"),
+        ({"duration": 2.0}, "duration 1.0, this run 2.0"),
+        ({"config": ScenarioConfig(radius=0.2)}, "holds another sweep: the scenario"),
+    ):
+        settings = {"config": config, "starts": starts, "duration": 1.0} | change
+        with pytest.raises(sweep.SweepError, match=needle):
+            sweep.run_sweep(**settings, workers=1, chunk=6, out=out, resume=True)
+    with pytest.raises(sweep.SweepError, match="no sweep in"):
+        sweep.run_sweep(config, starts, 1.0, workers=1, out=tmp_path / "none", resume=True)
+
+
 def test_drake_engine_gives_the_batch_engine_statuses():
     """3 sampled starts, and one thrown sideways at 15 m/s (E0 >> k_p) that leaves D."""
     config = ScenarioConfig()
     X_BC, twists = sweep.sample_starts(config, 4, seed=5, velocity="bounded")
     twists[3] = [0.0, 0.0, 0.0, 15.0, 0.0, 0.0]
-    batch = sweep.run_sweep(config, X_BC, twists, 10.0, engine="batch", workers=1)
-    drake = sweep.run_sweep(config, X_BC, twists, 10.0, engine="drake", workers=1)
-    assert [r["status"] for r in drake.rows] == [r["status"] for r in batch.rows]
-    assert [r["status"] for r in batch.rows] == ["converged"] * 3 + ["left_domain"]
-    for b, d in zip(batch.rows, drake.rows, strict=True):
-        assert abs(b["initial_energy_ratio"] - d["initial_energy_ratio"]) < 1e-9
-        if b["status"] == "converged":
-            assert abs(b["t_converged"] - d["t_converged"]) < 0.1
-    assert batch.rows[3]["initial_energy_ratio"] > 1
+    batch = sweep.run_sweep(config, (X_BC, twists), 10.0, engine="batch", workers=1).table
+    drake = sweep.run_sweep(config, (X_BC, twists), 10.0, engine="drake", workers=1).table
+    assert drake["status"].tolist() == batch["status"].tolist()
+    assert batch["status"].tolist() == ["converged"] * 3 + ["left_domain"]
+    assert np.allclose(batch["initial_energy_ratio"], drake["initial_energy_ratio"], atol=1e-9)
+    converged = batch["status"] == "converged"
+    assert np.all(np.abs(batch["t_converged"] - drake["t_converged"])[converged] < 0.1)
+    assert batch["initial_energy_ratio"][3] > 1
 
 
-def test_cli_end_to_end(tmp_path, capsys, run_cli):
+# ----------------------------------------------------------------------------------- CLI
+def test_cli_end_to_end(tmp_path, run_cli):
     out_dir = tmp_path / "sweep"
     code, out, err = run_cli(
         "sweep",
         *("--starts", "6", "--duration", "2", "--workers", "1", "--chunk", "4"),
-        *("--seed", "3", "--out", str(out_dir), "--json"),
+        *("--seed", "3", "--out", str(out_dir), "--json", "--csv"),
     )
     assert code == 0, err
     summary = json.loads(out)
@@ -161,18 +242,31 @@ def test_cli_end_to_end(tmp_path, capsys, run_cli):
     assert summary["guarantee"]["left_domain"] == 0
     assert (summary["seed"], summary["chunk"], summary["duration"]) == (3, 4, 2.0)
     assert summary["wall_time_s"] > 0
-    with open(out_dir / "results.csv", newline="") as f:
-        reader = csv.reader(f)
-        header = next(reader)
-        rows = list(reader)
-    assert tuple(header) == sweep.ROW_FIELDS
-    assert [int(r[0]) for r in rows] == list(range(6))  # rewritten sorted by start
-    # The CSV's starts are sample_starts' with the same seed, to the last digit.
+    rows = pd.read_parquet(out_dir / "results").sort_values("start")
+    assert rows["start"].tolist() == list(range(6))
+    # The rows' starts are sample_starts' with the same seed, to the last digit.
     X_BC, _ = sweep.sample_starts(ScenarioConfig(), 6, seed=3, velocity="bounded")
-    x0 = [float(v) for v in rows[0][1:4]]
-    assert x0 == RigidTransform(X_BC[0]).translation().tolist()
+    assert rows[["x", "y", "z"]].to_numpy().tolist() == X_BC[:, :3, 3].tolist()
+    text = pd.read_csv(out_dir / "results.csv")
+    assert list(text.columns) == list(sweep.ROW_FIELDS)
+    assert np.allclose(text["t_converged"], rows["t_converged"], equal_nan=True)
+    record = json.loads((out_dir / "sweep.json").read_text())
+    assert (record["seed"], record["starts"], record["chunk"], record["parts"]) == (3, 6, 4, 2)
     assert (out_dir / "t_converged.png").is_file() and (out_dir / "starts.png").is_file()
+    assert not [p for p in out_dir.rglob(".*")]  # no temporary file left
     assert len(err.strip().splitlines()) <= 2  # sparse progress lines, no bar off a TTY
+
+    # --resume of a finished sweep runs nothing and reports the same figures.
+    code, out, err = run_cli(
+        "sweep",
+        *("--starts", "6", "--duration", "2", "--workers", "1", "--chunk", "4"),
+        *("--seed", "3", "--out", str(out_dir), "--json", "--resume"),
+    )
+    assert code == 0, err
+    again = json.loads(out)
+    assert again["resumed_parts"] == 2
+    ignore = {"wall_time_s": 0, "resumed_parts": 0}
+    assert again | ignore == summary | ignore
 
 
 @pytest.mark.parametrize(
@@ -188,10 +282,13 @@ def test_cli_end_to_end(tmp_path, capsys, run_cli):
         (["--scheduler", "tcp://127.0.0.1:1"], "cannot reach the Dask scheduler"),
         (["--out", "FILE"], "exists and is not a directory"),
         (["--starts", "many"], "invalid int value"),
+        (["--resume"], "--resume: no sweep in"),
+        (["--starts", "100001", "--csv"], "--csv writes at most 100000 starts"),
+        (["--seed=-1"], "the seed must be an integer >= 0"),
     ],
 )
-def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, capsys, monkeypatch, run_cli):
-    monkeypatch.setattr(sweep, "SCHEDULER_TIMEOUT_S", 1.0)
+def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, monkeypatch, run_cli):
+    monkeypatch.setattr(sweep.run, "SCHEDULER_TIMEOUT_S", 1.0)
     a_file = tmp_path / "a_file"
     a_file.write_text("not a folder")
     argv = [str(a_file) if a == "FILE" else a for a in argv]
@@ -205,9 +302,22 @@ def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, capsys, mo
     assert not (tmp_path / "out").exists()  # nothing written for bad input
 
 
+def test_cli_resume_of_another_sweep_exits_2_and_leaves_the_folder_as_it_was(tmp_path, run_cli):
+    out_dir = tmp_path / "sweep"
+    common = ("--duration", "1", "--workers", "1", "--out", str(out_dir))
+    assert run_cli("sweep", "--starts", "3", *common).code == 0
+    before = {p: p.stat().st_mtime_ns for p in out_dir.rglob("*")}
+    code, out, err = run_cli("sweep", "--starts", "4", "--resume", *common)
+    assert code == 2 and out == ""
+    assert err.strip().splitlines() == [
+        f"geovs-drake: --resume: {out_dir} holds another sweep: starts 3, this run 4"
+    ]
+    assert {p: p.stat().st_mtime_ns for p in out_dir.rglob("*")} == before
+
+
 @pytest.mark.parametrize("plant,covered", [("dynamic", "E0 < k_p"), ("kinematic", "phi0 < 1")])
 def test_cli_line_names_the_guarantee_of_its_plant_and_the_legend_counts(
-    plant, covered, tmp_path, capsys, monkeypatch, run_cli
+    plant, covered, tmp_path, monkeypatch, run_cli
 ):
     """The kinematic loop has no energy: its line says phi0 < 1, not E0 < k_p. The starts
     plot's legend gives each marker's count (a marker with no points says 0)."""
@@ -225,7 +335,7 @@ def test_cli_line_names_the_guarantee_of_its_plant_and_the_legend_counts(
     assert ("E0" in out) == (plant == "dynamic")
     labels = [t.get_text() for t in figures[-1].axes[0].get_legend().get_texts()]
     summary = json.loads((tmp_path / "summary.json").read_text())
-    failed = sum(summary["counts"][k] for k in ("left_domain", "lost_visibility", "non_finite"))
+    failed = sum(summary["counts"][k] for k in FAILED)
     assert labels[0] == "start (4)"
     assert labels[1] == f"not converged ({summary['counts']['not_converged']})"
     assert labels[3] == f"left D / failed ({failed})"
@@ -245,10 +355,34 @@ def test_local_cluster_says_nothing_when_the_dashboard_port_is_taken(capfd):
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            client, cluster = sweep._connect(None, 1)
+            client, cluster = sweep.run._connect(None, 1)
             client.close()
             cluster.close()
     finally:
         busy.close()
     assert not [w for w in caught if "already in use" in str(w.message)]
     assert "already in use" not in capfd.readouterr().err
+
+
+def test_part_files_are_written_whole_or_not_at_all(tmp_path, monkeypatch):
+    """A writer that dies mid-file leaves no part under its final name."""
+    from geovs_drake.analysis.sweep import parts
+
+    def broken(table, where):
+        with open(where, "wb") as f:
+            f.write(b"PAR1 half a file")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(pq, "write_table", broken)
+    part = parts.Part(
+        config_yaml=yaml_dump_typed(ScenarioConfig()),
+        index=0,
+        first=0,
+        last=2,
+        duration=0.5,
+        engine="batch",
+        results=str(tmp_path),
+    )
+    with pytest.raises(OSError, match="disk full"):
+        parts.run_part(part, "part-00000.parquet")
+    assert os.listdir(tmp_path) == []

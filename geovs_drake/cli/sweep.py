@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from geovs_drake.analysis.sweep.run import CSV_LIMIT
 from geovs_drake.cli._options import (
     EXIT_INTERRUPTED,
     add_command,
@@ -31,9 +32,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "sweep",
         "the energy guarantee on many random starts in D, in chunks on Dask",
         "Run the loop from N random starts in D (images uniform in D's model "
-        "chart) on dask.distributed; write DIR/results.csv (a row per start), "
-        "DIR/summary.json and plots. Exit code 0 when the sweep ran, 2 for bad input, "
-        "130 after Ctrl-C (the finished rows are written).",
+        "chart) on dask.distributed. The workers draw their own starts (start i depends "
+        "on the seed and i only) and write their rows to the Parquet dataset "
+        "DIR/results/part-*.parquet; this process merges their summaries into "
+        "DIR/summary.json and the plots. DIR/sweep.json records the sweep, for --resume. "
+        "Exit code 0 when the sweep ran, 2 for bad input, 130 after Ctrl-C (the finished "
+        "parts are kept: --resume continues).",
     )
     add_config(p)
     add_plant(p)
@@ -74,7 +78,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--chunk", type=int, default=1000, metavar="C", help="starts per task (default: 1000)"
     )
-    add_out(p, "results/sweep", "output folder: results.csv, summary.json, plots")
+    add_out(
+        p,
+        "results/sweep",
+        "output folder: results/ (Parquet), sweep.json, summary.json, plots; a new sweep "
+        "replaces the one there",
+    )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the sweep recorded in --out: run only the parts not written yet "
+        "(the same config, seed, velocity, duration, starts, chunk and engine, or exit 2); "
+        "a damaged part is named and run again",
+    )
+    p.add_argument(
+        "--csv",
+        action="store_true",
+        help=f"also write DIR/results.csv, sorted by start (at most {CSV_LIMIT} starts: "
+        "about 56 MB of text)",
+    )
     add_json(p, "the summary as one JSON line")
     p.set_defaults(func=run)
 
@@ -92,6 +114,13 @@ def _checked_config(args: argparse.Namespace):
             "and starts at rest)"
         )
     check_out(args.out)
+    if args.csv and args.starts > CSV_LIMIT:
+        raise ValueError(
+            f"--csv writes at most {CSV_LIMIT} starts: --starts {args.starts} (read the "
+            "Parquet dataset DIR/results instead)"
+        )
+    if args.resume and not (Path(args.out) / "sweep.json").is_file():
+        raise ValueError(f"--resume: no sweep in {args.out} (no sweep.json)")
     return config
 
 
@@ -101,35 +130,38 @@ def run(args: argparse.Namespace) -> int:
 
     config = _checked_config(args)
     velocity = args.velocity or ("bounded" if config.plant == "dynamic" else "none")
-    X_BC, twists = sweep.sample_starts(config, args.starts, args.seed, velocity)
     out = Path(args.out)
     progress = Progress(args.starts, "starts", "geovs-drake sweep")
     code = 0
     try:
-        result = sweep.run_sweep_to_csv(
+        result = sweep.run_sweep(
             config,
-            X_BC,
-            twists,
-            out,
-            on_chunk=lambda rows: progress.update(len(rows)),
-            duration=args.duration,
+            sweep.SampledStarts(args.starts, args.seed, velocity),
+            args.duration,
             engine=args.engine,
             workers=args.workers,
             scheduler=args.scheduler,
             chunk=args.chunk,
+            out=out,
+            resume=args.resume,
+            on_part=progress.update,
+            warn=lambda line: print(f"geovs-drake: {line}", file=sys.stderr),
         )
     except sweep.SweepInterrupted as e:
         result, code = e.result, EXIT_INTERRUPTED
     finally:
         progress.close()
-    summary = sweep.summarize(result, seed=args.seed, velocity=velocity)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    if result.rows:
-        try:
-            sweep.plot_sweep(result, out)
-        except KeyboardInterrupt:  # the rows and the summary are written already
-            print("geovs-drake: interrupted while plotting: plots skipped", file=sys.stderr)
-            code = EXIT_INTERRUPTED
+    summary = result.report()
+    _write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    finished = result.summary.finished
+    try:
+        if finished:
+            result.plot(out)
+        if args.csv and code == 0:
+            sweep.write_csv(result, out / "results.csv")
+    except KeyboardInterrupt:  # the parts and the summary are written already
+        print("geovs-drake: interrupted while plotting: plots skipped", file=sys.stderr)
+        code = EXIT_INTERRUPTED
     if args.json:
         print(json.dumps(summary))
     else:
@@ -138,17 +170,25 @@ def run(args: argparse.Namespace) -> int:
         # The guarantee's condition: the energy below k_p (Appendix C), or for the
         # kinematic loop, which has no energy, phi below 1 (every start in D).
         covered = "E0 < k_p" if result.plant == "dynamic" else "phi0 < 1"
+        resumed = f", {result.resumed_parts} parts resumed" if result.resumed_parts else ""
         print(
-            f"{result.plant}: {len(result.rows)} of {result.starts} starts x "
-            f"{result.duration:g} s ({result.engine}): {counts} | {covered}: {g['starts']} "
-            f"starts, of which left D {g['left_domain']}, lost visibility "
+            f"{result.plant}: {finished} of {result.starts} starts x "
+            f"{result.duration:g} s ({result.engine}{resumed}): {counts} | {covered}: "
+            f"{g['starts']} starts, of which left D {g['left_domain']}, lost visibility "
             f"{g['lost_visibility']}, non-finite {g['non_finite']} | "
             f"{result.wall_time_s:.1f} s wall | {out}/"
         )
     if code == EXIT_INTERRUPTED:
         print(
-            f"geovs-drake: interrupted: {len(result.rows)} of {result.starts} starts "
-            f"finished, written to {out}/",
+            f"geovs-drake: interrupted: {finished} of {result.starts} starts finished, "
+            f"in {out}/results (--resume continues)",
             file=sys.stderr,
         )
     return code
+
+
+def _write_text(path: Path, text: str) -> None:
+    """Write ``path`` whole or not at all (a temporary name, then a rename)."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    tmp.replace(path)

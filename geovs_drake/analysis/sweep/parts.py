@@ -1,0 +1,274 @@
+"""One task of a sweep, as it runs on a worker: draw its starts, run them, write its part.
+
+A task is a :class:`Part`: starts [first, last) of a sweep. It draws them
+(:func:`~geovs_drake.analysis.sweep.starts.sample_starts`, or slices of arrays
+the caller gave), runs them through the batch engine or Drake's Simulator,
+and turns them into columns (:data:`ROW_FIELDS`). With a results folder it
+writes ``part-XXXXX.parquet`` there, to a hidden temporary name first and then
+renamed (``os.replace`` is atomic on one filesystem), so a file under its
+final name is always whole, and readers of the folder (pyarrow, pandas, Dask)
+skip the hidden ones. The part's :class:`~.summary.SweepSummary` travels in
+the file's metadata, so a resumed sweep reads its finished parts' summaries
+without reading their rows. The task returns the summary (and, without a
+folder, the table itself), a few kB whatever the chunk.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import json
+import math
+import os
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+
+from geovs_drake._optional import require
+from geovs_drake.analysis.sweep.starts import sample_starts
+from geovs_drake.analysis.sweep.summary import SweepSummary
+from geovs_drake.batch import STATUS_NAMES, LoopParameters, loop_parameters, run_batch
+from geovs_drake.loop.state import poses_in_target
+from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
+from geovs_drake.simulation import StartOutsideDomain, simulate
+
+__all__ = ["ROW_FIELDS", "SUMMARY_KEY", "Part", "part_name", "read_part_summary", "run_part"]
+
+#: Per-start columns, in order. Poses are X_BC (metres, Drake RollPitchYaw in radians);
+#: the twist is the camera's body twist (Omega, V) in C [rad/s, m/s].
+ROW_FIELDS = (
+    "start",
+    "x",
+    "y",
+    "z",
+    "roll",
+    "pitch",
+    "yaw",
+    "wx",
+    "wy",
+    "wz",
+    "vx",
+    "vy",
+    "vz",
+    "status",
+    "t_converged",
+    "final_position_error_m",
+    "final_rotation_error_rad",
+    "min_fov_margin",
+    "min_lambda_margin",
+    "min_occlusion_margin",
+    "initial_energy_ratio",
+    "max_energy_ratio",
+    "monotone",
+    "final_x",
+    "final_y",
+    "final_z",
+    "final_roll",
+    "final_pitch",
+    "final_yaw",
+)
+#: The Parquet key-value metadata entry that holds a part's summary (JSON).
+SUMMARY_KEY = b"geovs_drake.summary"
+_POSE = ("x", "y", "z", "roll", "pitch", "yaw")
+_TWIST = ("wx", "wy", "wz", "vx", "vy", "vz")
+
+
+@dataclass(frozen=True)
+class Part:
+    """One task: starts [first, last) of a sweep, and how to run and keep them.
+
+    ``config_yaml``: the scenario as YAML (Drake's SimulatorConfig does not pickle).
+    ``seed``/``velocity``: where the starts come from, unless ``X_BC``/``twists``
+    give them. ``results``: the folder of the part files, or None to return the
+    table instead. ``single_thread``: one numba thread (K worker processes on K
+    cores, not K x cores threads).
+    """
+
+    config_yaml: str
+    index: int
+    first: int
+    last: int
+    duration: float
+    engine: str
+    seed: int = 0
+    velocity: str = "none"
+    X_BC: np.ndarray | None = None
+    twists: np.ndarray | None = None
+    results: str | None = None
+    single_thread: bool = False
+
+
+def part_name(index: int, parts: int) -> str:
+    """``part-00042.parquet``: five digits at least, more when a sweep has more parts,
+    so that the names sort as the parts do."""
+    return f"part-{index:0{max(5, len(str(parts - 1)))}d}.parquet"
+
+
+@functools.lru_cache(maxsize=4)
+def _worker_setup(config_yaml: str) -> tuple[ScenarioConfig, LoopParameters]:
+    """The config and its loop parameters, once per worker process."""
+    config = load_scenario(data=config_yaml)
+    return config, loop_parameters(config)
+
+
+def run_part(part: Part, name: str | None = None) -> tuple[dict, object | None]:
+    """Run one part: (its summary as JSON, its pyarrow Table or None when written to
+    ``part.results / name``)."""
+    if part.single_thread:
+        import numba
+
+        # Not NUMBA_NUM_THREADS in the workers' environment: numba rereads it when it
+        # compiles, and refuses a value that differs from the one its pool started with.
+        numba.set_num_threads(1)
+    config, p = _worker_setup(part.config_yaml)
+    n = part.last - part.first
+    if part.X_BC is None:
+        X_BC, twists = sample_starts(config, n, part.seed, part.velocity, part.first, p)
+    else:
+        X_BC, twists = part.X_BC, part.twists
+    run = _batch_columns if part.engine == "batch" else _drake_columns
+    columns = {"start": np.arange(part.first, part.last, dtype=np.int64)}
+    columns.update(_pose_columns(X_BC))
+    columns.update(zip(_TWIST, np.asarray(twists, float).T, strict=True))
+    columns.update(run(config, p, X_BC, twists, part.duration))
+    summary = SweepSummary.of_rows(config, part.duration, columns).to_json()
+    table = _table(columns, summary)
+    if part.results is None:
+        return summary, table
+    _write_atomically(table, Path(part.results) / name)
+    return summary, None
+
+
+def _pose_columns(X_BC: np.ndarray, prefix: str = "") -> dict[str, np.ndarray]:
+    """x, y, z and Drake's RollPitchYaw of each X_BC; NaN for a non-finite pose."""
+    out = np.full((len(X_BC), 6), math.nan)
+    for i, X in enumerate(X_BC):
+        if np.all(np.isfinite(X)):
+            out[i, :3] = X[:3, 3]
+            out[i, 3:] = RollPitchYaw(RotationMatrix(X[:3, :3])).vector()
+    return {prefix + k: out[:, j] for j, k in enumerate(_POSE)}
+
+
+def _batch_columns(
+    config: ScenarioConfig, p: LoopParameters, X_BC, twists, duration: float
+) -> dict[str, np.ndarray]:
+    """The result columns of the batch engine's run."""
+    dynamic = p.plant == "dynamic"
+    r = run_batch(config, X_BC, twists if dynamic else None, duration=duration, parameters=p)
+    finite = np.all(np.isfinite(r.final_states), axis=1)
+    final = np.full((len(X_BC), 4, 4), math.nan)
+    if np.any(finite):
+        final[finite] = poses_in_target(config, r.final_states[finite])
+    return {
+        "status": np.array(STATUS_NAMES, dtype=object)[r.status_code],
+        "t_converged": r.t_converged,
+        "final_position_error_m": r.final_position_error_m,
+        "final_rotation_error_rad": r.final_rotation_error_rad,
+        "min_fov_margin": r.min_margins[:, 0],
+        "min_lambda_margin": np.minimum(r.min_margins[:, 1], r.min_margins[:, 2]),
+        "min_occlusion_margin": r.min_margins[:, 3],
+        "initial_energy_ratio": r.initial_lyapunov / p.potential_gain,
+        "max_energy_ratio": r.max_lyapunov_ratio,
+        "monotone": r.monotone,
+        **_pose_columns(final, "final_"),
+    }
+
+
+def _drake_columns(
+    config: ScenarioConfig, p: LoopParameters, X_BC, twists, duration: float
+) -> dict[str, np.ndarray]:
+    """The same columns, a start at a time through simulate() (slow: for cross-checks).
+    Margins and energies are those of simulate()'s logs (``config.log_rate``), not of
+    every step as in the batch engine."""
+    dynamic = config.plant == "dynamic"
+    rows = []
+    for X, twist in zip(X_BC, twists, strict=True):
+        c = copy.deepcopy(config)
+        c.duration = duration
+        c.initial = PoseConfig.from_rigid_transform(RigidTransform(X))
+        c.initial_velocity = [float(v) for v in twist] if dynamic else [0.0] * 6
+        rows.append(_drake_row(c, p.potential_gain))
+    names = [k for k in ROW_FIELDS if k not in ("start", *_POSE, *_TWIST)]
+    return {
+        k: np.array([r[k] for r in rows], dtype=object if k == "status" else None) for k in names
+    }
+
+
+def _drake_row(config: ScenarioConfig, k_p: float) -> dict:
+    try:
+        r = simulate(config)
+    except StartOutsideDomain as e:  # stopped at t = 0, as the batch engine would
+        nan = math.nan
+        status = "lost_visibility" if "not visible" in str(e) else "left_domain"
+        row = dict.fromkeys(ROW_FIELDS[14:], nan)
+        row.update(status=status, monotone=True)
+        return row
+    dp, dr = r.final_errors
+    L = r.lyapunov
+    final = r.final_X_BC
+    pose = [math.nan] * 6
+    if final is not None:
+        pose = [*final.translation(), *RollPitchYaw(final.rotation()).vector()]
+    return {
+        "status": r.status,
+        "t_converged": r.convergence_time,
+        "final_position_error_m": dp,
+        "final_rotation_error_rad": dr,
+        "min_fov_margin": float(np.min(r.margins[:, 0])),
+        "min_lambda_margin": float(np.min(r.margins[:, 1:3])),
+        "min_occlusion_margin": float(np.min(r.margins[:, 3])),
+        "initial_energy_ratio": float(L[0] / k_p),
+        "max_energy_ratio": float(np.max(L) / k_p),
+        "monotone": bool(r.lyapunov_monotone),
+        **dict(zip(("final_" + k for k in _POSE), map(float, pose), strict=True)),
+    }
+
+
+def _table(columns: dict[str, np.ndarray], summary: dict):
+    """The columns as a pyarrow Table in :data:`ROW_FIELDS` order, with the summary in
+    its schema's metadata."""
+    pa = require("pyarrow", "sweep", "a sweep's part files")
+    arrays = []
+    for name in ROW_FIELDS:
+        v = columns[name]
+        if name == "status":
+            arrays.append(pa.array([str(s) for s in v], pa.string()))
+        elif name == "monotone":
+            arrays.append(pa.array(np.asarray(v, bool)))
+        elif name == "start":
+            arrays.append(pa.array(np.asarray(v, np.int64)))
+        else:
+            arrays.append(pa.array(np.asarray(v, np.float64)))
+    table = pa.Table.from_arrays(arrays, names=list(ROW_FIELDS))
+    return table.replace_schema_metadata({SUMMARY_KEY: json.dumps(summary).encode()})
+
+
+def _write_atomically(table, path: Path) -> None:
+    """Write ``path`` under a hidden temporary name in its folder, then rename it."""
+    pq = require("pyarrow.parquet", "sweep", "a sweep's part files")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
+    try:
+        pq.write_table(table, tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def read_part_summary(path: Path, rows: int) -> dict:
+    """A written part's summary from its metadata, without reading its rows.
+
+    Raises ValueError, naming the file, when it is unreadable, has no summary, or holds
+    another number of rows than ``rows``.
+    """
+    pq = require("pyarrow.parquet", "sweep", "a sweep's part files")
+    try:
+        meta = pq.read_metadata(path)
+        data = json.loads(meta.metadata[SUMMARY_KEY])
+    except Exception as e:  # pyarrow's errors for damaged files vary by version
+        raise ValueError(f"{path}: unreadable part ({type(e).__name__}: {e})") from e
+    if meta.num_rows != rows or data.get("finished") != rows:
+        raise ValueError(f"{path}: {meta.num_rows} rows where the part has {rows}")
+    return data
