@@ -8,6 +8,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import Simulator
 
 from geovs_drake.loop import CARRIERS, LAWS, SENSORS, build_loop, refusal
@@ -183,3 +184,29 @@ def test_the_command_line_validates_a_scenario_once(monkeypatch, run_cli):
     )
     assert code in (0, 3) and '"controller": "pbvs"' in out
     assert len(calls) == 1
+
+
+@pytest.mark.parametrize(
+    ("plant", "mount"), [("dynamic", "hand"), ("kinematic", "hand"), ("dynamic", "fixed")]
+)
+def test_poses_in_target_is_camera_pose_in_target_row_by_row(plant, mount):
+    """The batched X_BC of a run's states equals the one-state conversion of each row."""
+    from geovs_drake.loop.state import camera_pose_in_target, initial_body_states, poses_in_target
+
+    config = ScenarioConfig(plant=plant, mount=mount)
+    rng = np.random.default_rng(3)
+    X_BC = np.stack(
+        [
+            RigidTransform(
+                RollPitchYaw(rng.uniform(-1, 1, 3)), rng.uniform(-1, 1, 3)
+            ).GetAsMatrix4()
+            for _ in range(5)
+        ]
+    )
+    states = initial_body_states(config, X_BC)
+    states[:, :4] *= 1.7  # an unnormalised quaternion, as an integrator leaves it
+    batched = poses_in_target(config, states)
+    for x, X in zip(states, batched, strict=True):
+        one = camera_pose_in_target(config, x, plant == "dynamic").GetAsMatrix4()
+        assert np.allclose(X, one, atol=1e-14)
+    assert np.allclose(batched, X_BC, atol=1e-12)  # and both invert initial_body_states

@@ -82,9 +82,10 @@ def initial_body_states(
         return _initial_target_states(config, X_BC, twists)
     X_RC = config.X_RC if dynamic else RigidTransform()
     X_RC_inv = X_RC.inverse()
+    X_WB = config.X_WB  # a property that parses the config: once, not per start
     states = np.zeros((n, 13 if dynamic else 7))
     for i in range(n):
-        X_W = config.X_WB @ RigidTransform(X_BC[i]) @ X_RC_inv
+        X_W = X_WB @ RigidTransform(X_BC[i]) @ X_RC_inv
         states[i, QUATERNION] = X_W.rotation().ToQuaternion().wxyz()
         states[i, POSITION] = X_W.translation()
     if dynamic and twists is not None:
@@ -149,8 +150,17 @@ def camera_pose_in_target(config: ScenarioConfig, x: np.ndarray, dynamic: bool) 
 
 
 def poses_in_target(config: ScenarioConfig, states: np.ndarray) -> np.ndarray:
-    """X_BC (N, 4, 4) for states (N, n) of ``config``'s loop."""
+    """X_BC (N, 4, 4) for states (N, n) of ``config``'s loop (as
+    :func:`camera_pose_in_target`, with the config's frames parsed once)."""
     dynamic = config.plant == "dynamic"
-    return np.stack(
-        [camera_pose_in_target(config, x, dynamic).GetAsMatrix4() for x in np.asarray(states)]
-    )
+    states = np.asarray(states, dtype=float)
+    out = np.empty((len(states), 4, 4))
+    fixed = config.mount == "fixed"
+    X_B_W = config.X_WB.inverse()
+    X_after = fixed_camera_pose(config) if fixed else (config.X_RC if dynamic else RigidTransform())
+    for i, x in enumerate(states):
+        q = x[QUATERNION]
+        X_W = RigidTransform(RotationMatrix(Quaternion(q / np.linalg.norm(q))), x[POSITION])
+        X = X_W.inverse() @ X_after if fixed else X_B_W @ X_W @ X_after
+        out[i] = X.GetAsMatrix4()
+    return out
