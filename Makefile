@@ -9,7 +9,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint format bench clean venv system-deps docs wheel-check
+.PHONY: demo test test-slow lint format bench clean venv system-deps docs wheel-check
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -40,6 +40,10 @@ test: $(STAMP) system-deps
 	$(MAKE) --no-print-directory docs
 	GEOVS_FAST=1 $(BIN)/python -m pytest --nbmake -q -n auto
 	$(MAKE) --no-print-directory wheel-check
+
+# The long studies and the real-cluster sweeps (pytest -m slow), outside `make test`'s budget.
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -q -m slow
 
 # The API reference into docs/_build/html; a warning (a broken docstring, an
 # undocumented public object, a module on no page) fails the build.

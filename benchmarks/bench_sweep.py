@@ -13,7 +13,8 @@ summary, plots). Prints both walls and their ratio.
 samples the resident memory of the client process and of each of its
 descendants (the Dask nanny and worker processes) every 0.2 s. Prints the wall
 time, the client's peak, each worker's peak and the dataset's size on disk.
-With ``--kill-at F``, it then runs the same sweep in ``DIR-cut``, kills the
+With ``--kill-at F`` (and ``--reuse`` to take the uninterrupted run already in
+DIR), it then runs the same sweep in ``DIR-cut``, kills the
 client with SIGKILL once a fraction F of the parts is written, checks that no
 worker process outlives it for long, runs ``--resume`` and compares the
 resumed dataset and summary with the uninterrupted run's.
@@ -24,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -122,6 +124,13 @@ def _size_mb(folder: Path) -> float:
 def scale(args: argparse.Namespace) -> None:
     out = Path(args.out)
     common = ["--starts", str(args.starts), "--duration", str(args.duration), "--workers", "2"]
+    if not args.reuse:
+        _measure(args, out, common)
+    if args.kill_at is not None:
+        _kill_and_resume(args, out, common)
+
+
+def _measure(args: argparse.Namespace, out: Path, common: list[str]) -> None:
     wall, peaks, code = _sweep([*CLI, *common, "--out", str(out), "--json"])
     assert code == 0, code
     workers = sorted(v for name, v in peaks.children.values() if name == "worker")
@@ -132,9 +141,11 @@ def scale(args: argparse.Namespace) -> None:
         f"{_size_mb(out / 'results'):.0f} MB in {len(list((out / 'results').iterdir()))} "
         f"parts; counts {report['counts']}; guarantee {report['guarantee']}"
     )
-    if args.kill_at is None:
-        return
+
+
+def _kill_and_resume(args: argparse.Namespace, out: Path, common: list[str]) -> None:
     cut = out.with_name(out.name + "-cut")
+    shutil.rmtree(cut, ignore_errors=True)
     proc = subprocess.Popen([*CLI, *common, "--out", str(cut)], stdout=subprocess.DEVNULL)
     parts = -(-args.starts // 1000)
     while len(list((cut / "results").glob("part-*.parquet"))) < args.kill_at * parts:
@@ -182,6 +193,9 @@ def main() -> None:
     s.add_argument("--duration", type=float, default=10.0)
     s.add_argument("--out", required=True)
     s.add_argument("--kill-at", type=float, default=None)
+    s.add_argument(
+        "--reuse", action="store_true", help="take the uninterrupted run already in --out"
+    )
     s.set_defaults(func=scale)
     args = parser.parse_args()
     args.func(args)

@@ -16,7 +16,8 @@ Usage::
    shipped suite. In ``core`` each
    command either works or prints the one line
    ``geovs-drake CMD needs PKG: pip install "geovs-drake[EXTRA]"`` with exit code 2
-   (``sweep`` on Dask must, naming ``[sweep]``; ``sweep --workers 1`` must work). In
+   (``sweep`` must, naming ``[sweep]``: its Parquet dataset needs pyarrow, even with
+   ``--workers 1``). In
    ``[all]`` every command must work. No command may print a traceback.
 
 Prints what it did with timings and the wheel's size; exits 1 on any failure.
@@ -224,9 +225,13 @@ def exercise(kind: str, env: Path, tmp: Path, report: Report, version: str) -> N
             f"core: sweep on Dask should need the sweep extra (dask is not core): {outcome}"
         )
 
-    if core:  # without Dask: in this process
+    if core:  # without Dask, in this process: the Parquet dataset still needs pyarrow
         run, dt = _run(sweep + ["--workers", "1"], cwd)
-        _check(report, kind, "sweep --workers 1 (no Dask)", run, dt, may_need_extra=False)
+        outcome = _check(report, kind, "sweep --workers 1 (no Dask)", run, dt, core)
+        if outcome != "needs sweep":
+            report.fail(f"core: the sweep's Parquet dataset should need the sweep extra: {outcome}")
+        if (cwd / "sweep").exists():
+            report.fail("core: a sweep refused for a missing extra left its --out folder")
 
     # The rendered camera (RgbdSensor, VTK/EGL, OpenCV): needs the `vision` extra.
     rendered = [cli, "simulate", "--sensor", "rendered", "--duration", "0.2", "--json"]

@@ -89,13 +89,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="continue the sweep recorded in --out: run only the parts not written yet "
         "(the same config, seed, velocity, duration, starts, chunk and engine, or exit 2); "
-        "a damaged part is named and run again",
+        "a damaged part is named and run again (default: off, a new sweep)",
     )
     p.add_argument(
         "--csv",
         action="store_true",
         help=f"also write DIR/results.csv, sorted by start (at most {CSV_LIMIT} starts: "
-        "about 56 MB of text)",
+        "about 56 MB of text) (default: off)",
     )
     add_json(p, "the summary as one JSON line")
     p.set_defaults(func=run)

@@ -10,7 +10,7 @@ bin, ``duration / (2 TIME_BINS)``, of the exact one: 0.5 ms for a 10-s sweep.
 The maximum is kept exactly.
 
 The starts plot is drawn from the summary too: counts on a grid of distance
-|p_BC| (log bins over D's distance range) by the yaw of X_BC, for all starts,
+``|p_BC|`` (log bins over D's distance range) by the yaw of X_BC, for all starts,
 those not converged and those that failed, and the :data:`SLOWEST` slowest
 starts as points.
 """
@@ -52,7 +52,7 @@ _GRID_LAYERS = ("all", "not_converged", "failed")
 
 
 def distance_edges(config: ScenarioConfig) -> np.ndarray:
-    """Log-spaced |p_BC| bin edges over D's distance range, rho / lam_max to
+    """Log-spaced ``|p_BC|`` bin edges over D's distance range, rho / lam_max to
     rho / lam_min (lambda = rho / |p_CB|), widened by 10 % on both sides."""
     lo = 0.9 * config.radius / config.domain.lam_max
     hi = 1.1 * config.radius / config.domain.lam_min
@@ -250,7 +250,7 @@ def plot_summary(summary: SweepSummary, plant: str, out_dir: str | Path) -> list
     """``t_converged.png`` and ``starts.png`` in ``out_dir`` from a merged summary;
     the file names written.
 
-    ``starts.png`` shows the starts on a slice of D: distance |p_BC| against the yaw
+    ``starts.png`` shows the starts on a slice of D: distance ``|p_BC|`` against the yaw
     of X_BC, which at the goal's orientation is the roll about the optical axis (the
     hard direction: near pi the arrow points the wrong way, the NF's saddle). Cells
     with a start not converged or failed are marked, and the slowest starts circled.
