@@ -9,6 +9,7 @@ Poses of the camera are given in the *target* frame B, as X_BC (metres,
 radians, Drake's RollPitchYaw), the natural way to say where the camera is.
 """
 
+import copy
 import dataclasses
 import importlib.resources
 import math
@@ -36,6 +37,7 @@ __all__ = [
     "PLANTS",
     "SENSORS",
     "CARRIERS",
+    "ArmConfig",
     "LAW_VARIANTS",
     "CameraConfig",
     "Ibvs",
@@ -76,8 +78,8 @@ MOUNTS = ("hand", "fixed")
 #: How the loop sees the target (``ScenarioConfig.camera.sensor``).
 SENSORS = ("exact", "rendered", "pinhole")
 #: What carries the camera (``ScenarioConfig.carrier``): the free rigid body of
-#: Appendix C (its ``mount`` and ``plant`` say how).
-CARRIERS = ("free",)
+#: Appendix C (its ``mount`` and ``plant`` say how), or a robot arm (``arm``).
+CARRIERS = ("free", "arm")
 
 
 # --------------------------------------------------------------------------
@@ -235,6 +237,45 @@ class RigConfig:
     mass: float = 1.0
     inertia_diagonal: list[float] = field(default_factory=lambda: [0.02, 0.02, 0.02])
     camera_offset: PoseConfig = field(default_factory=PoseConfig)
+
+
+@dataclass
+class ArmConfig:
+    """The arm that carries the camera with ``carrier: arm`` (eye-in-hand).
+
+    ``model``: "default", the 6-axis arm shipped in the package (a UR5's published
+    parameters, ``geovs_drake/models/ur5.urdf``), or the path of a URDF or SDFormat
+    file. Its first body is welded to the world at ``base_pose``; the camera frame
+    C sits at ``camera_offset`` (X_EC, the optical axis along z_C) on
+    ``end_effector_frame``. The start is ``initial_joints`` [rad] if given, else
+    ``initial`` (X_BC(0)) solved by Drake's InverseKinematics within the joint
+    limits; ``initial_joint_velocity`` [rad/s] (dynamic plant; empty: at rest).
+    ``joint_damping`` B_q [N m s/rad] adds ``-B_q qdot`` to the torque; the
+    kinematic arm's ``null_space_gain`` [1/s] centres a redundant arm's
+    self-motion.
+    """
+
+    model: str = "default"
+    end_effector_frame: str = "tool0"
+    #: The default stands the arm's base on a pedestal beside the line of sight, 0.65 m
+    #: to the side of the target's axis, level with the target and 0.85 m back from
+    #: it, facing the axis: the goal, the default start and every start of the
+    #: comparison suite are reachable, the nearest joint limit at least 1.6 rad away
+    #: (chosen on a grid of base positions; a test holds it).
+    base_pose: PoseConfig = field(
+        default_factory=lambda: PoseConfig(xyz=[-0.85, 0.65, 1.0], rpy=[0.0, 0.0, -math.pi / 2])
+    )
+    camera_offset: PoseConfig = field(default_factory=lambda: PoseConfig(xyz=[0.0, 0.0, 0.03]))
+    initial_joints: list[float] = field(default_factory=list)
+    initial_joint_velocity: list[float] = field(default_factory=list)
+    joint_damping: float = 0.5
+    null_space_gain: float = 1.0
+    #: The arm's inertia at the camera is about ten times the default rig's (1 kg): the
+    #: dynamic arm runs the NF with k_p and B, and the twist laws' velocity tracking
+    #: with its gains, multiplied by this factor, which keeps the free rig's time
+    #: constants. :func:`resolve` applies it, once; the loop's
+    #: energy bound is the scaled k_p.
+    gain_scale: float = 10.0
 
 
 @dataclass
@@ -438,8 +479,10 @@ class ScenarioConfig:
     #: command the camera's twist; "path" follows a planned image path (Eq. 18).
     controller: str | Nf | Ibvs | Pbvs | Spherical | PathFollowing = "nf"
     #: What carries the camera (:data:`CARRIERS`): "free", the rigid body of
-    #: Appendix C.
+    #: Appendix C, or "arm", the robot arm of ``arm``.
     carrier: str = "free"
+    #: The arm, with ``carrier: arm``.
+    arm: ArmConfig = field(default_factory=ArmConfig)
     #: "hand": the camera rides on the driven body (eye-in-hand); "fixed": the
     #: camera is fixed in the world and the target sphere is the driven body
     #: (eye-to-hand, G = H^-1 of Eq. 16).
@@ -528,10 +571,36 @@ class ScenarioConfig:
         self.domain.to_domain()
         self.navigation.to_gains()
         self.camera.validate(self.plant)
+        if self.carrier == "arm":
+            self._validate_arm(twist)
         if self.camera.sensor != "exact" and self.mount != "hand":
             raise ValueError(
                 f"camera.sensor {self.camera.sensor!r} runs eye-in-hand only (the camera "
                 f"rides on the rig), got mount {self.mount!r}"
+            )
+
+    def _validate_arm(self, twist: list[float]) -> None:
+        """The arm's own fields, and what the arm rules out."""
+        if self.mount != "hand":
+            raise ValueError(
+                f"carrier 'arm' carries the camera in its hand, got mount {self.mount!r}"
+            )
+        if any(v != 0 for v in twist):
+            raise ValueError(
+                "initial_velocity (a free camera's twist) does not apply to carrier 'arm': "
+                f"give arm.initial_joint_velocity instead, got initial_velocity = {twist}"
+            )
+        arm = self.arm
+        if arm.model != "default" and not Path(arm.model).is_file():
+            raise ValueError(f"arm.model must be 'default' or a model file, got {arm.model!r}")
+        for name in ("initial_joints", "initial_joint_velocity"):
+            values = getattr(arm, name)
+            if _finite_numbers(values, len(values)) is None:
+                raise ValueError(f"arm.{name} must be finite numbers [rad, rad/s], got {values!r}")
+        if arm.initial_joint_velocity and self.plant != "dynamic":
+            raise ValueError(
+                "arm.initial_joint_velocity applies to the dynamic arm only (the kinematic "
+                f"arm commands its joint velocities), got {arm.initial_joint_velocity!r}"
             )
 
     # Derived quantities, in the names the code uses.
@@ -583,6 +652,9 @@ _POSITIVE: dict[str, tuple[float, bool, str]] = {
     "control.potential_gain": (0.0, True, ""),
     "control.kinematic_gain": (0.0, True, ""),
     "control.baseline_gain": (0.0, True, ""),
+    "arm.joint_damping": (0.0, False, " [N m s/rad]"),
+    "arm.null_space_gain": (0.0, False, " [1/s]"),
+    "arm.gain_scale": (0.0, True, ""),
 }
 
 
@@ -691,6 +763,15 @@ def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> Resolved
         return config
     config = ScenarioConfig() if config is None else config
     config.validate()
+    if config.carrier == "arm" and config.plant == "dynamic" and config.arm.gain_scale != 1:
+        # The arm's gains (ArmConfig.gain_scale): a scaled copy, so that every part of
+        # the loop, the energy bound included, reads one k_p and one B.
+        config = copy.deepcopy(config)
+        scale = config.arm.gain_scale
+        config.control.potential_gain *= scale
+        config.control.damping = [scale * v for v in config.control.damping]
+        config.control.tracking_gains = [scale * v for v in config.control.tracking_gains]
+        config.arm.gain_scale = 1.0
     return ResolvedScenario(
         config=config,
         law=law_of(config),
@@ -812,9 +893,12 @@ def _check_node(value: Any, default: Any, where: str) -> None:
     elif isinstance(default, str):
         ok, expected = isinstance(value, str), "a string"
     elif isinstance(default, list):
+        # An empty default is a list whose length the model decides (an arm's joints):
+        # its length is checked where the model is known.
         n = len(default)
-        ok = isinstance(value, list) and len(value) == n and all(_is_number(v) for v in value)
-        expected = f"a list of {n} numbers"
+        sized = n == 0 or (isinstance(value, list) and len(value) == n)
+        ok = isinstance(value, list) and sized and all(_is_number(v) for v in value)
+        expected = f"a list of {n} numbers" if n else "a list of numbers"
     else:  # not a shape this schema uses: Drake decides
         return
     if not ok:

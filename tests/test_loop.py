@@ -41,7 +41,7 @@ def test_the_registries_hold_every_part_the_scenario_names():
     """One registry per part, and the config's names are exactly the registered ones."""
     assert set(LAWS) == set(CONTROLLERS)
     assert set(SENSORS) == {"exact", "pinhole", "rendered"}
-    assert len(COMBINATIONS) == 4 * 5 + 2 * 5
+    assert len(COMBINATIONS) == len(CARRIERS) * 5 + len(CAMERA_CARRIERS) * 2 * 5
 
 
 @pytest.mark.parametrize(("carrier", "sensor", "law"), COMBINATIONS)
@@ -65,7 +65,7 @@ def test_every_combination_builds_through_build_loop_and_converges(carrier, sens
         (dict(plant="kinematic"), "rendered", "runs on the dynamic plant only, got plant"),
         (dict(mount="fixed"), "pinhole", "runs eye-in-hand only .*got mount 'fixed'"),
         (dict(mount="fixed"), "rendered", "runs eye-in-hand only .*got mount 'fixed'"),
-        (dict(carrier="gantry"), "exact", "carrier must be one of free, got 'gantry'"),
+        (dict(carrier="gantry"), "exact", "carrier must be one of free, arm, got 'gantry'"),
         (dict(controller="kinematic"), "exact", "names a plant: write plant: kinematic"),
         (dict(controller="lqr"), "exact", "controller must be one of nf, ibvs"),
     ],

@@ -37,7 +37,7 @@ EXIT_CODES: dict[int, str] = {
     EXIT_BAD_INPUT: "bad input: an argument, the --config file or --scenario-text, a start\n"
     "outside D, or a missing extra (one line on stderr, nothing run)",
     EXIT_NOT_CONVERGED: "ran and did not converge (simulate, demo): status not_converged,\n"
-    "left_domain, lost_visibility, feature_lost or non_finite",
+    "left_domain, lost_visibility, feature_lost, joint_limit or non_finite",
     EXIT_INTERRUPTED: "interrupted (Ctrl-C)",
     EXIT_BROKEN_PIPE: "the reader of stdout went away (e.g. | head), as a shell reports SIGPIPE",
 }
@@ -122,6 +122,19 @@ def pose_arg(text: str) -> dict[str, list[float]]:
 def twist_arg(text: str) -> list[float]:
     """``wx,wy,wz,vx,vy,vz`` as 6 finite numbers."""
     return _six_numbers(text, "wx,wy,wz,vx,vy,vz")
+
+
+def joints_arg(text: str) -> list[float]:
+    """``q1,q2,...``: finite numbers, one per joint; ``none`` for none (the default)."""
+    if text.strip().lower() == "none":
+        return []
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"expected numbers q1,q2,...: {text!r}") from e
+    if not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected finite numbers q1,q2,..., got {text!r}")
+    return values
 
 
 def resolution_arg(text: str) -> list[int]:

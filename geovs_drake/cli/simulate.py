@@ -15,6 +15,7 @@ from geovs_drake.cli._options import (
     add_plant,
     exit_code_of,
     field_default,
+    joints_arg,
     load_resolved,
     numbers,
     pose_arg,
@@ -22,7 +23,7 @@ from geovs_drake.cli._options import (
     twist_arg,
 )
 from geovs_drake.progress import HorizonProgress
-from geovs_drake.scenario import CONTROLLERS, IBVS_DEPTHS, MOUNTS, SENSORS
+from geovs_drake.scenario import CARRIERS, CONTROLLERS, IBVS_DEPTHS, MOUNTS, SENSORS
 from geovs_drake.simulation import StartOutsideDomain, simulate
 
 
@@ -85,6 +86,43 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         metavar="x,y,z,roll,pitch,yaw",
     )
     add_field(p, "--duration", ("duration",), "simulated time [s]", type=float, metavar="T")
+    # The arm (issue 20).
+    add_field(
+        p,
+        "--carrier",
+        ("carrier",),
+        "what carries the camera: free (the rigid body of Appendix C) or arm (a robot arm, "
+        "eye-in-hand: joint torques with --plant dynamic, joint velocities with kinematic)",
+        choices=CARRIERS,
+    )
+    add_field(
+        p,
+        "--arm",
+        ("arm", "model"),
+        "with --carrier arm: default (the UR5-like arm shipped in the package) or the path "
+        "of a URDF or SDFormat file (with arm.end_effector_frame in the scenario)",
+        metavar="default|PATH",
+    )
+    add_field(
+        p,
+        "--initial-joints",
+        ("arm", "initial_joints"),
+        "with --carrier arm: the arm's initial joint positions [rad], in place of "
+        "--initial solved by inverse kinematics (none: solve it)",
+        shown="none",
+        type=joints_arg,
+        metavar="q1,q2,...",
+    )
+    add_field(
+        p,
+        "--initial-joint-velocity",
+        ("arm", "initial_joint_velocity"),
+        "with --carrier arm --plant dynamic: the arm's initial joint velocities [rad/s] "
+        "(in place of --initial-velocity)",
+        shown="at rest none",
+        type=joints_arg,
+        metavar="v1,v2,...",
+    )
     # Path following (--controller path) and the fixed camera (--mount): issue 12.
     add_field(
         p,

@@ -16,18 +16,27 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.geometry import Meshcat, MeshcatVisualizer, Role, SceneGraph
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
 from pydrake.multibody.tree import RigidBody, RotationalInertia, SpatialInertia
 from pydrake.systems.framework import Context, DiagramBuilder, InputPort, LeafSystem, OutputPort
 from pydrake.systems.primitives import Demultiplexer
+from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from pydrake.visualization import AddFrameTriadIllustration
 
 from geovs_drake.geometry._ops import MATH, NUMPY
 from geovs_drake.geometry.rigid import fixed_camera_relative_pose
+from geovs_drake.loop.arm import arm_model, initial_joints
 from geovs_drake.loop.state import POSE, fixed_camera_pose, initial_rig_pose, initial_rig_state
 from geovs_drake.scenario import ResolvedScenario, ScenarioConfig
-from geovs_drake.systems import FixedCameraKinematicMount, FixedCameraMount, KinematicRigidBody
+from geovs_drake.systems import (
+    ArmCamera,
+    FixedCameraKinematicMount,
+    FixedCameraMount,
+    KinematicArm,
+    KinematicRigidBody,
+)
+from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmModel, add_arm, arm_plant
 from geovs_drake.visualization import (
     add_camera_geometry,
     add_goal_ghost,
@@ -83,6 +92,27 @@ class CarrierParts:
     plant: MultibodyPlant | None = None
     scene_graph: SceneGraph | None = None
     body: RigidBody | None = None
+    #: The camera's pose on ``body`` for a renderer, where it differs from X_RC (the arm:
+    #: the camera system reads C's own pose, X_RC = I, while C rides on the last link).
+    X_BodyC: RigidTransform | None = None
+    #: The arm's model (carrier "arm"), for the reports that need its kinematics.
+    arm: ArmModel | None = None
+    #: The carrier's own limits on a continuous state: a message naming the one it
+    #: breaks (the monitor stops the run with status ``joint_limit``), else None.
+    limit_check: Callable[[np.ndarray], str | None] | None = None
+
+    def camera_poses(self, states: np.ndarray) -> np.ndarray:
+        """X_BC (N, 4, 4) for the loop's continuous states (N, n): the body pose the
+        carrier offers, then ``X_WB^-1 X_W,body X_RC``."""
+        components = self.pose_of_states(np.atleast_2d(states), NUMPY)
+        q = np.stack(np.broadcast_arrays(*components[0:4]), axis=-1)
+        p = np.stack(np.broadcast_arrays(*components[4:7]), axis=-1)
+        X_B_W = self.X_WB.inverse()
+        out = np.empty((len(q), 4, 4))
+        for i in range(len(q)):
+            R = RotationMatrix(Quaternion(q[i] / np.linalg.norm(q[i])))
+            out[i] = (X_B_W @ RigidTransform(R, p[i]) @ self.X_RC).GetAsMatrix4()
+        return out
 
 
 #: A carrier factory: ``factory(builder, resolved, draws_marks)`` adds the carrier;
@@ -301,10 +331,176 @@ def _fixed_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_
     )
 
 
+def _arm_forward(model: ArmModel) -> Callable[[np.ndarray, object], tuple]:
+    """The camera pose ``[q_WC, p_WC]`` of arm states (q first), by the arm's own model:
+    the monitor's and the logs' path, without the diagram."""
+    plant = arm_plant(model)
+    context = plant.CreateDefaultContext()
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+    nq = plant.num_positions()
+
+    def one(q: np.ndarray) -> np.ndarray:
+        plant.SetPositions(context, q)
+        X = camera.CalcPoseInWorld(context)
+        return np.concatenate([X.rotation().ToQuaternion().wxyz(), X.translation()])
+
+    def pose_of_states(states: np.ndarray, ops: object) -> tuple:
+        x = np.asarray(states, dtype=float)
+        if x.ndim == 1:
+            return tuple(one(x[:nq]).tolist())
+        return tuple(np.stack([one(row[:nq]) for row in x]).T)
+
+    return pose_of_states
+
+
+def _joint_limits(model: ArmModel) -> Callable[[np.ndarray], str | None]:
+    """The arm's joint limits on a state whose head is q (neither plant enforces them:
+    a continuous MultibodyPlant does not, and the kinematic arm integrates freely)."""
+    plant = arm_plant(model)
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    names = [
+        plant.get_joint(j).name()
+        for j in plant.GetJointIndices()
+        if plant.get_joint(j).num_positions() == 1
+    ]
+    nq = plant.num_positions()
+
+    def limit_check(x: np.ndarray) -> str | None:
+        q = np.asarray(x[:nq])
+        outside = np.flatnonzero((q < lower) | (q > upper))
+        if len(outside) == 0:
+            return None
+        i = int(outside[0])
+        name = names[i] if len(names) == nq else f"joint {i}"
+        return f"joint limit: {name} = {q[i]:.4g} rad outside [{lower[i]:.4g}, {upper[i]:.4g}]"
+
+    return limit_check
+
+
+def _add_arm_scene(
+    builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool, dynamic: bool
+):
+    """A continuous MultibodyPlant (gravity on) with the arm and the target fixed at X_WB.
+
+    ``dynamic``: the plant is the diagram's (it integrates the arm). Otherwise it only
+    registers the arm's geometry with the SceneGraph and stays out of the diagram (no
+    state of its own), as in Drake's examples that draw a plant from given positions.
+    """
+    config = resolved.config
+    model = arm_model(config)
+    if dynamic:
+        plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+    else:
+        scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
+        plant = MultibodyPlant(time_step=0.0)
+        plant.RegisterAsSourceForSceneGraph(scene_graph)
+    instance, camera = add_arm(plant, model)
+    (add_marked_target_geometry if draws_marks else add_target_geometry)(plant, config)
+    X_LinkC = camera.GetFixedPoseInBodyFrame()
+    drawing = add_camera_geometry(plant, camera.body(), X_LinkC, resolved.domain.fov_half_angle)
+    drawing += add_goal_ghost(plant, config)
+    plant.Finalize()
+    if draws_marks:
+        for geometry_id in drawing:
+            scene_graph.RemoveRole(plant.get_source_id(), geometry_id, Role.kPerception)
+    return model, plant, scene_graph, camera.body(), X_LinkC
+
+
+def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool):
+    """Eye-in-hand on a torque-driven arm: the law's wrench becomes joint torques through
+    the camera frame's Jacobian, with gravity compensated (:class:`ArmCamera`)."""
+    config = resolved.config
+    model, plant, scene_graph, link, X_LinkC = _add_arm_scene(builder, resolved, draws_marks, True)
+    q0 = initial_joints(config)
+    v0 = np.asarray(config.arm.initial_joint_velocity or np.zeros(plant.num_velocities()))
+    if len(v0) != plant.num_velocities():
+        raise ValueError(
+            f"arm.initial_joint_velocity must give the arm's {plant.num_velocities()} joints, "
+            f"got {len(v0)}"
+        )
+    plant.SetDefaultPositions(q0)
+    arm = builder.AddNamedSystem(
+        "arm_camera", ArmCamera(model=model, joint_damping=config.arm.joint_damping)
+    )
+    builder.Connect(plant.get_state_output_port(), arm.arm_state_input)
+    builder.Connect(arm.actuation_output, plant.get_actuation_input_port())
+    demux = builder.AddNamedSystem("state_demux", Demultiplexer([7, 6]))
+    builder.Connect(arm.camera_state_output, demux.get_input_port())
+
+    def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
+        builder.Connect(arm.camera_state_output, force.body_state_input)
+        builder.Connect(force.wrench_C_output, arm.wrench_C_input)
+
+    def set_initial_state(root: Context) -> None:
+        plant.SetPositionsAndVelocities(
+            plant.GetMyMutableContextFromRoot(root), np.concatenate([q0, v0])
+        )
+
+    return CarrierParts(
+        drive="wrench",
+        body_pose=demux.get_output_port(0),
+        state=plant.get_state_output_port(),
+        state_log_name="log_arm_state",
+        X_WB=config.X_WB,
+        X_RC=RigidTransform(),
+        pose_of_states=_arm_forward(model),
+        set_initial_state=set_initial_state,
+        body_state=arm.camera_state_output,
+        connect_force=connect_force,
+        add_meshcat=_meshcat_with_camera(scene_graph, link, X_LinkC),
+        plant=plant,
+        scene_graph=scene_graph,
+        body=link,
+        X_BodyC=X_LinkC,
+        arm=model,
+        limit_check=_joint_limits(model),
+    )
+
+
+def _arm_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool):
+    """Eye-in-hand on a velocity-commanded arm: qdot = J_C^+ (Omega, V), scaled to the
+    joints' velocity limits (:class:`KinematicArm`). The plant draws the arm (Meshcat,
+    the renderer) at the positions the KinematicArm integrates."""
+    config = resolved.config
+    model, plant, scene_graph, link, X_LinkC = _add_arm_scene(builder, resolved, draws_marks, False)
+    q0 = initial_joints(config)
+    arm = builder.AddNamedSystem(
+        "kinematic_arm",
+        KinematicArm(model=model, q0=q0, null_space_gain=config.arm.null_space_gain),
+    )
+    # The drawing follows q: the plant's positions from the arm's state, as Drake's
+    # MultibodyPositionToGeometryPose does for a plant with no dynamics of its own.
+    to_pose = builder.AddNamedSystem("arm_drawing", MultibodyPositionToGeometryPose(plant))
+    builder.Connect(arm.arm_position_output, to_pose.get_input_port())
+    builder.Connect(
+        to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id())
+    )
+    return CarrierParts(
+        drive="twist",
+        body_pose=arm.camera_pose_output,
+        state=arm.arm_position_output,
+        state_log_name="log_arm_position",
+        X_WB=config.X_WB,
+        X_RC=RigidTransform(),
+        pose_of_states=_arm_forward(model),
+        set_initial_state=_no_initial_state,
+        twist_input=arm.camera_velocity_input,
+        add_meshcat=_meshcat_with_camera(scene_graph, link, X_LinkC),
+        plant=plant,
+        scene_graph=scene_graph,
+        body=link,
+        X_BodyC=X_LinkC,
+        arm=model,
+        limit_check=_joint_limits(model),
+    )
+
+
 #: The carriers, by ``(carrier, mount, plant)`` (:func:`carrier_key`).
 CARRIERS: dict[tuple[str, str, str], CarrierFactory] = {
     ("free", "hand", "dynamic"): _free_rig,
     ("free", "hand", "kinematic"): _kinematic_body,
     ("free", "fixed", "dynamic"): _fixed_rig,
     ("free", "fixed", "kinematic"): _fixed_kinematic,
+    ("arm", "hand", "dynamic"): _arm_dynamic,
+    ("arm", "hand", "kinematic"): _arm_kinematic,
 }

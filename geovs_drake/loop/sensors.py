@@ -160,7 +160,7 @@ def _rendered(builder, resolved, carrier, camera) -> OutputPort:
         "rgbd_sensor",
         RgbdSensor(
             carrier.plant.GetBodyFrameIdOrThrow(carrier.body.index()),
-            carrier.X_RC,
+            carrier.X_RC if carrier.X_BodyC is None else carrier.X_BodyC,
             ColorRenderCamera(core, False),
             DepthRenderCamera(core, DepthRange(1.01 * near, 0.99 * far)),
         ),

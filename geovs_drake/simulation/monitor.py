@@ -160,6 +160,7 @@ class SafeDomainMonitor:
         self._reason: dict[str, str] = {}
         self._params_of: tuple = (None, None)
         self._pose_of_states = loop_of(diagram).carrier.pose_of_states
+        self._limit_check = loop_of(diagram).carrier.limit_check
         self.times: list[float] = []
         self.states: list[np.ndarray] = []
 
@@ -190,6 +191,10 @@ class SafeDomainMonitor:
             # A live read-only view of the camera's parameters in this context.
             camera_context = self._camera.GetMyContextFromRoot(root_context)
             self._params_of = (root_context, camera_context.get_numeric_parameter(0).get_value())
+        if self._limit_check is not None:  # the carrier's own limits (an arm's joints)
+            broken = self._limit_check(x)
+            if broken is not None:
+                return self._stop("joint_limit", f"{broken} at t = {root_context.get_time():.4g}")
         # The pose the camera reads from this state (the carrier says which).
         pose = self._pose_of_states(x, MATH)
         out = _camera_kernel(pose, self._params_of[1])

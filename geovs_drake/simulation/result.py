@@ -96,6 +96,32 @@ def pose_error(X_BC: RigidTransform, X_BC_goal: RigidTransform) -> tuple[float, 
 
 
 @dataclass
+class ArmTrace:
+    """The arm along a run (carrier "arm"), at the logged times.
+
+    ``joint_limit_margin``: the nearest joint's distance to its limit [rad], positive
+    inside; ``jacobian_singular_value``: sigma_min of J_C; ``velocity_scale`` (the
+    kinematic arm): the factor its joint velocities were scaled by to respect the
+    velocity limits (1: not limited), else None.
+    """
+
+    joint_positions: np.ndarray
+    joint_limit_margin: np.ndarray
+    jacobian_singular_value: np.ndarray
+    velocity_scale: np.ndarray | None = None
+
+    def summary(self) -> dict:
+        """The JSON entries of the arm's run."""
+        out = {
+            "min_joint_limit_margin": float(np.min(self.joint_limit_margin)),
+            "min_jacobian_singular_value": float(np.min(self.jacobian_singular_value)),
+        }
+        if self.velocity_scale is not None:
+            out["joint_velocity_clipped"] = float(np.mean(self.velocity_scale < 1.0))
+        return out
+
+
+@dataclass
 class SimulationResult:
     """A run's logs and summary. Arrays are sampled at ``config.log_rate``."""
 
@@ -114,6 +140,7 @@ class SimulationResult:
     energy: np.ndarray | None = None
     final_X_BC: RigidTransform = field(default_factory=RigidTransform)
     saddle_note: str | None = None  # set when the start (or an unconverged end) is near the saddle
+    arm: ArmTrace | None = None  # carrier "arm": its joints along the run
 
     @property
     def lyapunov(self) -> np.ndarray:
@@ -226,6 +253,7 @@ class SimulationResult:
         law = law_of(self.config)
         out = {
             "plant": self.config.plant,
+            "carrier": self.config.carrier,
             "controller": law_name(self.config.controller),
             "mount": self.config.mount,
             "ibvs_depth": law.depth if isinstance(law, Ibvs) else None,
@@ -264,4 +292,6 @@ class SimulationResult:
                 "latency_frames": int(cam.latency_frames),
             }
         out["radius_error"] = self.config.camera.radius_error
+        if self.arm is not None:
+            out.update(self.arm.summary())
         return out

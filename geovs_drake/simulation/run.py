@@ -6,16 +6,18 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+from pydrake.math import RigidTransform
 
 from geovs_drake.geometry.navigation import NavigationFunction
-from geovs_drake.loop.build import build_loop
-from geovs_drake.loop.state import camera_pose_in_target, poses_in_target
+from geovs_drake.loop.arm import joint_count, joint_limit_margins, smallest_singular_values
+from geovs_drake.loop.build import Loop, build_loop
 from geovs_drake.planning import plan_for_scenario
 from geovs_drake.scenario import Nf, PathFollowing, ResolvedScenario, ScenarioConfig, resolve
 from geovs_drake.simulation.monitor import camera_signals, make_simulator
 from geovs_drake.simulation.result import (
     MARGIN_NAMES,
     SADDLE_NOTE_ANGLE_RAD,
+    ArmTrace,
     SimulationResult,
     convergence_tolerance,
     energy_note,
@@ -23,7 +25,7 @@ from geovs_drake.simulation.result import (
     saddle_note,
 )
 
-__all__ = ["StartOutsideDomain", "check_start", "simulate"]
+__all__ = ["StartOutsideDomain", "arm_trace", "check_start", "simulate"]
 
 
 class StartOutsideDomain(ValueError):
@@ -46,6 +48,28 @@ def check_start(config: ScenarioConfig | ResolvedScenario) -> None:
         NavigationFunction(config.domain.to_domain(), config.goal_features())
     except ValueError as e:
         raise StartOutsideDomain(f"goal invalid: {e}") from e
+
+
+def arm_trace(loop: Loop, root, states: np.ndarray) -> ArmTrace:
+    """The arm along the logged states: joint margins, sigma_min of J_C and, on the
+    kinematic arm, its velocity scale (the diagram evaluated at each state)."""
+    model = loop.carrier.arm
+    nq = joint_count(model)
+    q = states[:, :nq]
+    scale = None
+    if loop.diagram.HasSubsystemNamed("kinematic_arm"):
+        arm = loop.diagram.GetSubsystemByName("kinematic_arm")
+        context = root.Clone()
+        scale = np.empty(len(states))
+        for k, x in enumerate(states):
+            context.SetContinuousState(x)
+            scale[k] = arm.velocity_scale_output.Eval(arm.GetMyContextFromRoot(context))[0]
+    return ArmTrace(
+        joint_positions=q,
+        joint_limit_margin=np.min(joint_limit_margins(model, q), axis=1),
+        jacobian_singular_value=smallest_singular_values(model, q),
+        velocity_scale=scale,
+    )
 
 
 def simulate(
@@ -75,7 +99,6 @@ def simulate(
     check_start(config)
     loop = build_loop(resolved, meshcat=meshcat, log=False)
     diagram = loop.diagram
-    dynamic = config.plant == "dynamic"
     simulator, monitor = make_simulator(diagram, config, record=True, on_step=progress)
     root = simulator.get_mutable_context()
     if meshcat is not None:
@@ -114,8 +137,9 @@ def simulate(
     signals = camera_signals(diagram, root, states)
     energy = None
     nf_law = isinstance(resolved.law, Nf)
-    if loop.carrier.plant is not None and nf_law:
-        # Drake's own kinetic energy of the free body, plus the potential k_p phi.
+    if loop.carrier.plant is not None and loop.carrier.drive == "wrench" and nf_law:
+        # Drake's own kinetic energy of the free body (or of the arm, 1/2 v^T M(q) v),
+        # plus the potential k_p phi.
         plant = loop.carrier.plant
         pctx = plant.CreateDefaultContext()
         kinetic = np.empty(len(states))
@@ -124,7 +148,7 @@ def simulate(
             kinetic[k] = plant.CalcKineticEnergy(pctx)
         energy = kinetic + config.control.potential_gain * signals["phi"]
     x_final = root.get_continuous_state_vector().CopyToVector()
-    final_X_BC = camera_pose_in_target(config, x_final, dynamic)
+    final_X_BC = RigidTransform(loop.carrier.camera_poses(x_final)[0])
     if status == "completed":
         dp, dr = pose_error(final_X_BC, config.X_BC_goal)
         tol_p, tol_r = convergence_tolerance(config)
@@ -146,10 +170,12 @@ def simulate(
         phi=signals["phi"],
         margins=signals["margins"],
         visibility=signals["visibility"],
-        X_BC=poses_in_target(config, states),
+        X_BC=loop.carrier.camera_poses(states),
         energy=energy,
         final_X_BC=final_X_BC,
     )
+    if loop.carrier.arm is not None:
+        result.arm = arm_trace(loop, root, states)
     if result.energy_guarantee is False:
         result.message += f" ({energy_note(result.initial_energy, result.energy_bound)})"
     if isinstance(resolved.law, PathFollowing):  # what the planner found (cached)

@@ -1,5 +1,6 @@
 """The servo's Drake systems, one LeafSystem per module, all TemplateSystems."""
 
+from geovs_drake.systems.arm_camera import ArmCamera, ArmCamera_
 from geovs_drake.systems.feature_extractor import FeatureExtractor, FeatureExtractor_
 from geovs_drake.systems.fixed_camera_kinematic_mount import (
     FixedCameraKinematicMount,
@@ -8,6 +9,7 @@ from geovs_drake.systems.fixed_camera_kinematic_mount import (
 from geovs_drake.systems.fixed_camera_mount import FixedCameraMount, FixedCameraMount_
 from geovs_drake.systems.ibvs_controller import IbvsController, IbvsController_
 from geovs_drake.systems.image_jacobian_force import ImageJacobianForce, ImageJacobianForce_
+from geovs_drake.systems.kinematic_arm import KinematicArm, KinematicArm_
 from geovs_drake.systems.kinematic_controller import KinematicController, KinematicController_
 from geovs_drake.systems.kinematic_rigid_body import KinematicRigidBody, KinematicRigidBody_
 from geovs_drake.systems.navigation_controller import (
@@ -34,6 +36,10 @@ from geovs_drake.systems.velocity_tracking_force import (
 )
 
 __all__ = [
+    "ArmCamera",
+    "ArmCamera_",
+    "KinematicArm",
+    "KinematicArm_",
     "FixedCameraKinematicMount",
     "FixedCameraKinematicMount_",
     "FixedCameraMount",

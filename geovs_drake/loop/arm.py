@@ -1,0 +1,203 @@
+"""The arm as a carrier's model: which arm a scenario means, and its start by IK.
+
+:func:`arm_model` turns a scenario's ``arm`` into the hashable
+:class:`~geovs_drake.systems._arm_model.ArmModel` that the systems and the
+carrier load. :func:`solve_joints` finds a joint configuration that puts the
+camera at a pose X_BC, with Drake's ``InverseKinematics`` (the joint limits are
+its bounds) from a few seeds, keeping the solution farthest from the joint limits
+and the singularities; a
+pose the arm cannot reach raises :class:`Unreachable`, naming the closest
+reach found.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.multibody.inverse_kinematics import InverseKinematics
+from pydrake.multibody.tree import JacobianWrtVariable
+from pydrake.solvers import Solve
+
+from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.systems._arm_model import CAMERA_FRAME, DEFAULT_ARM, ArmModel, arm_plant
+
+__all__ = [
+    "IK_POSITION_TOLERANCE",
+    "IK_ROTATION_TOLERANCE",
+    "IK_SEEDS",
+    "SINGULARITY_WEIGHT",
+    "Unreachable",
+    "arm_model",
+    "initial_joints",
+    "joint_count",
+    "joint_limit_margins",
+    "smallest_singular_values",
+    "solve_joints",
+]
+
+#: The camera pose an IK solution must reach [m] and [rad].
+IK_POSITION_TOLERANCE = 1e-6
+IK_ROTATION_TOLERANCE = 1e-6
+#: Random seeds tried besides the middle of the joint range: the solution kept is the
+#: one farthest from the joint limits (an arm has several inverse kinematics).
+IK_SEEDS = 12
+
+
+#: How IK weighs distance from a singularity (sigma_min of J_C) against distance from a
+#: joint limit [rad] when it picks among its solutions.
+SINGULARITY_WEIGHT = 10.0
+
+
+class Unreachable(ValueError):
+    """The arm cannot put the camera at the requested pose within its joint limits."""
+
+
+def _xyz_rpy(pose) -> tuple[float, ...]:
+    return tuple(float(v) for v in (*pose.xyz, *pose.rpy))
+
+
+def arm_model(config: ScenarioConfig) -> ArmModel:
+    """The scenario's arm as the systems load it."""
+    arm = config.arm
+    return ArmModel(
+        path=DEFAULT_ARM if arm.model == "default" else arm.model,
+        end_effector_frame=arm.end_effector_frame,
+        base_xyz_rpy=_xyz_rpy(arm.base_pose),
+        camera_xyz_rpy=_xyz_rpy(arm.camera_offset),
+    )
+
+
+def joint_count(model: ArmModel) -> int:
+    """The arm's number of joint positions nq."""
+    return arm_plant(model).num_positions()
+
+
+def joint_limit_margins(model: ArmModel, q: np.ndarray) -> np.ndarray:
+    """Each joint's distance to its nearer limit [rad] (positive inside), for q (nq,)
+    or (N, nq)."""
+    plant = arm_plant(model)
+    q = np.asarray(q, dtype=float)
+    return np.minimum(q - plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits() - q)
+
+
+def smallest_singular_values(model: ArmModel, q: np.ndarray) -> np.ndarray:
+    """sigma_min of the camera frame's spatial-velocity Jacobian J_C (6 x nv) at each q
+    (N, nq): where it nears 0 the arm is near a singularity, and the law's wrench
+    (dynamic) or twist (kinematic) loses a direction."""
+    plant = arm_plant(model)
+    context = plant.CreateDefaultContext()
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+    world = plant.world_frame()
+    out = np.empty(len(q))
+    for i, row in enumerate(np.atleast_2d(q)):
+        plant.SetPositions(context, row)
+        J = plant.CalcJacobianSpatialVelocity(
+            context, JacobianWrtVariable.kV, camera, np.zeros(3), world, camera
+        )
+        out[i] = np.linalg.svd(J, compute_uv=False)[-1] if J.shape[1] >= 6 else 0.0
+    return out
+
+
+def solve_joints(model: ArmModel, X_WC: RigidTransform) -> np.ndarray:
+    """Joint positions that put the camera frame at X_WC, within the joint limits.
+
+    Raises :class:`Unreachable` with the closest reach found (position and
+    rotation errors) when no seed gives a solution.
+    """
+    key = (model, tuple(X_WC.GetAsMatrix4().ravel().round(12)))
+    return _solve_joints(*key).copy()
+
+
+@functools.lru_cache(maxsize=64)
+def _solve_joints(model: ArmModel, X_key: tuple[float, ...]) -> np.ndarray:
+    X_WC = RigidTransform(np.array(X_key).reshape(4, 4))
+    plant = arm_plant(model)
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    rng = np.random.default_rng(0)
+    seeds = [0.5 * (lower + upper)] + [
+        rng.uniform(np.maximum(lower, -np.pi), np.minimum(upper, np.pi)) for _ in range(IK_SEEDS)
+    ]
+    best, best_score, closest = None, -np.inf, (np.inf, np.inf)
+    for seed in seeds:
+        ik = InverseKinematics(plant)
+        p = X_WC.translation()
+        ik.AddPositionConstraint(
+            camera, np.zeros(3), plant.world_frame(), p - IK_POSITION_TOLERANCE,
+            p + IK_POSITION_TOLERANCE,
+        )  # fmt: skip
+        ik.AddOrientationConstraint(
+            camera, RigidTransform().rotation(), plant.world_frame(), X_WC.rotation(),
+            IK_ROTATION_TOLERANCE,
+        )  # fmt: skip
+        ik.prog().SetInitialGuess(ik.q(), seed)
+        result = Solve(ik.prog())
+        q = result.GetSolution(ik.q())
+        if result.is_success():
+            q = _refine(plant, camera, q, X_WC)
+            # Keep the solution farthest from both the joint limits and the
+            # singularities: the smaller of the joint margin [rad] and 10 sigma_min(J_C).
+            margin = float(np.min(np.minimum(q - lower, upper - q)))
+            score = min(margin, SINGULARITY_WEIGHT * smallest_singular_values(model, q[None])[0])
+            if score > best_score:
+                best, best_score = q, score
+        else:
+            closest = min(closest, _reach_error(plant, camera, q, X_WC))
+    if best is None:
+        raise Unreachable(
+            f"the arm cannot put the camera at {_describe(X_WC)} within its joint limits: the "
+            f"closest reach found is {closest[0]:.3g} m and {closest[1]:.3g} rad away"
+        )
+    return best
+
+
+def _refine(plant, camera, q: np.ndarray, X_WC: RigidTransform, steps: int = 4) -> np.ndarray:
+    """Newton steps on the camera pose error, from the IK's solution (met to its
+    tolerance, 1e-6) to rounding: the goal's joints must be an equilibrium to ~1e-12,
+    not 1e-6, for Drake's ``Linearize`` and for a start exactly at the goal."""
+    context = plant.CreateDefaultContext()
+    world = plant.world_frame()
+    for _ in range(steps):
+        plant.SetPositions(context, q)
+        X = camera.CalcPoseInWorld(context)
+        # The error as a twist of C in C (rotation first): X_WC = X exp(e^).
+        X_err = X.InvertAndCompose(X_WC)
+        aa = X_err.rotation().ToAngleAxis()
+        e = np.concatenate([aa.axis() * aa.angle(), X_err.translation()])
+        J = plant.CalcJacobianSpatialVelocity(
+            context, JacobianWrtVariable.kV, camera, np.zeros(3), world, camera
+        )
+        q = q + np.linalg.lstsq(J, e, rcond=None)[0]
+    return q
+
+
+def _reach_error(plant, camera, q: np.ndarray, X_WC: RigidTransform) -> tuple[float, float]:
+    context = plant.CreateDefaultContext()
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    plant.SetPositions(context, np.clip(q, lower, upper))
+    X = camera.CalcPoseInWorld(context)
+    dp = float(np.linalg.norm(X.translation() - X_WC.translation()))
+    dr = float(X.rotation().InvertAndCompose(X_WC.rotation()).ToAngleAxis().angle())
+    return dp, dr
+
+
+def _describe(X: RigidTransform) -> str:
+    rpy = RollPitchYaw(X.rotation()).vector()
+    return f"xyz {np.round(X.translation(), 3).tolist()} rpy {np.round(rpy, 3).tolist()} in W"
+
+
+def initial_joints(config: ScenarioConfig) -> np.ndarray:
+    """The arm's start: ``arm.initial_joints``, else X_BC(0) solved by IK (ValueError
+    for a wrong number of joints, :class:`Unreachable` for a pose out of reach)."""
+    model = arm_model(config)
+    nq = arm_plant(model).num_positions()
+    given = config.arm.initial_joints
+    if given:
+        if len(given) != nq:
+            raise ValueError(
+                f"arm.initial_joints must give the arm's {nq} joints, got {len(given)}: {given}"
+            )
+        return np.asarray(given, dtype=float)
+    return solve_joints(model, config.X_WB @ config.X_BC_initial)

@@ -1,0 +1,152 @@
+"""ArmCamera: the camera on a torque-driven arm, its state and the law's wrench as torques."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.multibody.tree import JacobianWrtVariable
+from pydrake.systems.framework import BasicVector_, LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
+
+from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmError, ArmModel, arm_plant
+from geovs_drake.systems._parameters import STATE_SIZE, param_vector
+
+__all__ = ["ArmCamera", "ArmCamera_", "actuation_permutation"]
+
+
+def actuation_permutation(plant) -> np.ndarray:
+    """The plant's actuation matrix B (nv x nu) when every joint has its own actuator (a
+    permutation); ArmError naming the first joint without one otherwise."""
+    B = plant.MakeActuationMatrix()
+    if B.shape[0] != B.shape[1] or not np.allclose(np.abs(B).sum(axis=1), 1):
+        unactuated = [
+            plant.get_joint(j).name()
+            for j in plant.GetJointIndices()
+            if plant.get_joint(j).num_velocities() > 0
+            and not np.any(B[plant.get_joint(j).velocity_start()])
+        ]
+        raise ArmError(
+            "the arm's law needs an actuator on every joint: "
+            f"{', '.join(unactuated) or 'the actuation matrix is not square'} has none"
+        )
+    return B
+
+
+@TemplateSystem.define("ArmCamera_")
+def ArmCamera_(T):
+    class Impl(LeafSystem_[T]):
+        """The interface between the camera's laws and a torque-driven arm (eye-in-hand).
+
+        .. pydrake_system::
+
+            name: ArmCamera
+            input_ports:
+            - arm_state
+            - wrench_C
+            output_ports:
+            - camera_state
+            - actuation
+
+        ``arm_state`` is the arm's MultibodyPlant state (q, v). ``camera_state``
+        is the camera frame C's pose and spatial velocity in W in the layout of a
+        free body's state ``[q_WC, p_WC, w_WC_W, v_WCo_W]``, so the camera system
+        and the force laws, built with X_RC = identity, read it as they read the
+        free rig's. ``wrench_C`` is the law's wrench on the camera (about Co, in
+        C: Eq. 45 for the NF); ``actuation`` is the joint torque
+
+            tau = J_C(q)^T F_C - tau_g(q) - B_q v,
+
+        with J_C the camera frame's spatial-velocity Jacobian expressed in C
+        (Drake's ``CalcJacobianSpatialVelocity``), so that J_C v = (Omega, V),
+        the body twist of Eqs. (16)-(17); tau_g Drake's gravity generalized force
+        (compensated); B_q a joint damping. The power J_C^T F_C . v equals
+        F_C . (Omega, V): the arm receives exactly the power the free rig would,
+        which is what keeps E = 1/2 v^T M(q) v + k_p phi non-increasing (the
+        rig's M becomes the arm's M(q)).
+
+        The arm's kinematics and dynamics come from this system's own model of
+        the arm (a MultibodyPlant of its scalar type, as Drake's
+        InverseDynamicsController keeps its own). ``camera_state`` depends on
+        ``arm_state`` only: no algebraic loop through the laws. One numeric
+        parameter vector: B_q per joint [N m s/rad].
+        """
+
+        def _construct(self, model: ArmModel | None = None, joint_damping=None, converter=None):
+            LeafSystem_[T].__init__(self, converter)
+            if model is None:
+                raise ArmError("ArmCamera needs an ArmModel")
+            self._plant = arm_plant(model, T)
+            self._context = self._plant.CreateDefaultContext()
+            self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
+            self._B = actuation_permutation(arm_plant(model))
+            nq, nv = self._plant.num_positions(), self._plant.num_velocities()
+            damping = np.zeros(nv) if joint_damping is None else np.asarray(joint_damping)
+            self._defaults = (model, damping)
+            self._params_index = self.DeclareNumericParameter(
+                BasicVector_[T](np.broadcast_to(damping, (nv,)).astype(float))
+            )
+            self.arm_state_input = self.DeclareVectorInputPort(name="arm_state", size=nq + nv)
+            self.wrench_C_input = self.DeclareVectorInputPort(name="wrench_C", size=6)
+            state = self.input_port_ticket(self.arm_state_input.get_index())
+            self.camera_state_output = self.DeclareVectorOutputPort(
+                name="camera_state",
+                size=STATE_SIZE,
+                calc=self.CalcCameraState,
+                prerequisites_of_calc={state},
+            )
+            self.actuation_output = self.DeclareVectorOutputPort(
+                name="actuation",
+                size=self._B.shape[1],
+                calc=self.CalcActuation,
+                prerequisites_of_calc={
+                    state,
+                    self.input_port_ticket(self.wrench_C_input.get_index()),
+                    self.all_parameters_ticket(),
+                },
+            )
+
+        def _construct_copy(self, other, converter=None):
+            Impl._construct(self, *other._defaults, converter=converter)
+
+        def _set(self, context) -> None:
+            self._plant.SetPositionsAndVelocities(self._context, self.arm_state_input.Eval(context))
+
+        def CalcCameraState(self, context, output) -> None:
+            self._set(context)
+            world = self._plant.world_frame()
+            X_WC = self._camera.CalcPose(self._context, world)
+            V_WC = self._camera.CalcSpatialVelocity(self._context, world, world)
+            q = X_WC.rotation().ToQuaternion()
+            output.SetFromVector(
+                np.concatenate(
+                    [
+                        [q.w(), q.x(), q.y(), q.z()],
+                        X_WC.translation(),
+                        V_WC.rotational(),
+                        V_WC.translational(),
+                    ]
+                )
+            )
+
+        def CalcActuation(self, context, output) -> None:
+            self._set(context)
+            world = self._plant.world_frame()
+            J_C = self._plant.CalcJacobianSpatialVelocity(
+                self._context,
+                JacobianWrtVariable.kV,
+                self._camera,
+                np.zeros(3),
+                world,
+                self._camera,
+            )
+            F_C = self.wrench_C_input.Eval(context)
+            v = self._plant.GetVelocities(self._context)
+            damping = param_vector(context, self._params_index, T)
+            tau = (
+                J_C.T @ F_C - self._plant.CalcGravityGeneralizedForces(self._context) - damping * v
+            )
+            output.SetFromVector(self._B.T @ tau)  # B a permutation: its inverse is B^T
+
+    return Impl
+
+
+ArmCamera = ArmCamera_[None]

@@ -1,0 +1,159 @@
+"""KinematicArm: an arm whose joint velocities are commanded, qdot = J_C^+ (Omega, V)."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.autodiffutils import AutoDiffXd
+from pydrake.math import inv
+from pydrake.multibody.tree import JacobianWrtVariable
+from pydrake.systems.framework import BasicVector_, LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
+
+from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmError, ArmModel, arm_plant
+from geovs_drake.systems._parameters import POSE_SIZE, param_vector
+
+__all__ = ["KinematicArm", "KinematicArm_"]
+
+# Layout of the one numeric parameter: the damped least squares' mu [-] and the
+# null-space gain [1/s], then the joints' velocity limits (nv) [rad/s].
+_MU, _NULL_GAIN, _LIMITS = 0, 1, slice(2, None)
+
+
+# float and AutoDiffXd (Linearize) only: the pseudo-inverse and the velocity scaling do
+# not take Expression (a symbolic inverse, a comparison).
+@TemplateSystem.define("KinematicArm_", T_list=[float, AutoDiffXd])
+def KinematicArm_(T):
+    class Impl(LeafSystem_[T]):
+        """A first-order arm: the camera's commanded body twist, made joint velocities.
+
+        .. pydrake_system::
+
+            name: KinematicArm
+            input_ports:
+            - camera_velocity
+            output_ports:
+            - arm_position
+            - camera_pose
+            - velocity_scale
+
+        Continuous state q. Dynamics, with J_C the camera frame's
+        spatial-velocity Jacobian expressed in C (so J_C qdot = (Omega, V), the
+        body twist of Eq. 17)::
+
+            qdot = s (J_C^+ nu + k_n (I - J_C^+ J_C)(q_mid - q)),
+            J_C^+ = J_C^T (J_C J_C^T + mu^2 I)^-1,
+
+        ``nu`` the law's twist at ``camera_velocity``. mu (damped least
+        squares) keeps qdot bounded near a singularity; away from one it changes
+        the executed twist by a factor 1 - O(mu^2 / sigma_min^2), a positive
+        definite map, so the law's twist stays a descent direction of phi. The
+        null-space term pulls a redundant arm's self-motion towards the middle of
+        its joint range (zero for a 6-joint arm off its singularities). ``s`` <= 1
+        scales the whole of qdot, never one joint, so that the fastest joint
+        is at its velocity limit and the camera's twist keeps its direction;
+        ``velocity_scale`` reports it (1: not limited); for AutoDiffXd the scale
+        is a constant (its derivative where the clip acts is not wanted). Scalar
+        types: float and AutoDiffXd (not Expression). ``camera_pose`` is
+        ``[q_WC, p_WC]`` (7), the layout the camera system reads; it depends on the
+        state only.
+        """
+
+        def _construct(
+            self,
+            model: ArmModel | None = None,
+            q0=None,
+            mu: float = 1e-4,
+            null_space_gain: float = 1.0,
+            converter=None,
+        ):
+            LeafSystem_[T].__init__(self, converter)
+            if model is None:
+                raise ArmError("KinematicArm needs an ArmModel")
+            self._plant = arm_plant(model, T)
+            self._context = self._plant.CreateDefaultContext()
+            self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
+            float_plant = arm_plant(model)
+            lower = float_plant.GetPositionLowerLimits()
+            upper = float_plant.GetPositionUpperLimits()
+            self._q_mid = np.where(np.isfinite(lower + upper), 0.5 * (lower + upper), 0.0)
+            nq = float_plant.num_positions()
+            q0 = np.zeros(nq) if q0 is None else np.asarray(q0, dtype=float)
+            self._defaults = (model, q0, mu, null_space_gain)
+            limits = float_plant.GetVelocityUpperLimits()
+            self._params_index = self.DeclareNumericParameter(
+                BasicVector_[T](np.concatenate([[mu, null_space_gain], limits]))
+            )
+            self.DeclareContinuousState(BasicVector_[T](q0))
+            self.camera_velocity_input = self.DeclareVectorInputPort(name="camera_velocity", size=6)
+            self.arm_position_output = self.DeclareVectorOutputPort(
+                name="arm_position", size=nq, calc=self.CalcArmPosition,
+                prerequisites_of_calc={self.xc_ticket()},
+            )  # fmt: skip
+            self.camera_pose_output = self.DeclareVectorOutputPort(
+                name="camera_pose", size=POSE_SIZE, calc=self.CalcCameraPose,
+                prerequisites_of_calc={self.xc_ticket()},
+            )  # fmt: skip
+            self.velocity_scale_output = self.DeclareVectorOutputPort(
+                name="velocity_scale", size=1, calc=self.CalcVelocityScale,
+                prerequisites_of_calc={self.all_sources_ticket()},
+            )  # fmt: skip
+
+        def _construct_copy(self, other, converter=None):
+            Impl._construct(self, *other._defaults, converter=converter)
+
+        def set_joints(self, context, q) -> None:
+            """Set the state to the joint configuration ``q`` in ``context``."""
+            context.SetContinuousState(np.asarray(q, dtype=float))
+
+        def _set(self, context) -> np.ndarray:
+            q = context.get_continuous_state_vector().CopyToVector()
+            self._plant.SetPositions(self._context, q)
+            return q
+
+        def CalcArmPosition(self, context, output) -> None:
+            output.SetFromVector(context.get_continuous_state_vector().CopyToVector())
+
+        def CalcCameraPose(self, context, output) -> None:
+            self._set(context)
+            X_WC = self._camera.CalcPoseInWorld(self._context)
+            q = X_WC.rotation().ToQuaternion()
+            output.SetFromVector(np.concatenate([[q.w(), q.x(), q.y(), q.z()], X_WC.translation()]))
+
+        def _unscaled(self, context) -> tuple[np.ndarray, np.ndarray]:
+            """(qdot before the velocity scaling, the velocity limits)."""
+            q = self._set(context)
+            p = param_vector(context, self._params_index, T)
+            world = self._plant.world_frame()
+            J = self._plant.CalcJacobianSpatialVelocity(
+                self._context,
+                JacobianWrtVariable.kV,
+                self._camera,
+                np.zeros(3),
+                world,
+                self._camera,
+            )
+            nu = self.camera_velocity_input.Eval(context)
+            J_pinv = J.T @ inv(J @ J.T + p[_MU] ** 2 * np.eye(6))
+            null = np.eye(len(q)) - J_pinv @ J
+            return J_pinv @ nu + p[_NULL_GAIN] * (null @ (self._q_mid - q)), p[_LIMITS]
+
+        def _scale(self, qdot: np.ndarray, limits: np.ndarray) -> float:
+            """s: 1, or what brings the fastest joint to its limit (a constant factor
+            for AutoDiffXd: the derivative of the clip where it acts is not wanted)."""
+            value = np.array([x if T is float else x.value() for x in qdot], dtype=float)
+            bound = np.array([x if T is float else x.value() for x in limits], dtype=float)
+            ratio = np.max(np.abs(value) / bound)
+            return 1.0 if ratio <= 1.0 else 1.0 / ratio
+
+        def CalcVelocityScale(self, context, output) -> None:
+            qdot, limits = self._unscaled(context)
+            output.SetFromVector([self._scale(qdot, limits)])
+
+        def DoCalcTimeDerivatives(self, context, derivatives) -> None:
+            qdot, limits = self._unscaled(context)
+            derivatives.get_mutable_vector().SetFromVector(self._scale(qdot, limits) * qdot)
+
+    return Impl
+
+
+KinematicArm = KinematicArm_[None]

@@ -1,0 +1,231 @@
+"""The camera on a robot arm: the shipped arm against the UR5's published kinematics,
+IK against forward kinematics, the scene's reach, the energy along the dynamic arm's
+loop, Drake's Linearize against the closed form through J_C, the kinematic arm, and
+the command line's arm options.
+
+Independent truths: the UR5's DH parameters (a closed-form forward kinematics written
+here), Drake's own forward kinematics for IK, Drake's MultibodyPlant kinetic energy
+1/2 v^T M(q) v for E, and Drake's ``Linearize`` for the closed form.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+
+from geovs_drake.analysis.arm_study import linearize_arm_at_goal
+from geovs_drake.loop.arm import (
+    Unreachable,
+    arm_model,
+    joint_limit_margins,
+    smallest_singular_values,
+    solve_joints,
+)
+from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_suite
+from geovs_drake.simulation import simulate
+from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant
+
+#: The UR5's published DH parameters [m, rad] (Universal Robots).
+DH_A = (0.0, -0.425, -0.39225, 0.0, 0.0, 0.0)
+DH_D = (0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823)
+DH_ALPHA = (math.pi / 2, 0.0, 0.0, math.pi / 2, -math.pi / 2, 0.0)
+SMALL_MOVE = PoseConfig(xyz=[0.05, -0.03, -0.55], rpy=[0.1, -0.05, 0.3])
+
+
+def _dh_tool_position(q: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    for theta, a, d, alpha in zip(q, DH_A, DH_D, DH_ALPHA, strict=True):
+        ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
+        T = T @ np.array(
+            [
+                [ct, -st * ca, st * sa, a * ct],
+                [st, ct * ca, -ct * sa, a * st],
+                [0, sa, ca, d],
+                [0, 0, 0, 1],
+            ]
+        )
+    return T[:3, 3]
+
+
+def _arm(plant: str = "dynamic") -> ScenarioConfig:
+    return ScenarioConfig(carrier="arm", plant=plant)
+
+
+def test_the_shipped_arm_is_the_ur5_of_its_published_dh_parameters():
+    """tool0's position for random joints equals the DH forward kinematics, up to the
+    half-turn about z between the URDF's base_link and the DH base frame."""
+    config = _arm()
+    config.arm.base_pose = PoseConfig()
+    config.arm.camera_offset = PoseConfig()
+    plant = arm_plant(arm_model(config))
+    context = plant.CreateDefaultContext()
+    tool = plant.GetFrameByName("tool0")
+    R_half = RotationMatrix.MakeZRotation(math.pi).matrix()
+    rng = np.random.default_rng(1)
+    for q in [np.zeros(6), *rng.uniform(-math.pi, math.pi, (20, 6))]:
+        plant.SetPositions(context, q)
+        p = tool.CalcPoseInWorld(context).translation()
+        assert np.allclose(p, R_half @ _dh_tool_position(q), atol=1e-9), q
+    masses = [
+        plant.get_body(b).default_mass()
+        for b in plant.GetBodyIndices(plant.GetModelInstanceByName("arm::ur5"))
+    ]
+    assert np.allclose(
+        sorted(m for m in masses if m > 0), sorted([4.0, 3.7, 8.393, 2.275, 1.219, 1.219, 0.1879])
+    )
+
+
+def test_ik_reaches_the_pose_within_the_limits_and_the_scene_reaches_every_start():
+    """Every start of the comparison suite, the default start, the goal and the small
+    move: IK's joints put the camera there (Drake's FK, to 1e-9), inside the joint
+    limits by more than 1 rad, away from singularities (sigma_min > 0.1)."""
+    config = _arm()
+    model = arm_model(config)
+    plant = arm_plant(model)
+    context = plant.CreateDefaultContext()
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+    poses = [config.X_BC_goal, config.X_BC_initial, SMALL_MOVE.to_rigid_transform()]
+    for s in load_suite().scenarios:
+        rpy = [math.radians(v) for v in s.rpy_deg]
+        poses.append(RigidTransform(RollPitchYaw(rpy), s.xyz))
+    for X_BC in poses:
+        X_WC = config.X_WB @ X_BC
+        q = solve_joints(model, X_WC)
+        plant.SetPositions(context, q)
+        X = camera.CalcPoseInWorld(context)
+        assert np.allclose(X.GetAsMatrix4(), X_WC.GetAsMatrix4(), atol=1e-9)
+        assert np.min(joint_limit_margins(model, q)) > 1.0
+        assert smallest_singular_values(model, q[None])[0] > 0.1
+
+
+def test_a_pose_out_of_reach_names_the_closest_reach(run_cli):
+    config = _arm()
+    far = config.X_WB @ RigidTransform([0.0, 0.0, -3.0])  # 3 m out: beyond a 0.85-m arm
+    with pytest.raises(Unreachable, match=r"closest reach found is [0-9.]+ m and"):
+        solve_joints(arm_model(config), far)
+    run = run_cli(
+        "simulate", "--carrier", "arm", "--goal", "0,0,-0.5,0,0,0", "--initial-joints", "1,2"
+    )
+    assert run.code == 2 and run.err.count("\n") == 1
+    assert "arm.initial_joints must give the arm's 6 joints, got 2" in run.err
+
+
+@pytest.mark.parametrize("start", ["default", "small_move"])
+def test_the_dynamic_arm_converges_and_its_energy_never_rises(start):
+    """E = 1/2 v^T M(q) v + k_p phi (Drake's kinetic energy of the arm, reflected rotor
+    inertia included) never rises, from rest and from a random joint velocity with E0 <
+    k_p; the run converges inside the joint limits."""
+    config = _arm()
+    if start == "small_move":
+        config.initial = SMALL_MOVE
+        config.arm.initial_joint_velocity = [0.3, -0.2, 0.25, 0.4, -0.3, 0.5]
+    result = simulate(config)
+    assert result.status == "converged", result.message
+    assert result.energy is not None and result.initial_energy < result.energy_bound
+    assert result.lyapunov_monotone
+    assert np.max(np.diff(result.energy)) <= result.lyapunov_tolerance
+    assert result.energy[-1] < 1e-6 * result.energy[0]
+    summary = result.summary()
+    assert summary["min_joint_limit_margin"] > 0 and summary["lyapunov_monotone"] is True
+    assert summary["min_jacobian_singular_value"] > 0
+
+
+def test_linearize_of_the_arm_loop_at_the_goal_is_the_closed_form_through_J_C():
+    lin = linearize_arm_at_goal(_arm())
+    scale = np.max(np.abs(lin.A_closed))
+    assert np.max(np.abs(lin.A_drake - lin.A_closed)) < 1e-8 * scale
+    assert lin.max_real_part < 0 and lin.jacobian_singular_value > 0.1
+
+
+def test_the_kinematic_arm_converges_from_the_small_move_and_reports_its_clipping():
+    config = _arm("kinematic")
+    config.initial = SMALL_MOVE
+    result = simulate(config)
+    assert result.status == "converged", result.message
+    summary = result.summary()
+    assert 0 <= summary["joint_velocity_clipped"] < 1
+    assert summary["min_joint_limit_margin"] > 0
+    assert result.lyapunov_monotone  # phi, the kinematic loop's Lyapunov function
+
+
+def test_a_joint_beyond_its_limit_stops_the_run_with_a_status():
+    """Limits tightened around the start: the monitor stops the run and names the joint."""
+    config = _arm("kinematic")
+    q0 = solve_joints(arm_model(config), config.X_WB @ config.X_BC_initial)
+    config.arm.initial_joints = q0.tolist()
+    # A wrist limit 0.05 rad from the start, on the side the wrist turns (either side
+    # is tried: the loop moves every joint).
+    outcomes = []
+    for joint in range(6):
+        result = simulate(_with_limit(config, joint, q0))
+        outcomes.append(result.status)
+        if result.status == "joint_limit":
+            assert "outside" in result.message and np.all(np.isfinite(result.X_BC))
+            assert result.summary()["min_joint_limit_margin"] <= 0
+            return
+    pytest.fail(f"no joint reached a limit 0.05 rad away: {outcomes}")
+
+
+def _with_limit(config: ScenarioConfig, joint: int, q0: np.ndarray) -> ScenarioConfig:
+    """The config with a copy of the arm whose joint ``joint`` has limits q0 +- 0.05."""
+    import copy
+    import re
+    import tempfile
+    from pathlib import Path
+
+    from geovs_drake.systems._arm_model import DEFAULT_ARM
+
+    text = Path(DEFAULT_ARM).read_text()
+    names = re.findall(r'<joint name="(\w+)" type="revolute">', text)
+    block = re.search(rf'<joint name="{names[joint]}".*?</joint>', text, re.S).group(0)
+    lo, hi = q0[joint] - 0.05, q0[joint] + 0.05
+    new = re.sub(r'lower="[^"]*" upper="[^"]*"', f'lower="{lo}" upper="{hi}"', block)
+    path = Path(tempfile.mkdtemp()) / "arm.urdf"
+    path.write_text(text.replace(block, new))
+    c = copy.deepcopy(config)
+    c.arm.model = str(path)
+    c.duration = 3.0
+    return c
+
+
+def test_cli_runs_the_arm_and_its_json_reports_the_arm(run_cli):
+    run = run_cli(
+        "simulate", "--carrier", "arm", "--plant", "kinematic", "--json", "--duration", "4",
+        "--initial=0.05,-0.03,-0.55,0.1,-0.05,0.3",
+    )  # fmt: skip
+    summary = json.loads(run.out)
+    assert summary["carrier"] == "arm"
+    for key in ("min_joint_limit_margin", "min_jacobian_singular_value", "joint_velocity_clipped"):
+        assert isinstance(summary[key], float), key
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--arm", "/no/such/arm.urdf"], "arm.model must be 'default' or a model file"),
+        (["--mount", "fixed"], "carrier 'arm' carries the camera in its hand"),
+        (["--initial-velocity", "0,0,0,0.1,0,0"], "give arm.initial_joint_velocity instead"),
+        (["--plant", "kinematic", "--initial-joint-velocity", "0,0,0,0,0,1"], "dynamic arm only"),
+        (["--initial-joints", "1,x"], "expected numbers q1,q2,..."),
+    ],
+)
+def test_cli_arm_bad_input_is_one_line_and_exit_2(argv, needle, run_cli):
+    run = run_cli("simulate", "--carrier", "arm", *argv)
+    assert run.code == 2, run.err
+    assert run.err.count("\n") == 1 and needle in run.err, run.err
+    assert "Traceback" not in run.err
+
+
+def test_a_model_drake_cannot_load_or_without_the_frame_is_one_line(tmp_path, run_cli):
+    broken = tmp_path / "broken.urdf"
+    broken.write_text("<robot name='x'><link name='a'></robot>")
+    run = run_cli("simulate", "--carrier", "arm", "--arm", str(broken))
+    assert run.code == 2 and "Drake cannot load it" in run.err and run.err.count("\n") == 1
+    run = run_cli(
+        "simulate", "--carrier", "arm", "--scenario-text", "{arm: {end_effector_frame: hand}}"
+    )
+    assert run.code == 2 and "'hand' is not a frame of" in run.err, run.err
