@@ -76,6 +76,7 @@ def ArmCamera_(T):
                 raise ArmError("ArmCamera needs an ArmModel")
             self._plant = arm_plant(model, T)
             self._context = self._plant.CreateDefaultContext()
+            self._last = None
             self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
             self._B = actuation_permutation(arm_plant(model))
             nq, nv = self._plant.num_positions(), self._plant.num_velocities()
