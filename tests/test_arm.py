@@ -229,3 +229,36 @@ def test_a_model_drake_cannot_load_or_without_the_frame_is_one_line(tmp_path, ru
         "simulate", "--carrier", "arm", "--scenario-text", "{arm: {end_effector_frame: hand}}"
     )
     assert run.code == 2 and "'hand' is not a frame of" in run.err, run.err
+
+
+def test_the_kinematic_arm_moves_the_camera_with_the_commanded_twist():
+    """At a configuration off the singularities, the joint velocity it integrates moves
+    the camera frame with the commanded body twist (Omega, V): central differences of
+    Drake's forward kinematics along qdot, against nu (damped least squares: 1e-7)."""
+    from geovs_drake.systems import KinematicArm
+
+    config = _arm()
+    model = arm_model(config)
+    q0 = solve_joints(model, config.X_WB @ config.X_BC_goal)
+    arm = KinematicArm(model=model, q0=q0)
+    context = arm.CreateDefaultContext()
+    nu = np.array([0.05, -0.02, 0.03, 0.01, 0.02, -0.015])
+    arm.camera_velocity_input.FixValue(context, nu)
+    qdot = arm.EvalTimeDerivatives(context).CopyToVector()
+    assert arm.velocity_scale_output.Eval(context)[0] == 1.0  # far below the limits
+    plant = arm_plant(model)
+    pc = plant.CreateDefaultContext()
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+
+    def X_WC(q):
+        plant.SetPositions(pc, q)
+        return camera.CalcPoseInWorld(pc)
+
+    h = 1e-6
+    X0, X1, X2 = X_WC(q0), X_WC(q0 - h * qdot), X_WC(q0 + h * qdot)
+    # (Omega, V) = G^-1 Gdot: the rotation's and the origin's rates, expressed in C.
+    R_dot = (X2.rotation().matrix() - X1.rotation().matrix()) / (2 * h)
+    Omega_hat = X0.rotation().matrix().T @ R_dot
+    Omega = np.array([Omega_hat[2, 1], Omega_hat[0, 2], Omega_hat[1, 0]])
+    V = X0.rotation().matrix().T @ (X2.translation() - X1.translation()) / (2 * h)
+    assert np.allclose(np.concatenate([Omega, V]), nu, atol=1e-7)

@@ -19,7 +19,15 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant, MultibodyPlant_
 from pydrake.multibody.tree import FixedOffsetFrame, Frame, ModelInstanceIndex
 
-__all__ = ["CAMERA_FRAME", "DEFAULT_ARM", "ArmError", "ArmModel", "add_arm", "arm_plant"]
+__all__ = [
+    "CAMERA_FRAME",
+    "DEFAULT_ARM",
+    "ArmError",
+    "ArmModel",
+    "add_arm",
+    "arm_plant",
+    "default_arm_model",
+]
 
 #: The name of the camera's frame C, added on the end-effector frame.
 CAMERA_FRAME = "camera"
@@ -51,6 +59,12 @@ class ArmModel:
     def X_EC(self) -> RigidTransform:
         """The camera frame C on the end-effector frame E."""
         return _pose(self.camera_xyz_rpy)
+
+
+def default_arm_model() -> ArmModel:
+    """The shipped arm, its base at the world's origin, the camera on tool0: what the
+    arm systems build when given no model (their documentation, a quick look)."""
+    return ArmModel(DEFAULT_ARM, "tool0", (0.0,) * 6, (0.0,) * 6)
 
 
 def _pose(xyz_rpy: tuple[float, ...]) -> RigidTransform:

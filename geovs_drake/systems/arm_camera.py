@@ -7,7 +7,13 @@ from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmError, ArmModel, arm_plant
+from geovs_drake.systems._arm_model import (
+    CAMERA_FRAME,
+    ArmError,
+    ArmModel,
+    arm_plant,
+    default_arm_model,
+)
 from geovs_drake.systems._parameters import STATE_SIZE, param_vector
 
 __all__ = ["ArmCamera", "ArmCamera_", "actuation_permutation"]
@@ -72,8 +78,7 @@ def ArmCamera_(T):
 
         def _construct(self, model: ArmModel | None = None, joint_damping=None, converter=None):
             LeafSystem_[T].__init__(self, converter)
-            if model is None:
-                raise ArmError("ArmCamera needs an ArmModel")
+            model = default_arm_model() if model is None else model
             self._plant = arm_plant(model, T)
             self._context = self._plant.CreateDefaultContext()
             self._last = None

@@ -9,7 +9,12 @@ from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmError, ArmModel, arm_plant
+from geovs_drake.systems._arm_model import (
+    CAMERA_FRAME,
+    ArmModel,
+    arm_plant,
+    default_arm_model,
+)
 from geovs_drake.systems._parameters import POSE_SIZE, param_vector
 
 __all__ = ["KinematicArm", "KinematicArm_"]
@@ -67,8 +72,7 @@ def KinematicArm_(T):
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
-            if model is None:
-                raise ArmError("KinematicArm needs an ArmModel")
+            model = default_arm_model() if model is None else model
             self._plant = arm_plant(model, T)
             self._context = self._plant.CreateDefaultContext()
             self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
