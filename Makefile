@@ -3,7 +3,7 @@
 # and install Debian's graphviz for the block diagrams when they can (root
 # with apt-get); otherwise the block diagram is skipped with a message.
 # `make test` = lint, `make docs` (API reference, warnings are errors), pytest with
-# the notebooks, and `make wheel-check` (the wheel installed outside the checkout).
+# the notebooks and the wheel check (the wheel installed outside the checkout).
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -33,13 +33,14 @@ demo: $(STAMP) system-deps
 	$(BIN)/geovs-drake demo --out results
 
 # GEOVS_FAST=1 shortens the notebooks' runs (same code paths, fewer samples); -n auto runs
-# one pytest process per core (pytest-xdist).
+# one pytest process per core (pytest-xdist), the wheel check (make wheel-check) among
+# the tests and started first, so that it overlaps the rest; the slow studies are
+# `make test-slow`.
 test: $(STAMP) system-deps
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(MAKE) --no-print-directory docs
-	GEOVS_FAST=1 $(BIN)/python -m pytest --nbmake -q -n auto
-	$(MAKE) --no-print-directory wheel-check
+	GEOVS_FAST=1 $(BIN)/python -m pytest --nbmake -q -n auto -m "not slow"
 
 # The long studies and the real-cluster sweeps (pytest -m slow), outside `make test`'s budget.
 test-slow: $(STAMP)

@@ -39,3 +39,18 @@ def run_cli(capsys: pytest.CaptureFixture[str]) -> Callable[..., CliRun]:
         return CliRun(code, out, err)
 
     return run
+
+
+#: Items that run longest, started first so that pytest-xdist's workers finish together
+#: (longest first): the wheel check, then the notebooks.
+def _start_order(item: pytest.Item) -> int:
+    if item.get_closest_marker("wheel") is not None:
+        return 0
+    if item.nodeid.endswith(".ipynb") or ".ipynb::" in item.nodeid:
+        return 1
+    return 2
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Longest first (:func:`_start_order`), the rest in their usual order."""
+    items.sort(key=_start_order)  # a stable sort: each group keeps its order

@@ -1,5 +1,6 @@
 """The wheel as a user installs it (tools/check_wheel.py): about 45 s, so it is marked
-``wheel`` and runs in its own step of ``make test`` (``make wheel-check``)."""
+``wheel``: ``make test`` runs it among the other tests and starts it first (it overlaps
+them on another core), ``make wheel-check`` alone."""
 
 from __future__ import annotations
 

@@ -376,11 +376,11 @@ def run_sweep(
         source.check(config)
     elif not dynamic and np.any(source[1] != 0):
         raise SweepError("initial twists apply to the dynamic plant only (kinematic: at rest)")
-    require("pyarrow", "sweep", "run_sweep")
-    text = yaml_dump_typed(config)
     use_dask = workers > 1 or scheduler is not None
     if use_dask:
         require("distributed", "sweep", "run_sweep on Dask", package="dask[distributed]")
+    require("pyarrow", "sweep", "run_sweep")  # the parts' Parquet files, with or without Dask
+    text = yaml_dump_typed(config)
     out = None if out is None else Path(out)
     if resume and out is None:
         raise SweepError("resume needs the sweep's folder (out)")
