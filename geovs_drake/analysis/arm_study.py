@@ -22,7 +22,6 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
@@ -31,7 +30,7 @@ from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.arm import arm_model, solve_joints
 from geovs_drake.scenario import ScenarioConfig, resolve
-from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant
+from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 
 __all__ = ["ArmLinearization", "linearize_arm_at_goal"]
 
@@ -86,9 +85,7 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
     pc = plant.CreateDefaultContext()
     plant.SetPositions(pc, q_goal)
     camera = plant.GetFrameByName(CAMERA_FRAME)
-    J = plant.CalcJacobianSpatialVelocity(
-        pc, JacobianWrtVariable.kV, camera, np.zeros(3), plant.world_frame(), camera
-    )
+    J = camera_jacobian(plant, pc, camera)
     M = plant.CalcMassMatrix(pc)
     nv = len(q_goal)
     K_q = J.T @ K @ J

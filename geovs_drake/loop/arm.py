@@ -17,11 +17,16 @@ import functools
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.inverse_kinematics import InverseKinematics
-from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.solvers import Solve
 
 from geovs_drake.scenario import ScenarioConfig
-from geovs_drake.systems._arm_model import CAMERA_FRAME, DEFAULT_ARM, ArmModel, arm_plant
+from geovs_drake.systems._arm_model import (
+    CAMERA_FRAME,
+    DEFAULT_ARM,
+    ArmModel,
+    arm_plant,
+    camera_jacobian,
+)
 
 __all__ = [
     "IK_POSITION_TOLERANCE",
@@ -89,13 +94,10 @@ def smallest_singular_values(model: ArmModel, q: np.ndarray) -> np.ndarray:
     plant = arm_plant(model)
     context = plant.CreateDefaultContext()
     camera = plant.GetFrameByName(CAMERA_FRAME)
-    world = plant.world_frame()
     out = np.empty(len(q))
     for i, row in enumerate(np.atleast_2d(q)):
         plant.SetPositions(context, row)
-        J = plant.CalcJacobianSpatialVelocity(
-            context, JacobianWrtVariable.kV, camera, np.zeros(3), world, camera
-        )
+        J = camera_jacobian(plant, context, camera)
         out[i] = np.linalg.svd(J, compute_uv=False)[-1] if J.shape[1] >= 6 else 0.0
     return out
 
@@ -158,7 +160,6 @@ def _refine(plant, camera, q: np.ndarray, X_WC: RigidTransform, steps: int = 4) 
     tolerance, 1e-6) to rounding: the goal's joints must be an equilibrium to ~1e-12,
     not 1e-6, for Drake's ``Linearize`` and for a start exactly at the goal."""
     context = plant.CreateDefaultContext()
-    world = plant.world_frame()
     for _ in range(steps):
         plant.SetPositions(context, q)
         X = camera.CalcPoseInWorld(context)
@@ -166,9 +167,7 @@ def _refine(plant, camera, q: np.ndarray, X_WC: RigidTransform, steps: int = 4) 
         X_err = X.InvertAndCompose(X_WC)
         aa = X_err.rotation().ToAngleAxis()
         e = np.concatenate([aa.axis() * aa.angle(), X_err.translation()])
-        J = plant.CalcJacobianSpatialVelocity(
-            context, JacobianWrtVariable.kV, camera, np.zeros(3), world, camera
-        )
+        J = camera_jacobian(plant, context, camera)
         q = q + np.linalg.lstsq(J, e, rcond=None)[0]
     return q
 

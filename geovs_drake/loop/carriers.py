@@ -168,6 +168,14 @@ def _meshcat_with_camera(
     return add_meshcat
 
 
+def _pose_head(builder: DiagramBuilder, state: OutputPort) -> OutputPort:
+    """The ``[q, p]`` head (7) of a state in a free body's layout (13): the pose the
+    camera system reads."""
+    demux = builder.AddNamedSystem("state_demux", Demultiplexer([7, 6]))
+    builder.Connect(state, demux.get_input_port())
+    return demux.get_output_port(0)
+
+
 def _set_plant_state(plant: MultibodyPlant, config: ScenarioConfig) -> Callable[[Context], None]:
     def set_initial_state(root: Context) -> None:
         # The plant has no default velocity: the start's twist is set here.
@@ -196,8 +204,7 @@ def _free_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: 
     if draws_marks:
         for geometry_id in drawing:
             scene_graph.RemoveRole(plant.get_source_id(), geometry_id, Role.kPerception)
-    demux = builder.AddNamedSystem("state_demux", Demultiplexer([7, 6]))
-    builder.Connect(plant.get_state_output_port(), demux.get_input_port())
+    body_pose = _pose_head(builder, plant.get_state_output_port())
 
     def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
         # The force system shifts its wrench to the rig's origin in W itself: one
@@ -209,7 +216,7 @@ def _free_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: 
 
     return CarrierParts(
         drive="wrench",
-        body_pose=demux.get_output_port(0),
+        body_pose=body_pose,
         state=plant.get_state_output_port(),
         state_log_name="log_body_state",
         X_WB=config.X_WB,
@@ -278,8 +285,7 @@ def _fixed_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
     plant.SetDefaultFloatingBaseBodyPose(target, RigidTransform(Quaternion(x0[0:4]), x0[4:7]))
     mount = builder.AddNamedSystem("fixed_camera_mount", FixedCameraMount(X_WC=X_WC))
     builder.Connect(plant.get_state_output_port(), mount.target_state_input)
-    demux = builder.AddNamedSystem("state_demux", Demultiplexer([7, 6]))
-    builder.Connect(mount.camera_state_output, demux.get_input_port())
+    body_pose = _pose_head(builder, mount.camera_state_output)
 
     def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
         builder.Connect(mount.camera_state_output, force.body_state_input)
@@ -290,7 +296,7 @@ def _fixed_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
 
     return CarrierParts(
         drive="wrench",
-        body_pose=demux.get_output_port(0),
+        body_pose=body_pose,
         state=plant.get_state_output_port(),
         state_log_name="log_body_state",
         X_WB=RigidTransform(),
@@ -424,8 +430,7 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
     )
     builder.Connect(plant.get_state_output_port(), arm.arm_state_input)
     builder.Connect(arm.actuation_output, plant.get_actuation_input_port())
-    demux = builder.AddNamedSystem("state_demux", Demultiplexer([7, 6]))
-    builder.Connect(arm.camera_state_output, demux.get_input_port())
+    body_pose = _pose_head(builder, arm.camera_state_output)
 
     def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
         builder.Connect(arm.camera_state_output, force.body_state_input)
@@ -438,7 +443,7 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
 
     return CarrierParts(
         drive="wrench",
-        body_pose=demux.get_output_port(0),
+        body_pose=body_pose,
         state=plant.get_state_output_port(),
         state_log_name="log_arm_state",
         X_WB=config.X_WB,

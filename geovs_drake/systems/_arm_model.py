@@ -17,7 +17,12 @@ import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant, MultibodyPlant_
-from pydrake.multibody.tree import FixedOffsetFrame, Frame, ModelInstanceIndex
+from pydrake.multibody.tree import (
+    FixedOffsetFrame,
+    Frame,
+    JacobianWrtVariable,
+    ModelInstanceIndex,
+)
 
 __all__ = [
     "CAMERA_FRAME",
@@ -26,6 +31,7 @@ __all__ = [
     "ArmModel",
     "add_arm",
     "arm_plant",
+    "camera_jacobian",
     "default_arm_model",
 ]
 
@@ -59,6 +65,14 @@ class ArmModel:
     def X_EC(self) -> RigidTransform:
         """The camera frame C on the end-effector frame E."""
         return _pose(self.camera_xyz_rpy)
+
+
+def camera_jacobian(plant: MultibodyPlant_, context, camera: Frame) -> np.ndarray:
+    """J_C (6 x nv): the camera frame's spatial-velocity Jacobian in W, expressed in C, so
+    that ``J_C v = (Omega, V)``, the body twist of Eqs. (16)-(17), rotational first."""
+    return plant.CalcJacobianSpatialVelocity(
+        context, JacobianWrtVariable.kV, camera, np.zeros(3), plant.world_frame(), camera
+    )
 
 
 def default_arm_model() -> ArmModel:

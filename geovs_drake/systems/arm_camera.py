@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
@@ -12,6 +11,7 @@ from geovs_drake.systems._arm_model import (
     ArmError,
     ArmModel,
     arm_plant,
+    camera_jacobian,
     default_arm_model,
 )
 from geovs_drake.systems._parameters import STATE_SIZE, param_vector
@@ -135,15 +135,7 @@ def ArmCamera_(T):
 
         def CalcActuation(self, context, output) -> None:
             self._set(context)
-            world = self._plant.world_frame()
-            J_C = self._plant.CalcJacobianSpatialVelocity(
-                self._context,
-                JacobianWrtVariable.kV,
-                self._camera,
-                np.zeros(3),
-                world,
-                self._camera,
-            )
+            J_C = camera_jacobian(self._plant, self._context, self._camera)
             F_C = self.wrench_C_input.Eval(context)
             v = self._plant.GetVelocities(self._context)
             damping = param_vector(context, self._params_index, T)

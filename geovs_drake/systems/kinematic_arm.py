@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
 from pydrake.math import inv
-from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
@@ -13,6 +12,7 @@ from geovs_drake.systems._arm_model import (
     CAMERA_FRAME,
     ArmModel,
     arm_plant,
+    camera_jacobian,
     default_arm_model,
 )
 from geovs_drake.systems._parameters import POSE_SIZE, param_vector
@@ -127,15 +127,7 @@ def KinematicArm_(T):
             """(qdot before the velocity scaling, the velocity limits)."""
             q = self._set(context)
             p = param_vector(context, self._params_index, T)
-            world = self._plant.world_frame()
-            J = self._plant.CalcJacobianSpatialVelocity(
-                self._context,
-                JacobianWrtVariable.kV,
-                self._camera,
-                np.zeros(3),
-                world,
-                self._camera,
-            )
+            J = camera_jacobian(self._plant, self._context, self._camera)
             nu = self.camera_velocity_input.Eval(context)
             J_pinv = J.T @ inv(J @ J.T + p[_MU] ** 2 * np.eye(6))
             null = np.eye(len(q)) - J_pinv @ J
