@@ -632,3 +632,21 @@ def test_camera_accuracy_bad_input_exits_2_with_one_line(argv, needles, run_cli)
 def test_python_m_geovs_drake_cli_is_the_command(run_cli):
     run = run_cli("--version", subprocess=True)
     assert run.code == 0 and run.out.startswith("geovs-drake ")
+
+
+def test_the_command_line_starts_without_the_loop():
+    """--help, --version and bad input answer before the loop, the systems or the sweep
+    are imported (each command imports what it runs when it runs it)."""
+    import subprocess
+
+    heavy = (
+        "geovs_drake.simulation", "geovs_drake.loop", "geovs_drake.systems", "geovs_drake.batch",
+        "geovs_drake.analysis.sweep", "geovs_drake.analysis.robustness",
+    )  # fmt: skip
+    code = (
+        "import sys, geovs_drake.cli as c; c.build_parser(); "
+        f"print(sorted(m for m in sys.modules if m.startswith({heavy!r}) "
+        "and m != 'geovs_drake.analysis.robustness_levels'))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]", done.stdout

@@ -28,6 +28,18 @@ COMBINATIONS = [
 ]
 
 
+def _suite_case(carrier: tuple[str, str, str], sensor: str, law: str):
+    """The combination as a test case: the long ones (a rendered camera, the arm with a
+    twist law, a few seconds each) are marked slow, each keeping its NF case in the
+    suite (make test-slow runs them all)."""
+    long = (sensor == "rendered" or carrier[0] == "arm") and law != "nf"
+    return (
+        pytest.param(carrier, sensor, law, marks=pytest.mark.slow)
+        if long
+        else (carrier, sensor, law)
+    )
+
+
 def _config(carrier: tuple[str, str, str], sensor: str, law: str, **changes) -> ScenarioConfig:
     name, mount, plant = carrier
     config = ScenarioConfig(
@@ -44,7 +56,7 @@ def test_the_registries_hold_every_part_the_scenario_names():
     assert len(COMBINATIONS) == len(CARRIERS) * 5 + len(CAMERA_CARRIERS) * 2 * 5
 
 
-@pytest.mark.parametrize(("carrier", "sensor", "law"), COMBINATIONS)
+@pytest.mark.parametrize(("carrier", "sensor", "law"), [_suite_case(*c) for c in COMBINATIONS])
 def test_every_combination_builds_through_build_loop_and_converges(carrier, sensor, law):
     if sensor == "rendered":
         pytest.importorskip("cv2", reason="the rendered sensor needs the vision extra (OpenCV)")

@@ -302,6 +302,13 @@ def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, monkeypatc
     assert not (tmp_path / "out").exists()  # nothing written for bad input
 
 
+def test_the_csv_limit_the_help_names_is_the_one_enforced(run_cli):
+    """The help says 10^5 without importing the sweep (the command line starts light)."""
+    run = run_cli("sweep", "--help")
+    assert run.code == 0 and "10^5 starts" in " ".join(run.out.split())
+    assert sweep.CSV_LIMIT == 10**5
+
+
 def test_cli_resume_of_another_sweep_exits_2_and_leaves_the_folder_as_it_was(tmp_path, run_cli):
     out_dir = tmp_path / "sweep"
     common = ("--duration", "1", "--workers", "1", "--out", str(out_dir))

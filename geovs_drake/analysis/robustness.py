@@ -48,6 +48,7 @@ from pydrake.systems.primitives import LinearSystem
 
 from geovs_drake.analysis._pool import map_scenarios
 from geovs_drake.analysis.linearization import rig_spatial_inertia
+from geovs_drake.analysis.robustness_levels import LEVELS, NOMINAL, SHRINK
 from geovs_drake.geometry.camera import camera_map, camera_map_inverse, image_jacobian
 from geovs_drake.geometry.features import FEATURE_FAILURES, TargetMarks, pinhole_measurement
 from geovs_drake.geometry.navigation import NavigationFunction
@@ -76,21 +77,6 @@ __all__ = [
     "summarize_robustness",
 ]
 
-#: The error levels of each sweep (the others at zero).
-LEVELS: dict[str, tuple[float, ...]] = {
-    "pixel_noise": (0.0, 0.5, 1.0, 2.0),
-    "focal_error": (-0.10, -0.05, 0.0, 0.05, 0.10),
-    "radius_error": (-0.20, -0.10, 0.0, 0.10, 0.20),
-    "latency_frames": (0, 1, 2, 3),
-    "rate": (15.0, 30.0, 60.0, 120.0),
-}
-#: Each parameter's value in the nominal case (the camera's defaults).
-NOMINAL = {"pixel_noise": 0.0, "focal_error": 0.0, "radius_error": 0.0, "latency_frames": 0,
-           "rate": 30.0}  # fmt: skip
-#: Starts are drawn in this fraction of D's model chart (1: all of D). The outer rim is
-#: where the marks are seen nearly edge-on (2 to 3 px apart at 320x240) and where the
-#: 30 Hz hold alone lets starts out (the ``rate`` sweep at shrink 0.98 shows it).
-SHRINK = 0.8
 #: Over this final stretch [s] a settled run moves less than the camera's tolerance.
 SETTLE_WINDOW_S = 1.0
 #: Gains that tolerate 3 frames of latency at 30 Hz (:func:`sampled_spectral_radius`

@@ -24,7 +24,7 @@ from geovs_drake.cli._options import (
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """The ``robustness`` command."""
-    from geovs_drake.analysis.robustness import LEVELS, SHRINK
+    from geovs_drake.analysis.robustness_levels import LEVELS, SHRINK
 
     p = add_command(
         sub,

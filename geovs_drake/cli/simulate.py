@@ -24,7 +24,6 @@ from geovs_drake.cli._options import (
 )
 from geovs_drake.progress import HorizonProgress
 from geovs_drake.scenario import CARRIERS, CONTROLLERS, IBVS_DEPTHS, MOUNTS, SENSORS
-from geovs_drake.simulation import StartOutsideDomain, simulate
 
 
 def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None:
@@ -181,6 +180,20 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
     p.set_defaults(func=run, progress_delay_s=progress_delay_s)
 
 
+def simulate(resolved, progress=None):
+    """:func:`geovs_drake.simulation.simulate`, imported when a run starts: the command
+    line's start (``--help``, ``--version``, bad input) stays free of the loop's imports."""
+    from geovs_drake.simulation import simulate as run_loop
+
+    return run_loop(resolved, progress=progress)
+
+
+def _start_outside_domain() -> type[Exception]:
+    from geovs_drake.simulation import StartOutsideDomain
+
+    return StartOutsideDomain
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``simulate``; the exit code."""
     resolved = load_resolved(args)  # validated once; simulate() trusts it
@@ -189,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
     )
     try:
         result = simulate(resolved, progress=progress)
-    except StartOutsideDomain as e:
+    except _start_outside_domain() as e:
         print(f"geovs-drake: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
     finally:

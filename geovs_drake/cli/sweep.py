@@ -7,7 +7,6 @@ import json
 import sys
 from pathlib import Path
 
-from geovs_drake.analysis.sweep.run import CSV_LIMIT
 from geovs_drake.cli._options import (
     EXIT_INTERRUPTED,
     add_command,
@@ -94,8 +93,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--csv",
         action="store_true",
-        help=f"also write DIR/results.csv, sorted by start (at most {CSV_LIMIT} starts: "
-        "about 56 MB of text) (default: off)",
+        help="also write DIR/results.csv, sorted by start, for a sweep small enough to be "
+        "useful as text (above the limit, 10^5 starts or about 56 MB, exit 2) (default: off)",
     )
     add_json(p, "the summary as one JSON line")
     p.set_defaults(func=run)
@@ -114,6 +113,8 @@ def _checked_config(args: argparse.Namespace):
             "and starts at rest)"
         )
     check_out(args.out)
+    from geovs_drake.analysis.sweep import CSV_LIMIT
+
     if args.csv and args.starts > CSV_LIMIT:
         raise ValueError(
             f"--csv writes at most {CSV_LIMIT} starts: --starts {args.starts} (read the "
