@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import event, given, settings
+from hypothesis import event, example, given, settings
 from hypothesis import strategies as st
 from pydrake.autodiffutils import AutoDiffXd, InitializeAutoDiff
 from pydrake.common.eigen_geometry import AngleAxis_
@@ -115,9 +115,9 @@ def _moved_along(X_BC: RigidTransform, twist: np.ndarray) -> RigidTransform_[Aut
     (t,) = InitializeAutoDiff(np.zeros(1)).ravel()
     Omega, V = twist[:3], twist[3:]
     n = float(np.linalg.norm(Omega))
-    # Below 1e-9 rad/s the rotation changes no tested digit, and Drake's AngleAxis
-    # refuses an axis whose norm underflows (hypothesis found Omega ~ 1e-162).
-    if n < 1e-9:
+    # Drake's AngleAxis refuses an axis whose norm's square underflows (hypothesis found
+    # |Omega| ~ 1e-162); below 1e-100 rad/s the rotation is far under every tolerance.
+    if n < 1e-100:
         n, axis = 0.0, np.array([1.0, 0.0, 0.0])
     else:
         axis = Omega / n
@@ -139,6 +139,14 @@ def _image_velocity(y_ad: ImageFeatures) -> tuple[ImageFeatures, np.ndarray]:
     return y, np.concatenate([xi, [dv[9]], dv[10:13]])
 
 
+# Two rotation rates hypothesis found: one whose norm's square underflows, one just
+# above the tolerance (a rate dropped as "too small" was wrong by itself).
+@example(
+    RigidTransform([0.0, 0.0, 0.27182818284590454]), np.array([0, 0, 2.2e-162, 0, 0, 0]), [0.0] * 7
+)
+@example(
+    RigidTransform([0.0, 0.0, 0.27182818284590454]), np.array([0, 0, 7.26e-11, 0, 0, 0]), [0.0] * 7
+)
 @settings(max_examples=500, deadline=None)
 @given(visible_poses(), twists, st.lists(st.floats(-1.0, 1.0), min_size=7, max_size=7))
 def test_image_jacobian_matches_autodiff_along_body_twists(X_CB, twist, w):
