@@ -5,6 +5,8 @@
 # `make test` = lint, `make docs` (API reference, warnings are errors), pytest with
 # the notebooks and the wheel check (the wheel installed outside the checkout).
 PYTHON ?= python3
+# The install and Debian's graphviz (each waiting on the network) run side by side.
+MAKEFLAGS += -j2
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
