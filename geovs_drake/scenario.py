@@ -37,6 +37,7 @@ __all__ = [
     "PLANTS",
     "SENSORS",
     "CARRIERS",
+    "DEFAULT_MAX_STEP",
     "ArmConfig",
     "LAW_VARIANTS",
     "CameraConfig",
@@ -424,11 +425,16 @@ def _finite_numbers(values, n: int) -> list[float] | None:
     return out if len(out) == n and all(math.isfinite(v) for v in out) else None
 
 
+#: The simulator's default step limit [s]; the NF's loops on the free rig run with the
+#: smaller of it and their goal's stability bound (:mod:`geovs_drake.simulation.step_limit`).
+DEFAULT_MAX_STEP = 0.05
+
+
 def _default_simulator() -> SimulatorConfig:
     return SimulatorConfig(
         integration_scheme="runge_kutta3",
         accuracy=1e-6,
-        max_step_size=0.05,
+        max_step_size=DEFAULT_MAX_STEP,
         use_error_control=True,
         target_realtime_rate=0.0,
         publish_every_time_step=False,

@@ -25,11 +25,11 @@ import numpy as np
 from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
-from geovs_drake.analysis.linearization import _chart_jacobian, navigation_hessian
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.arm import arm_model, solve_joints
 from geovs_drake.scenario import ScenarioConfig, resolve
+from geovs_drake.simulation.step_limit import chart_jacobian, navigation_hessian
 from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 
 __all__ = ["ArmLinearization", "linearize_arm_at_goal"]
@@ -79,7 +79,7 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
     c = resolved.config  # the arm's gains (ArmConfig.gain_scale applied)
     y = resolved.y_goal
     H = navigation_hessian(NavigationFunction(resolved.domain, y, resolved.gains), y)
-    Cc = _chart_jacobian(y, resolved.believed_radius)
+    Cc = chart_jacobian(y, resolved.believed_radius)
     K = c.control.potential_gain * Cc.T @ H @ Cc
     plant = arm_plant(model)
     pc = plant.CreateDefaultContext()

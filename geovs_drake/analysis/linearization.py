@@ -26,17 +26,17 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.autodiffutils import InitializeAutoDiff
-from pydrake.math import RigidTransform
 from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
-from geovs_drake.analysis.nf_study import chart_basis
 from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
-from geovs_drake.geometry.camera import ImageFeatures, image_jacobian
-from geovs_drake.geometry.navigation import NavigationFunction, navigation_differential
-from geovs_drake.geometry.so3 import hat, so3_exp
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.simulation.step_limit import (
+    closed_form_A,
+    navigation_hessian,
+    rig_spatial_inertia,
+    velocity_adjoint,
+)
 
 __all__ = [
     "LinearizationResult",
@@ -46,35 +46,6 @@ __all__ = [
     "navigation_hessian",
     "rig_spatial_inertia",
 ]
-
-
-def navigation_hessian(nf: NavigationFunction, y: ImageFeatures) -> np.ndarray:
-    """The chart Hessian of phi at y by AutoDiffXd of dphi (exact to rounding)."""
-    B = chart_basis(y.s)
-    d = InitializeAutoDiff(np.zeros(6)).ravel()
-    s = y.s + B @ d[4:6]
-    s = s / np.sqrt(np.sum(s * s))
-    ya = ImageFeatures(so3_exp(d[0:3]) @ y.Q, np.asarray(y.lam + d[3]), s)
-    _, dphi = navigation_differential(ya, nf.goal, nf.domain, nf.gains)
-    F = np.concatenate([dphi[0:4], B.T @ dphi[4:7]])
-    H = np.stack([f.derivatives() for f in F])
-    return 0.5 * (H + H.T)
-
-
-def _chart_jacobian(y: ImageFeatures, radius: float) -> np.ndarray:
-    C = image_jacobian(y, radius)
-    B = chart_basis(y.s)
-    return np.vstack([C[0:4], B.T @ C[4:7]])
-
-
-def _adjoint(X: RigidTransform) -> np.ndarray:
-    """Ad_X on (omega, v): velocities in the child frame to the parent frame."""
-    R, p = X.rotation().matrix(), X.translation()
-    out = np.zeros((6, 6))
-    out[:3, :3] = R
-    out[3:, :3] = hat(p) @ R
-    out[3:, 3:] = R
-    return out
 
 
 def _quaternion_tangent(q: np.ndarray) -> np.ndarray:
@@ -110,35 +81,6 @@ class LinearizationResult:
     def max_real_part(self) -> float:
         """The largest real part of the eigenvalues: < 0 for a stable goal."""
         return float(np.max(self.eigenvalues.real))
-
-
-def rig_spatial_inertia(config: ScenarioConfig) -> np.ndarray:
-    """M, the rig's spatial inertia about the camera origin in C (Appendix C.0.6:
-    ``Ad^T M_R Ad``), on (Omega, V)."""
-    Ad = _adjoint(config.X_RC)
-    M_R = np.zeros((6, 6))
-    M_R[:3, :3] = np.diag(config.rig.inertia_diagonal)
-    M_R[3:, 3:] = config.rig.mass * np.eye(3)
-    return Ad.T @ M_R @ Ad
-
-
-def closed_form_A(config: ScenarioConfig, plant: str | None = None) -> np.ndarray:
-    """The closed-form linearisation at the goal (module docstring)."""
-    plant = plant or config.plant
-    y = config.goal_features()
-    nf = NavigationFunction(config.domain.to_domain(), y, config.navigation.to_gains())
-    H = navigation_hessian(nf, y)
-    Cc = _chart_jacobian(y, config.radius)
-    if plant == "kinematic":
-        return -config.control.kinematic_gain * np.linalg.solve(Cc, H @ Cc)
-    K = config.control.potential_gain * Cc.T @ H @ Cc
-    M = rig_spatial_inertia(config)
-    Bd = np.diag(config.control.damping)
-    A = np.zeros((12, 12))
-    A[:6, 6:] = np.eye(6)
-    A[6:, :6] = -np.linalg.solve(M, K)
-    A[6:, 6:] = -np.linalg.solve(M, Bd)
-    return A
 
 
 def config_at_goal(config: ScenarioConfig) -> ScenarioConfig:
@@ -181,7 +123,7 @@ def linearize_at_goal(
         T_R[4:7, 3:6] = R_WR
         T_R[7:10, 6:9] = R_WR
         T_R[10:13, 9:12] = R_WR
-        Ad = _adjoint(X_RC)
+        Ad = velocity_adjoint(X_RC)
         T = T_R @ np.kron(np.eye(2), Ad)
     else:
         R_W = (config.X_WB @ config.X_BC_goal).rotation().matrix()

@@ -19,8 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from geovs_drake.geometry.camera import ImageFeatures
-from geovs_drake.geometry.navigation import (
+from geovs_drake.geometry.navigation import (  # chart_basis: the earlier name here
     NavigationFunction,
+    chart_basis,
 )
 from geovs_drake.geometry.so3 import so3_exp
 from geovs_drake.sampling import random_features_in_domain  # noqa: F401 - the earlier name
@@ -35,18 +36,6 @@ __all__ = [
     "gradient_descent",
     "retract",
 ]
-
-
-def chart_basis(s: np.ndarray) -> np.ndarray:
-    """B(s) = [R_s e1, R_s e2], shape (..., 3, 2), for s in the upper hemisphere."""
-    k = np.stack([-s[..., 1], s[..., 0], np.zeros_like(s[..., 0])], axis=-1)
-    denom = (1 + s[..., 2])[..., None]
-    cols = []
-    for e in (np.array([1.0, 0, 0]), np.array([0, 1.0, 0])):
-        e = np.broadcast_to(e, s.shape)
-        ke = np.cross(k, e)
-        cols.append(e + ke + np.cross(k, ke) / denom)
-    return np.stack(cols, axis=-1)
 
 
 def retract(y: ImageFeatures, delta: np.ndarray) -> ImageFeatures:

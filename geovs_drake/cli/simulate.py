@@ -207,6 +207,8 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     finally:
         progress.close()
+    if result.step_warning is not None:
+        print(f"geovs-drake: warning: {result.step_warning}", file=sys.stderr)
     if args.json:
         print(json.dumps(result.summary()))
     else:

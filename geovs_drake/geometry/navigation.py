@@ -111,6 +111,7 @@ __all__ = [
     "navigation_parameters",
     "navigation_value",
     "saddle_of",
+    "chart_basis",
 ]
 
 
@@ -468,3 +469,15 @@ class NavigationFunction:
         cx, cy = np.asarray(c[..., 0], dtype=float), np.asarray(c[..., 1], dtype=float)
         sx, sy = -float(g[0]), -float(g[1])  # the saddle's circle point
         return np.abs(np.arctan2(cx * sy - cy * sx, cx * sx + cy * sy))
+
+
+def chart_basis(s: np.ndarray) -> np.ndarray:
+    """B(s) = [R_s e1, R_s e2], shape (..., 3, 2), for s in the upper hemisphere."""
+    k = np.stack([-s[..., 1], s[..., 0], np.zeros_like(s[..., 0])], axis=-1)
+    denom = (1 + s[..., 2])[..., None]
+    cols = []
+    for e in (np.array([1.0, 0, 0]), np.array([0, 1.0, 0])):
+        e = np.broadcast_to(e, s.shape)
+        ke = np.cross(k, e)
+        cols.append(e + ke + np.cross(k, ke) / denom)
+    return np.stack(cols, axis=-1)

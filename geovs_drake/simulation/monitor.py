@@ -268,19 +268,23 @@ def make_simulator(
     config: ScenarioConfig,
     record: bool = False,
     on_step: Callable[[float], None] | None = None,
+    max_step_size: float | None = None,
 ) -> tuple[Simulator, SafeDomainMonitor]:
     """A Simulator with the config's integrator and a :class:`SafeDomainMonitor`.
 
     ``record`` makes the monitor keep every accepted step (for logs); ``on_step``
-    is called with each accepted step's time (progress). A law with feature
-    points (point IBVS) gets them checked too (:func:`feature_point_check`). For the
-    dynamic loop (a diagram with a ``plant``) the context starts in
-    the carrier's start (:attr:`~geovs_drake.loop.carriers.CarrierParts.set_initial_state`):
-    for the free rig its pose and the velocity that gives the camera
-    ``config.initial_velocity``.
+    is called with each accepted step's time (progress); ``max_step_size``, if given,
+    replaces the config's step limit
+    (:func:`~geovs_drake.simulation.step_limit.step_limit`). A law with feature points
+    (point IBVS) gets them checked too (:func:`feature_point_check`). For the dynamic
+    loop (a diagram with a ``plant``) the context starts in the carrier's start
+    (:attr:`~geovs_drake.loop.carriers.CarrierParts.set_initial_state`): for the free
+    rig its pose and the velocity that gives the camera ``config.initial_velocity``.
     """
     simulator = Simulator(diagram)
     ApplySimulatorConfig(config.simulator, simulator)
+    if max_step_size is not None:  # the goal's stability bound (simulation.step_limit)
+        simulator.get_mutable_integrator().set_maximum_step_size(max_step_size)
     loop_of(diagram).carrier.set_initial_state(simulator.get_mutable_context())
     monitor = SafeDomainMonitor(
         diagram,

@@ -141,6 +141,10 @@ class SimulationResult:
     final_X_BC: RigidTransform = field(default_factory=RigidTransform)
     saddle_note: str | None = None  # set when the start (or an unconverged end) is near the saddle
     arm: ArmTrace | None = None  # carrier "arm": its joints along the run
+    #: The goal's fastest mode and the step limit run with (simulation.step_limit), if any.
+    step_limit: object | None = None
+    #: One line when a user's step limit put the goal's fastest mode beyond the bound.
+    step_warning: str | None = None
 
     @property
     def lyapunov(self) -> np.ndarray:
@@ -294,4 +298,11 @@ class SimulationResult:
         out["radius_error"] = self.config.camera.radius_error
         if self.arm is not None:
             out.update(self.arm.summary())
+        limit = self.step_limit
+        out["max_step_size"] = (
+            float(self.config.simulator.max_step_size) if limit is None else limit.max_step_size
+        )
+        out["fastest_mode"] = (
+            None if limit is None else [limit.fastest_mode.real, limit.fastest_mode.imag]
+        )
         return out

@@ -12,7 +12,14 @@ from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.loop.arm import joint_count, joint_limit_margins, smallest_singular_values
 from geovs_drake.loop.build import Loop, build_loop
 from geovs_drake.planning import plan_for_scenario
-from geovs_drake.scenario import Nf, PathFollowing, ResolvedScenario, ScenarioConfig, resolve
+from geovs_drake.scenario import (
+    DEFAULT_MAX_STEP,
+    Nf,
+    PathFollowing,
+    ResolvedScenario,
+    ScenarioConfig,
+    resolve,
+)
 from geovs_drake.simulation.monitor import camera_signals, make_simulator
 from geovs_drake.simulation.result import (
     MARGIN_NAMES,
@@ -24,6 +31,7 @@ from geovs_drake.simulation.result import (
     pose_error,
     saddle_note,
 )
+from geovs_drake.simulation.step_limit import step_limit
 
 __all__ = ["StartOutsideDomain", "arm_trace", "check_start", "simulate"]
 
@@ -99,7 +107,14 @@ def simulate(
     check_start(config)
     loop = build_loop(resolved, meshcat=meshcat, log=False)
     diagram = loop.diagram
-    simulator, monitor = make_simulator(diagram, config, record=True, on_step=progress)
+    limit = step_limit(resolved)
+    simulator, monitor = make_simulator(
+        diagram,
+        config,
+        record=True,
+        on_step=progress,
+        max_step_size=None if limit is None else limit.max_step_size,
+    )
     root = simulator.get_mutable_context()
     if meshcat is not None:
         diagram.ForcedPublish(root)
@@ -176,6 +191,10 @@ def simulate(
     )
     if loop.carrier.arm is not None:
         result.arm = arm_trace(loop, root, states)
+    result.step_limit = limit
+    # A limit the user chose (not the default) beyond the goal's bound: one line to say so.
+    if limit is not None and limit.configured_is_unstable and limit.configured != DEFAULT_MAX_STEP:
+        result.step_warning = limit.warning(config.simulator.integration_scheme)
     if result.energy_guarantee is False:
         result.message += f" ({energy_note(result.initial_energy, result.energy_bound)})"
     if isinstance(resolved.law, PathFollowing):  # what the planner found (cached)

@@ -1,0 +1,57 @@
+"""The integrator's step limit from the goal's fastest mode (simulation.step_limit).
+
+Truths: RK3's stability region on the negative real axis ends at the real root of
+1 + z + z^2/2 + z^3/6 = -1 (z = -2.5127), numpy's roots of that polynomial; the
+closed-form A is checked against Drake's Linearize in test_closed_loop.py; and the
+runs themselves, which must reach the goal to rounding and stay there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geovs_drake.scenario import PoseConfig, ScenarioConfig, resolve
+from geovs_drake.simulation import simulate
+from geovs_drake.simulation.step_limit import STABILITY_MARGIN, closed_form_A, step_limit
+
+#: The issue's small start, from which the kinematic loop stalled at 1e-7 m.
+NEAR = PoseConfig(xyz=[0.02, -0.01, -0.52], rpy=[0.02, -0.01, 0.1])
+
+
+def test_the_stable_step_of_a_real_mode_is_rk3s_real_axis_bound():
+    config = ScenarioConfig(plant="kinematic")
+    limit = step_limit(resolve(config))
+    eigenvalues = np.linalg.eigvals(closed_form_A(config))
+    assert np.allclose(eigenvalues.imag, 0) and limit.fastest_mode == pytest.approx(
+        eigenvalues.real.min()
+    )
+    roots = np.roots([1 / 6, 1 / 2, 1, 2])  # R(z) = -1: the edge of the real interval
+    edge = roots[np.abs(roots.imag) < 1e-12].real[0]
+    assert limit.stable_step == pytest.approx(edge / limit.fastest_mode.real, rel=1e-9)
+    assert limit.max_step_size == pytest.approx(STABILITY_MARGIN * limit.stable_step)
+    assert limit.configured_is_unstable  # the default 0.05 s was beyond it
+
+
+@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+def test_both_loops_reach_the_goal_to_rounding_and_stay(plant):
+    """From the small start the pose error is below 1e-12 m from 20 s on, to 40 s (the
+    kinematic loop used to stall at 3e-8 m and drift to 3e-7 m)."""
+    config = ScenarioConfig(plant=plant, duration=40.0, initial=NEAR)
+    result = simulate(config)
+    error = np.linalg.norm(result.X_BC[:, :3, 3] - config.X_BC_goal.translation(), axis=1)
+    after = error[np.searchsorted(result.times, 20.0) :]
+    assert np.max(after) < 1e-12, np.max(after)
+    summary = result.summary()
+    assert summary["max_step_size"] <= 0.05 and summary["fastest_mode"][0] < 0
+    assert result.step_warning is None  # the default settings: nothing to warn about
+
+
+def test_a_users_step_beyond_the_bound_gets_one_line(run_cli):
+    run = run_cli(
+        "simulate", "--plant", "kinematic", "--duration", "1", "--json",
+        "--scenario-text", "{simulator: {max_step_size: 0.06}}",
+    )  # fmt: skip
+    warning = [line for line in run.err.splitlines() if "warning" in line]
+    assert len(warning) == 1 and "outside runge_kutta3's stability region" in warning[0]
+    assert "the step is limited to 0.0284 s" in warning[0]
