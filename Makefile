@@ -5,8 +5,11 @@
 # `make test` = lint, `make docs` (API reference, warnings are errors), pytest with
 # the notebooks and the wheel check (the wheel installed outside the checkout).
 PYTHON ?= python3
-# The install and Debian's graphviz (each waiting on the network) run side by side.
+# The install and Debian's graphviz (each waiting on the network) run side by side
+# (set at the top level only: a sub-make inherits it).
+ifeq ($(MAKELEVEL),0)
 MAKEFLAGS += -j2
+endif
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed

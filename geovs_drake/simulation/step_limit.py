@@ -3,10 +3,10 @@
 A run that has converged sits at the goal, where the loop is its linearisation. An
 explicit Runge-Kutta step h is stable there only while every ``h lambda`` (lambda an
 eigenvalue of the goal's A) lies in the method's region of absolute stability,
-``|R(h lambda)| <= 1`` with R the method's stability polynomial. Beyond it the error
+``abs(R(h lambda)) <= 1`` with R the method's stability polynomial. Beyond it the error
 control keeps rejecting and shrinking steps around the bound, and the pose error stalls
 or grows (measured: the kinematic loop from a small move ended 2.9e-7 m from the goal
-after 40 s with RK3's 0.05 s limit, where its fastest mode is -70.9 1/s; h |lambda| =
+after 40 s with RK3's 0.05 s limit, where its fastest mode is -70.9 1/s; ``h abs(lambda)`` =
 3.5 against RK3's real-axis bound 2.51).
 
 :func:`step_limit` finds the largest h whose ``h lambda`` stay in the region, for every
