@@ -412,6 +412,25 @@ def _add_arm_scene(
     return model, plant, scene_graph, camera.body(), X_LinkC
 
 
+def _arm_parts(config: ScenarioConfig, scene: tuple, **drive) -> CarrierParts:
+    """What both arms offer alike (the camera's own pose, X_RC = I; the arm's
+    kinematics, drawing and limits), with ``drive``'s entries (how each is driven)."""
+    model, plant, scene_graph, link, X_LinkC = scene
+    return CarrierParts(
+        X_WB=config.X_WB,
+        X_RC=RigidTransform(),
+        pose_of_states=_arm_forward(model),
+        add_meshcat=_meshcat_with_camera(scene_graph, link, X_LinkC),
+        plant=plant,
+        scene_graph=scene_graph,
+        body=link,
+        X_BodyC=X_LinkC,
+        arm=model,
+        limit_check=_joint_limits(model),
+        **drive,
+    )
+
+
 def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool):
     """Eye-in-hand on a torque-driven arm: the law's wrench becomes joint torques through
     the camera frame's Jacobian, with gravity compensated (:class:`ArmCamera`)."""
@@ -441,24 +460,16 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
             plant.GetMyMutableContextFromRoot(root), np.concatenate([q0, v0])
         )
 
-    return CarrierParts(
+    return _arm_parts(
+        config,
+        (model, plant, scene_graph, link, X_LinkC),
         drive="wrench",
         body_pose=body_pose,
         state=plant.get_state_output_port(),
         state_log_name="log_arm_state",
-        X_WB=config.X_WB,
-        X_RC=RigidTransform(),
-        pose_of_states=_arm_forward(model),
         set_initial_state=set_initial_state,
         body_state=arm.camera_state_output,
         connect_force=connect_force,
-        add_meshcat=_meshcat_with_camera(scene_graph, link, X_LinkC),
-        plant=plant,
-        scene_graph=scene_graph,
-        body=link,
-        X_BodyC=X_LinkC,
-        arm=model,
-        limit_check=_joint_limits(model),
     )
 
 
@@ -480,23 +491,15 @@ def _arm_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_ma
     builder.Connect(
         to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id())
     )
-    return CarrierParts(
+    return _arm_parts(
+        config,
+        (model, plant, scene_graph, link, X_LinkC),
         drive="twist",
         body_pose=arm.camera_pose_output,
         state=arm.arm_position_output,
         state_log_name="log_arm_position",
-        X_WB=config.X_WB,
-        X_RC=RigidTransform(),
-        pose_of_states=_arm_forward(model),
         set_initial_state=_no_initial_state,
         twist_input=arm.camera_velocity_input,
-        add_meshcat=_meshcat_with_camera(scene_graph, link, X_LinkC),
-        plant=plant,
-        scene_graph=scene_graph,
-        body=link,
-        X_BodyC=X_LinkC,
-        arm=model,
-        limit_check=_joint_limits(model),
     )
 
 
