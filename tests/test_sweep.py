@@ -393,3 +393,29 @@ def test_part_files_are_written_whole_or_not_at_all(tmp_path, monkeypatch):
     with pytest.raises(OSError, match="disk full"):
         parts.run_part(part, "part-00000.parquet")
     assert os.listdir(tmp_path) == []
+
+
+def test_pose_columns_are_drakes_roll_pitch_yaw():
+    """The parts' batched RollPitchYaw against Drake's, pose by pose (within 1e-9: the
+    closed form loses digits only near pitch = +-90 deg, where roll and yaw trade)."""
+    from pydrake.math import RigidTransform, RollPitchYaw
+
+    from geovs_drake.analysis.sweep.parts import _pose_columns
+
+    rng = np.random.default_rng(0)
+    X = np.stack(
+        [
+            RigidTransform(
+                RollPitchYaw(rng.uniform(-3, 3, 3)), rng.uniform(-1, 1, 3)
+            ).GetAsMatrix4()
+            for _ in range(500)
+        ]
+    )
+    X[7] = np.nan  # a non-finite pose gives NaN columns
+    columns = _pose_columns(X)
+    for i in (i for i in range(len(X)) if i != 7):
+        rpy = RollPitchYaw(RigidTransform(X[i]).rotation()).vector()
+        got = [columns[k][i] for k in ("roll", "pitch", "yaw")]
+        assert np.allclose(got, rpy, atol=1e-9), i
+        assert [columns[k][i] for k in ("x", "y", "z")] == X[i, :3, 3].tolist()
+    assert all(np.isnan(columns[k][7]) for k in ("x", "roll", "yaw"))

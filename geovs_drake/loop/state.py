@@ -150,17 +150,30 @@ def camera_pose_in_target(config: ScenarioConfig, x: np.ndarray, dynamic: bool) 
 
 
 def poses_in_target(config: ScenarioConfig, states: np.ndarray) -> np.ndarray:
-    """X_BC (N, 4, 4) for states (N, n) of ``config``'s loop (as
-    :func:`camera_pose_in_target`, with the config's frames parsed once)."""
+    """X_BC (N, 4, 4) for states (N, n) of ``config``'s loop: :func:`camera_pose_in_target`
+    for every row at once (the quaternions normalised, then numpy on the batch)."""
     dynamic = config.plant == "dynamic"
-    states = np.asarray(states, dtype=float)
-    out = np.empty((len(states), 4, 4))
-    fixed = config.mount == "fixed"
-    X_B_W = config.X_WB.inverse()
-    X_after = fixed_camera_pose(config) if fixed else (config.X_RC if dynamic else RigidTransform())
-    for i, x in enumerate(states):
-        q = x[QUATERNION]
-        X_W = RigidTransform(RotationMatrix(Quaternion(q / np.linalg.norm(q))), x[POSITION])
-        X = X_W.inverse() @ X_after if fixed else X_B_W @ X_W @ X_after
-        out[i] = X.GetAsMatrix4()
-    return out
+    states = np.asarray(states, dtype=float).reshape(-1, np.shape(states)[-1])
+    q = states[:, QUATERNION]
+    w, x, y, z = (q / np.linalg.norm(q, axis=1, keepdims=True)).T
+    X_W = np.zeros((len(states), 4, 4))
+    X_W[:, 0, :3] = np.stack(
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1
+    )
+    X_W[:, 1, :3] = np.stack(
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1
+    )
+    X_W[:, 2, :3] = np.stack(
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1
+    )
+    X_W[:, :3, 3] = states[:, POSITION]
+    X_W[:, 3, 3] = 1.0
+    if config.mount == "fixed":  # X_BC = X_WB^-1 X_WC with the target's state X_WB
+        R_T = np.swapaxes(X_W[:, :3, :3], 1, 2)
+        inverse = np.zeros_like(X_W)
+        inverse[:, :3, :3] = R_T
+        inverse[:, :3, 3] = -np.einsum("nij,nj->ni", R_T, X_W[:, :3, 3])
+        inverse[:, 3, 3] = 1.0
+        return inverse @ fixed_camera_pose(config).GetAsMatrix4()
+    X_after = (config.X_RC if dynamic else RigidTransform()).GetAsMatrix4()
+    return config.X_WB.inverse().GetAsMatrix4() @ X_W @ X_after

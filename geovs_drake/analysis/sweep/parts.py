@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.math import RigidTransform, RollPitchYaw
 
 from geovs_drake._optional import require
 from geovs_drake.analysis.sweep.starts import sample_starts
@@ -143,13 +143,20 @@ def run_part(part: Part, name: str | None = None) -> tuple[dict, object | None]:
 
 
 def _pose_columns(X_BC: np.ndarray, prefix: str = "") -> dict[str, np.ndarray]:
-    """x, y, z and Drake's RollPitchYaw of each X_BC; NaN for a non-finite pose."""
-    out = np.full((len(X_BC), 6), math.nan)
-    for i, X in enumerate(X_BC):
-        if np.all(np.isfinite(X)):
-            out[i, :3] = X[:3, 3]
-            out[i, 3:] = RollPitchYaw(RotationMatrix(X[:3, :3])).vector()
-    return {prefix + k: out[:, j] for j, k in enumerate(_POSE)}
+    """x, y, z and the RollPitchYaw (Drake's convention: R = Rz(yaw) Ry(pitch) Rx(roll))
+    of each X_BC, for the batch at once; NaN for a non-finite pose."""
+    X = np.asarray(X_BC, dtype=float)
+    R = X[:, :3, :3]
+    columns = {
+        "x": X[:, 0, 3],
+        "y": X[:, 1, 3],
+        "z": X[:, 2, 3],
+        "roll": np.arctan2(R[:, 2, 1], R[:, 2, 2]),
+        "pitch": np.arctan2(-R[:, 2, 0], np.hypot(R[:, 0, 0], R[:, 1, 0])),
+        "yaw": np.arctan2(R[:, 1, 0], R[:, 0, 0]),
+    }
+    finite = np.all(np.isfinite(X.reshape(len(X), -1)), axis=1)
+    return {prefix + k: np.where(finite, v, math.nan) for k, v in columns.items()}
 
 
 def _batch_columns(

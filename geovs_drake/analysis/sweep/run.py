@@ -44,6 +44,7 @@ from geovs_drake.scenario import ScenarioConfig
 __all__ = [
     "CSV_LIMIT",
     "ENGINES",
+    "LOCAL_CLUSTER_CONFIG",
     "SCHEDULER_TIMEOUT_S",
     "WINDOW_PER_WORKER",
     "SweepInterrupted",
@@ -62,6 +63,10 @@ WINDOW_PER_WORKER = 4
 #: ``--csv`` writes ``results.csv`` up to this many starts: at about 560 bytes a row,
 #: 56 MB of text; beyond it the Parquet dataset is the only sensible form.
 CSV_LIMIT = 100_000
+#: Dask settings of the LocalCluster the sweep starts (its workers receive them): no
+#: statistical profiler sampling every worker's stack every 10 ms, which costs the
+#: compiled engine CPU for a dashboard nobody watches here.
+LOCAL_CLUSTER_CONFIG = {"distributed.worker.profile.enabled": False}
 #: The record of what a sweep in a folder is, for ``resume``.
 MANIFEST = "sweep.json"
 #: The fields of the record that must match for ``resume``.
@@ -267,6 +272,7 @@ def _finished_parts(out: Path, parts: list[Part], names: list[str], warn) -> dic
 def _connect(scheduler: str | None, workers: int):
     """(client, cluster or None): a Client on ``scheduler``, or on a LocalCluster of
     ``workers`` single-threaded processes started here."""
+    import dask
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
@@ -279,7 +285,7 @@ def _connect(scheduler: str | None, workers: int):
     previous = signal.getsignal(signal.SIGINT)
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), dask.config.set(LOCAL_CLUSTER_CONFIG):
             # The scheduler's HTTP server falls back to a free port when 8787 is taken
             # (another sweep, any Dask session): nothing the user must act on.
             warnings.filterwarnings("ignore", "Port .* is already in use", UserWarning)
