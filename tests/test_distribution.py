@@ -28,6 +28,7 @@ DISTRIBUTION = {
     "matplotlib": "matplotlib",
     "tqdm": "tqdm",
     "distributed": "dask",
+    "dask": "dask",
     "pyarrow": "pyarrow",
     "pandas": "pandas",
     "cv2": "opencv-python-headless",

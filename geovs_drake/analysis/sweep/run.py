@@ -272,8 +272,9 @@ def _finished_parts(out: Path, parts: list[Part], names: list[str], warn) -> dic
 def _connect(scheduler: str | None, workers: int):
     """(client, cluster or None): a Client on ``scheduler``, or on a LocalCluster of
     ``workers`` single-threaded processes started here."""
-    import dask
     from distributed import Client, LocalCluster
+
+    dask = require("dask", "sweep", "run_sweep on Dask", package="dask[distributed]")
 
     if scheduler is not None:
         try:
