@@ -129,7 +129,9 @@ def rig_spatial_inertia(config: ScenarioConfig) -> np.ndarray:
     return Ad.T @ M_R @ Ad
 
 
-def closed_form_A(config: ScenarioConfig, plant: str | None = None) -> np.ndarray:
+def closed_form_A(
+    config: ScenarioConfig, plant: str | None = None, damping: tuple[float, ...] | None = None
+) -> np.ndarray:
     """The closed-form linearisation at the goal, in minimal coordinates (the camera's
     right-trivialised displacement eps, then its twist, for the dynamic loop):
 
@@ -137,7 +139,9 @@ def closed_form_A(config: ScenarioConfig, plant: str | None = None) -> np.ndarra
       ``K = k_p C_chart^T H C_chart``, M the rig's spatial inertia about the camera;
     * kinematic (Eqs. 17-19): ``A = -k C_chart^-1 H C_chart``.
 
-    :mod:`geovs_drake.analysis.linearization` checks it against Drake's ``Linearize``.
+    ``damping``: the B the loop runs with (:attr:`ResolvedScenario.damping`), by default
+    ``control.damping``. :mod:`geovs_drake.analysis.linearization` checks it against
+    Drake's ``Linearize``.
     """
     plant = plant or config.plant
     y = config.goal_features()
@@ -148,7 +152,7 @@ def closed_form_A(config: ScenarioConfig, plant: str | None = None) -> np.ndarra
         return -config.control.kinematic_gain * np.linalg.solve(Cc, H @ Cc)
     K = config.control.potential_gain * Cc.T @ H @ Cc
     M = rig_spatial_inertia(config)
-    Bd = np.diag(config.control.damping)
+    Bd = np.diag(config.control.damping if damping is None else damping)
     A = np.zeros((12, 12))
     A[:6, 6:] = np.eye(6)
     A[6:, :6] = -np.linalg.solve(M, K)
@@ -172,7 +176,7 @@ def step_limit(resolved: ResolvedScenario) -> StepLimit | None:
         return None
     if config.carrier != "free" or config.mount != "hand":
         return None
-    eigenvalues = np.linalg.eigvals(closed_form_A(config))
+    eigenvalues = np.linalg.eigvals(closed_form_A(config, damping=resolved.damping))
     eigenvalues = eigenvalues[np.abs(eigenvalues) > 0]
     configured = float(config.simulator.max_step_size)
     if len(eigenvalues) == 0:
