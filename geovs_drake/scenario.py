@@ -37,6 +37,7 @@ __all__ = [
     "PLANTS",
     "SENSORS",
     "CARRIERS",
+    "AUTOMATIC_STEP",
     "DEFAULT_MAX_STEP",
     "ArmConfig",
     "LAW_VARIANTS",
@@ -425,16 +426,20 @@ def _finite_numbers(values, n: int) -> list[float] | None:
     return out if len(out) == n and all(math.isfinite(v) for v in out) else None
 
 
-#: The simulator's default step limit [s]; the NF's loops on the free rig run with the
+#: The automatic step limit's cap [s]; the NF's loops on the free rig run with the
 #: smaller of it and their goal's stability bound (:mod:`geovs_drake.simulation.step_limit`).
 DEFAULT_MAX_STEP = 0.05
+#: ``simulator.max_step_size`` = 0, the default: not set, the step limit is automatic
+#: (:func:`geovs_drake.simulation.step_limit.step_limit`). Drake's integrators never
+#: run with a zero limit, so a 0 is never a user's step; any value > 0 is used as given.
+AUTOMATIC_STEP = 0.0
 
 
 def _default_simulator() -> SimulatorConfig:
     return SimulatorConfig(
         integration_scheme="runge_kutta3",
         accuracy=1e-6,
-        max_step_size=DEFAULT_MAX_STEP,
+        max_step_size=AUTOMATIC_STEP,
         use_error_control=True,
         target_realtime_rate=0.0,
         publish_every_time_step=False,
@@ -561,6 +566,12 @@ class ScenarioConfig:
             raise ValueError(
                 f"simulator.integration_scheme {self.simulator.integration_scheme!r} is not "
                 f"one Drake knows ({', '.join(schemes)})"
+            )
+        step = self.simulator.max_step_size
+        if not (math.isfinite(step) and step >= 0):
+            raise ValueError(
+                "simulator.max_step_size must be finite and >= 0 (0: automatic, from the "
+                f"goal's stability bound), got {step!r}"
             )
         twist = _finite_numbers(self.initial_velocity, 6)
         if twist is None:

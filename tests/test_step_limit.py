@@ -8,10 +8,12 @@ runs themselves, which must reach the goal to rounding and stay there.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, resolve
+from geovs_drake.scenario import DEFAULT_MAX_STEP, PoseConfig, ScenarioConfig, resolve
 from geovs_drake.simulation import simulate
 from geovs_drake.simulation.step_limit import STABILITY_MARGIN, closed_form_A, step_limit
 
@@ -29,29 +31,53 @@ def test_the_stable_step_of_a_real_mode_is_rk3s_real_axis_bound():
     roots = np.roots([1 / 6, 1 / 2, 1, 2])  # R(z) = -1: the edge of the real interval
     edge = roots[np.abs(roots.imag) < 1e-12].real[0]
     assert limit.stable_step == pytest.approx(edge / limit.fastest_mode.real, rel=1e-9)
-    assert limit.max_step_size == pytest.approx(STABILITY_MARGIN * limit.stable_step)
-    assert limit.configured_is_unstable  # the default 0.05 s was beyond it
+    assert limit.automatic and limit.max_step_size == pytest.approx(
+        STABILITY_MARGIN * limit.stable_step
+    )
+    # RK3 on the real axis: h |lambda| = 0.8 x 2.51 = 2.0 at the automatic limit.
+    assert limit.max_step_size * abs(limit.fastest_mode) == pytest.approx(
+        STABILITY_MARGIN * -edge, rel=1e-9
+    )
+    assert DEFAULT_MAX_STEP > limit.stable_step  # the old fixed 0.05 s was beyond it
+
+
+def test_a_limit_the_user_sets_is_used_as_given():
+    config = ScenarioConfig(plant="kinematic")
+    config.simulator.max_step_size = DEFAULT_MAX_STEP  # the old default, now explicit
+    limit = step_limit(resolve(config))
+    assert not limit.automatic and limit.max_step_size == DEFAULT_MAX_STEP
+    assert limit.beyond_bound and "outside runge_kutta3's" in limit.warning("runge_kutta3")
+    config.simulator.max_step_size = 0.01  # inside the bound: nothing to say
+    assert step_limit(resolve(config)).warning("runge_kutta3") is None
 
 
 @pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
 def test_both_loops_reach_the_goal_to_rounding_and_stay(plant):
     """From the small start the pose error is below 1e-12 m from 20 s on, to 40 s (the
-    kinematic loop used to stall at 3e-8 m and drift to 3e-7 m)."""
+    kinematic loop used to stall at 3e-8 m and drift to 3e-7 m with a 0.05 s limit)."""
     config = ScenarioConfig(plant=plant, duration=40.0, initial=NEAR)
     result = simulate(config)
     error = np.linalg.norm(result.X_BC[:, :3, 3] - config.X_BC_goal.translation(), axis=1)
     after = error[np.searchsorted(result.times, 20.0) :]
     assert np.max(after) < 1e-12, np.max(after)
     summary = result.summary()
-    assert summary["max_step_size"] <= 0.05 and summary["fastest_mode"][0] < 0
+    assert summary["max_step_automatic"] and summary["max_step_size"] <= DEFAULT_MAX_STEP
+    assert summary["fastest_mode"][0] < 0
     assert result.step_warning is None  # the default settings: nothing to warn about
 
 
 def test_a_users_step_beyond_the_bound_gets_one_line(run_cli):
     run = run_cli(
         "simulate", "--plant", "kinematic", "--duration", "1", "--json",
-        "--scenario-text", "{simulator: {max_step_size: 0.06}}",
+        "--scenario-text", "{simulator: {max_step_size: 0.05}}",
     )  # fmt: skip
     warning = [line for line in run.err.splitlines() if "warning" in line]
     assert len(warning) == 1 and "outside runge_kutta3's stability region" in warning[0]
-    assert "the step is limited to 0.0284 s" in warning[0]
+    assert "h |lambda| = 3.54" in warning[0]  # 0.05 s x 70.8 1/s, beyond RK3's 2.51
+    summary = json.loads(run.out)
+    assert summary["max_step_size"] == 0.05 and not summary["max_step_automatic"]
+
+
+def test_no_warning_for_the_automatic_limit(run_cli):
+    run = run_cli("simulate", "--plant", "kinematic", "--duration", "1", "--json")
+    assert "warning" not in run.err

@@ -18,8 +18,10 @@ starts and compares their states.
 
 **Step.** By default each start's step is error-controlled (the
 tolerance is ``config.simulator.accuracy``, as for Drake's integrators, and
-``max_step_size`` caps it), because a fixed step cannot serve the kinematic
-loop: its speed grows without bound near the boundary of D (dphi ~ 1/beta),
+the Drake loop's step limit caps it,
+:func:`~geovs_drake.simulation.step_limit.step_limit`), because a fixed step
+cannot serve the kinematic loop: its speed grows without bound near the
+boundary of D (dphi ~ 1/beta),
 and with a fixed 0.01 s step 122 of 400 random starts left D where error
 control brought all home. A step that would leave D is rejected like an
 inaccurate one (the exact flow of a start with E0 < k_p never leaves D), so
@@ -54,8 +56,9 @@ from geovs_drake.diagrams import (
 )
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import ScenarioConfig, resolve
 from geovs_drake.simulation import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
+from geovs_drake.simulation.step_limit import step_limit
 from geovs_drake.systems.spherical_camera import CAMERA_OFFSET
 
 __all__ = [
@@ -396,7 +399,9 @@ def run_batch(
         raise ValueError(f"accuracy must be in (0, 1): accuracy = {accuracy}")
     p = parameters or loop_parameters(config)
     X0 = initial_body_states(config, X_BC, twists)
-    max_step = config.simulator.max_step_size if step is None else step
+    # The step limit the Drake loop runs with, decided in one place (simulation.step_limit):
+    # Bogacki-Shampine's third-order solution has RK3's stability polynomial.
+    max_step = step_limit(resolve(config)).max_step_size if step is None else step
     h0 = min(DEFAULT_STEP, max_step) if step is None else step
     out = _integrate(
         p.plant != "dynamic",

@@ -28,8 +28,9 @@ from geovs_drake.geometry.kernels import (
 )
 from geovs_drake.geometry.rigid import quaternion_to_rotation
 from geovs_drake.loop.build import loop_of
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import ScenarioConfig, resolve
 from geovs_drake.simulation.result import MARGIN_NAMES
+from geovs_drake.simulation.step_limit import step_limit
 
 __all__ = [
     "FeaturePointCheck",
@@ -274,8 +275,9 @@ def make_simulator(
 
     ``record`` makes the monitor keep every accepted step (for logs); ``on_step``
     is called with each accepted step's time (progress); ``max_step_size``, if given,
-    replaces the config's step limit
-    (:func:`~geovs_drake.simulation.step_limit.step_limit`). A law with feature points
+    is the integrator's step limit, by default the one
+    :func:`~geovs_drake.simulation.step_limit.step_limit` decides for ``config`` (the
+    configured ``simulator.max_step_size`` is 0 where it is automatic). A law with feature points
     (point IBVS) gets them checked too (:func:`feature_point_check`). For the dynamic
     loop (a diagram with a ``plant``) the context starts in the carrier's start
     (:attr:`~geovs_drake.loop.carriers.CarrierParts.set_initial_state`): for the free
@@ -283,8 +285,9 @@ def make_simulator(
     """
     simulator = Simulator(diagram)
     ApplySimulatorConfig(config.simulator, simulator)
-    if max_step_size is not None:  # the goal's stability bound (simulation.step_limit)
-        simulator.get_mutable_integrator().set_maximum_step_size(max_step_size)
+    if max_step_size is None:  # decided in one place (simulation.step_limit)
+        max_step_size = step_limit(resolve(config)).max_step_size
+    simulator.get_mutable_integrator().set_maximum_step_size(max_step_size)
     loop_of(diagram).carrier.set_initial_state(simulator.get_mutable_context())
     monitor = SafeDomainMonitor(
         diagram,

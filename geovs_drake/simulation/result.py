@@ -299,10 +299,9 @@ class SimulationResult:
         if self.arm is not None:
             out.update(self.arm.summary())
         limit = self.step_limit
-        out["max_step_size"] = (
-            float(self.config.simulator.max_step_size) if limit is None else limit.max_step_size
-        )
-        out["fastest_mode"] = (
-            None if limit is None else [limit.fastest_mode.real, limit.fastest_mode.imag]
-        )
+        if limit is not None:  # what the integrator ran with, and why (simulation.step_limit)
+            lam = limit.fastest_mode
+            out["max_step_size"] = limit.max_step_size
+            out["max_step_automatic"] = limit.automatic
+            out["fastest_mode"] = None if lam is None else [lam.real, lam.imag]
         return out

@@ -13,7 +13,6 @@ from geovs_drake.loop.arm import joint_count, joint_limit_margins, smallest_sing
 from geovs_drake.loop.build import Loop, build_loop
 from geovs_drake.planning import plan_for_scenario
 from geovs_drake.scenario import (
-    DEFAULT_MAX_STEP,
     Nf,
     PathFollowing,
     ResolvedScenario,
@@ -113,7 +112,7 @@ def simulate(
         config,
         record=True,
         on_step=progress,
-        max_step_size=None if limit is None else limit.max_step_size,
+        max_step_size=limit.max_step_size,
     )
     root = simulator.get_mutable_context()
     if meshcat is not None:
@@ -192,9 +191,8 @@ def simulate(
     if loop.carrier.arm is not None:
         result.arm = arm_trace(loop, root, states)
     result.step_limit = limit
-    # A limit the user chose (not the default) beyond the goal's bound: one line to say so.
-    if limit is not None and limit.configured_is_unstable and limit.configured != DEFAULT_MAX_STEP:
-        result.step_warning = limit.warning(config.simulator.integration_scheme)
+    # A limit the user chose beyond the goal's bound: one line to say so (None otherwise).
+    result.step_warning = limit.warning(config.simulator.integration_scheme)
     if result.energy_guarantee is False:
         result.message += f" ({energy_note(result.initial_energy, result.energy_bound)})"
     if isinstance(resolved.law, PathFollowing):  # what the planner found (cached)

@@ -11,11 +11,22 @@ after 40 s with RK3's 0.05 s limit, where its fastest mode is -70.9 1/s; ``h abs
 
 :func:`step_limit` finds the largest h whose ``h lambda`` stay in the region, for every
 eigenvalue of the closed form (:func:`closed_form_A`), and takes
-:data:`STABILITY_MARGIN` of it. The simulator runs with the smaller of that and
-``simulator.max_step_size``. Explicit methods whose stability polynomial is the
-truncated exponential only (``runge_kutta2``, ``runge_kutta3``: as many stages as their
-order); the NF's law on the free rig in the hand only (the closed form is the free
-body's). Elsewhere the configured limit stands.
+:data:`STABILITY_MARGIN` of it (RK3: ``h abs(lambda)`` <= 0.8 x 2.51 = 2.0 on a real mode).
+It is the one place that decides the step limit: the simulator
+(:func:`~geovs_drake.simulation.monitor.make_simulator`) and the batch engine both read
+:attr:`StepLimit.max_step_size`.
+
+Who decides. ``simulator.max_step_size`` = 0
+(:data:`~geovs_drake.scenario.AUTOMATIC_STEP`, the default scenario's) means "not
+set": the loop runs with the automatic limit, the smaller of
+:data:`~geovs_drake.scenario.DEFAULT_MAX_STEP` and the stability bound's share.
+Drake's integrators never take a zero limit, so a 0 cannot be a user's step; any
+value > 0 is the user's and is used as given, with one warning line
+(:meth:`StepLimit.warning`) where it puts the goal's fastest mode outside the region.
+Explicit methods whose stability polynomial is the truncated exponential only
+(``runge_kutta2``, ``runge_kutta3``: as many stages as their order); the NF's law on the
+free rig in the hand only (the closed form is the free body's). Elsewhere the automatic
+limit is :data:`~geovs_drake.scenario.DEFAULT_MAX_STEP`.
 """
 
 from __future__ import annotations
@@ -33,7 +44,13 @@ from geovs_drake.geometry.navigation import (
     navigation_differential,
 )
 from geovs_drake.geometry.so3 import hat, so3_exp
-from geovs_drake.scenario import Nf, ResolvedScenario, ScenarioConfig
+from geovs_drake.scenario import (
+    AUTOMATIC_STEP,
+    DEFAULT_MAX_STEP,
+    Nf,
+    ResolvedScenario,
+    ScenarioConfig,
+)
 
 __all__ = [
     "STABILITY_MARGIN",
@@ -43,6 +60,7 @@ __all__ = [
     "closed_form_A",
     "navigation_hessian",
     "rig_spatial_inertia",
+    "stable_step",
     "step_limit",
     "velocity_adjoint",
 ]
@@ -60,32 +78,37 @@ STABILITY_POLYNOMIALS: dict[str, tuple[float, ...]] = {
 
 @dataclass(frozen=True)
 class StepLimit:
-    """The goal's fastest mode and the step limit it sets.
+    """The step limit the loop runs with, and the goal's fastest mode that sets it.
 
-    ``fastest_mode``: the eigenvalue of largest modulus [1/s]; ``stable_step``: the
-    largest h with every ``h lambda`` in the method's region [s]; ``max_step_size``: what
-    the simulator runs with, ``min(configured, STABILITY_MARGIN * stable_step)``;
-    ``configured``: ``simulator.max_step_size``.
+    ``max_step_size``: what the integrator runs with [s]; ``automatic``: True where
+    ``simulator.max_step_size`` was left at :data:`~geovs_drake.scenario.AUTOMATIC_STEP`
+    (then it is ``min(DEFAULT_MAX_STEP, STABILITY_MARGIN * stable_step)``), False where
+    it is the user's value as given; ``fastest_mode``: the goal's eigenvalue of largest
+    modulus [1/s] and ``stable_step``: the largest h with every ``h lambda`` in the
+    method's region [s], both None where the bound does not apply (see the module).
     """
 
-    fastest_mode: complex
-    stable_step: float
     max_step_size: float
-    configured: float
+    automatic: bool
+    fastest_mode: complex | None = None
+    stable_step: float | None = None
 
     @property
-    def configured_is_unstable(self) -> bool:
-        """The configured limit alone would let the step leave the stability region."""
-        return self.configured > self.stable_step
+    def beyond_bound(self) -> bool:
+        """The step may leave the stability region at the goal (``h > stable_step``)."""
+        return self.stable_step is not None and self.max_step_size > self.stable_step
 
-    def warning(self, scheme: str) -> str:
-        """The one line a user gets when the configured limit is beyond the bound."""
+    def warning(self, scheme: str) -> str | None:
+        """The one line a user gets when their limit is beyond the bound, else None."""
+        if self.automatic or not self.beyond_bound:
+            return None
         lam = self.fastest_mode
         return (
-            f"simulator.max_step_size {self.configured:g} s puts the goal's fastest mode "
+            f"simulator.max_step_size {self.max_step_size:g} s puts the goal's fastest mode "
             f"({lam.real:.4g}{lam.imag:+.4g}j 1/s) outside {scheme}'s stability region "
-            f"(h |lambda| = {self.configured * abs(lam):.3g}); the step is limited to "
-            f"{self.max_step_size:.3g} s"
+            f"(h |lambda| = {self.max_step_size * abs(lam):.3g}, bound at h = "
+            f"{self.stable_step:.3g} s): the pose error may stall near the goal; leave "
+            f"max_step_size at 0 for the automatic {STABILITY_MARGIN * self.stable_step:.3g} s"
         )
 
 
@@ -165,20 +188,36 @@ def _stable(coefficients: tuple[float, ...], z: np.ndarray) -> bool:
     return bool(np.all(np.abs(R) <= 1.0 + 1e-12))
 
 
-def step_limit(resolved: ResolvedScenario) -> StepLimit | None:
-    """The goal's :class:`StepLimit`, or None where it does not apply (a scheme without a
-    stability polynomial here, a law other than the NF, a carrier other than the free
-    rig in the hand: :func:`closed_form_A` is theirs only)."""
+def step_limit(resolved: ResolvedScenario) -> StepLimit:
+    """The :class:`StepLimit` the loop runs with (the one place it is decided)."""
     config = resolved.config
-    scheme = config.simulator.integration_scheme
-    coefficients = STABILITY_POLYNOMIALS.get(scheme)
+    configured = float(config.simulator.max_step_size)
+    automatic = configured == AUTOMATIC_STEP
+    chosen = DEFAULT_MAX_STEP if automatic else configured
+    bound = stable_step(resolved)
+    if bound is None:
+        return StepLimit(max_step_size=chosen, automatic=automatic)
+    fastest, stable = bound
+    if automatic:
+        chosen = min(chosen, STABILITY_MARGIN * stable)
+    return StepLimit(
+        max_step_size=chosen, automatic=automatic, fastest_mode=fastest, stable_step=stable
+    )
+
+
+def stable_step(resolved: ResolvedScenario) -> tuple[complex, float] | None:
+    """The goal's fastest mode and the largest stable step h for the configured scheme,
+    or None where they do not apply (a scheme without a stability polynomial here, a law
+    other than the NF, a carrier other than the free rig in the hand: :func:`closed_form_A`
+    is theirs only)."""
+    config = resolved.config
+    coefficients = STABILITY_POLYNOMIALS.get(config.simulator.integration_scheme)
     if coefficients is None or not isinstance(resolved.law, Nf):
         return None
     if config.carrier != "free" or config.mount != "hand":
         return None
     eigenvalues = np.linalg.eigvals(closed_form_A(config, damping=resolved.damping))
     eigenvalues = eigenvalues[np.abs(eigenvalues) > 0]
-    configured = float(config.simulator.max_step_size)
     if len(eigenvalues) == 0:
         return None
     fastest = complex(eigenvalues[np.argmax(np.abs(eigenvalues))])
@@ -188,7 +227,4 @@ def step_limit(resolved: ResolvedScenario) -> StepLimit | None:
     for _ in range(60):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if _stable(coefficients, mid * eigenvalues) else (lo, mid)
-    limit = min(configured, STABILITY_MARGIN * lo)
-    return StepLimit(
-        fastest_mode=fastest, stable_step=lo, max_step_size=limit, configured=configured
-    )
+    return fastest, lo
