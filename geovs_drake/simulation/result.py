@@ -145,6 +145,8 @@ class SimulationResult:
     step_limit: object | None = None
     #: One line when a user's step limit put the goal's fastest mode beyond the bound.
     step_warning: str | None = None
+    #: Drake's continuous states at ``times`` (for the linearisation along the run).
+    states: np.ndarray | None = None
 
     @property
     def lyapunov(self) -> np.ndarray:

@@ -187,6 +187,7 @@ def simulate(
         X_BC=loop.carrier.camera_poses(states),
         energy=energy,
         final_X_BC=final_X_BC,
+        states=states,
     )
     if loop.carrier.arm is not None:
         result.arm = arm_trace(loop, root, states)

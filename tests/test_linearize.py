@@ -1,0 +1,178 @@
+"""The loop linearised at any state (analysis.linearization.linearize, linearize_along).
+
+Truths: central differences of the batch engine's right-hand side (the compiled
+kernels, not Drake's AutoDiffXd), Drake's ``Linearize`` of the diagram (its A does not
+depend on the state being an equilibrium once the check is off), the goal's
+``linearize_at_goal`` and closed form, and, for the kinematic loop, central
+differences of the vector field written in the Gibbs chart itself.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.systems.framework import InputPortSelection, OutputPortSelection
+from pydrake.systems.primitives import Linearize
+
+from geovs_drake.analysis.linearization import (
+    linearize,
+    linearize_along,
+    linearize_at_goal,
+    state_at,
+)
+from geovs_drake.batch.engine import _rhs, loop_parameters
+from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
+from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.simulation import StartOutsideDomain, check_start, simulate
+
+#: Random states per plant, and the spread of their poses about the goal and twists.
+N_STATES = 4
+ROTATION_SPREAD_RAD, POSITION_SPREAD_M, TWIST_SPREAD = 0.3, 0.08, 0.2
+#: Central-difference step along the tangent, and the relative agreement asked for
+#: (the truncation error is h^2 |f'''|, the rounding eps |f| / h).
+FD_STEP, FD_RTOL = 1e-5, 1e-6
+
+
+def _states_in_D(plant: str, seed: int) -> list[np.ndarray]:
+    """Random Drake states whose camera pose is in D (rejection), at random twists."""
+    rng = np.random.default_rng(seed)
+    config = ScenarioConfig(plant=plant)
+    out = []
+    while len(out) < N_STATES:
+        rpy = rng.uniform(-ROTATION_SPREAD_RAD, ROTATION_SPREAD_RAD, 3)
+        xyz = np.array(config.goal.xyz) + rng.uniform(-POSITION_SPREAD_M, POSITION_SPREAD_M, 3)
+        c = copy.deepcopy(config)
+        c.initial = PoseConfig(xyz=list(xyz), rpy=list(rpy))
+        try:
+            check_start(c)
+        except StartOutsideDomain:
+            continue
+        twist = rng.uniform(-TWIST_SPREAD, TWIST_SPREAD, 6) if plant == "dynamic" else None
+        out.append(state_at(config, c.X_BC_initial, twist))
+    return out
+
+
+def _batch_rhs(config: ScenarioConfig):
+    p = loop_parameters(config)
+    kinematic = config.plant != "dynamic"
+
+    def f(x: np.ndarray) -> np.ndarray:
+        out = np.zeros(len(x))
+        _rhs(kinematic, np.ascontiguousarray(x), out, p.camera, p.navigation, p.controller, p.body)
+        return out
+
+    return f
+
+
+@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+def test_A_matches_central_differences_of_the_batch_engine_and_drakes_linearize(plant):
+    config = ScenarioConfig(plant=plant)
+    f = _batch_rhs(config)
+    build = make_dynamic_servo_diagram if plant == "dynamic" else make_kinematic_servo_diagram
+    diagram = build(config, log=False)
+    for x0 in _states_in_D(plant, seed=21):
+        lin = linearize(config, x0)
+        assert not lin.at_equilibrium and type(lin.system).__name__ == "AffineSystem"
+        assert np.allclose(lin.system.f0(), f(x0), rtol=1e-9, atol=1e-12)
+        # Along the tangent (the quaternion's norm is Drake's business, not the loop's).
+        fd = np.stack(
+            [(f(x0 + FD_STEP * t) - f(x0 - FD_STEP * t)) / (2 * FD_STEP) for t in lin.T.T], axis=1
+        )
+        scale = np.linalg.norm(fd)
+        assert np.linalg.norm(lin.A_drake @ lin.T - fd) < FD_RTOL * scale
+        # Drake's Linearize of the diagram at the same (non-equilibrium) state.
+        context = diagram.CreateDefaultContext()
+        context.SetContinuousState(x0)
+        drake = Linearize(
+            diagram,
+            context,
+            input_port_index=InputPortSelection.kNoInput,
+            output_port_index=OutputPortSelection.kNoOutput,
+            equilibrium_check_tolerance=np.inf,
+        )
+        assert np.allclose(drake.A(), lin.A_drake, rtol=1e-12, atol=1e-9)
+        assert lin.A.shape == ((12, 12) if plant == "dynamic" else (6, 6))
+
+
+@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+def test_at_the_goal_it_is_linearize_at_goal_and_the_closed_form(plant):
+    config = ScenarioConfig(plant=plant)
+    lin = linearize(config)
+    goal = linearize_at_goal(config)
+    assert lin.at_equilibrium and type(lin.system).__name__ == "LinearSystem"
+    assert np.allclose(lin.A, goal.A, atol=1e-12)
+    assert np.allclose(lin.A, goal.A_closed, rtol=1e-9, atol=1e-9 * np.abs(goal.A_closed).max())
+    assert lin.max_real_part < 0
+    stable = lin.eigenvalues.real < 0
+    assert np.all(lin.damping_ratios[stable] > 0) and np.all(lin.time_constants[stable] > 0)
+
+
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The Hamilton product of (w, x, y, z) quaternions (not normalised)."""
+    return np.r_[a[0] * b[0] - a[1:] @ b[1:], a[0] * b[1:] + b[0] * a[1:] + np.cross(a[1:], b[1:])]
+
+
+def _gibbs_chart(x0: np.ndarray, f):
+    """The kinematic loop's vector field in the Gibbs chart, F(z) = DPsi(Phi(z)) f(Phi(z)):
+    Phi(z) = (q0 (x) (1, dtheta / 2) normalised, p0 + R0 dp) and
+    Psi(x) = (2 vec(u) / u_w, R0^T (p - p0)), u = q0^* (x) q."""
+    q0 = x0[0:4] / np.linalg.norm(x0[0:4])
+    R0 = RotationMatrix(Quaternion(q0)).matrix()
+    conj = q0 * np.array([1.0, -1.0, -1.0, -1.0])
+
+    def F(z: np.ndarray) -> np.ndarray:
+        dq = np.r_[1.0, z[0:3] / 2]
+        x = np.r_[_qmul(q0, dq / np.linalg.norm(dq)), x0[4:7] + R0 @ z[3:6]]
+        xdot = f(x)
+        u, du = _qmul(conj, x[0:4]), _qmul(conj, xdot[0:4])
+        dtheta = 2 * (du[1:] * u[0] - u[1:] * du[0]) / u[0] ** 2
+        return np.r_[dtheta, R0.T @ xdot[4:7]]
+
+    return F
+
+
+def test_the_kinematic_minimal_A_is_the_chart_jacobian():
+    """Away from the goal the kinematic loop's A is exactly the Jacobian of its vector field
+    in the Gibbs chart (central differences of that field, on the batch engine's f)."""
+    config = ScenarioConfig(plant="kinematic")
+    f = _batch_rhs(config)
+    for x0 in _states_in_D("kinematic", seed=5):
+        lin = linearize(config, x0)
+        F = _gibbs_chart(x0, f)
+        fd = np.stack(
+            [(F(FD_STEP * e) - F(-FD_STEP * e)) / (2 * FD_STEP) for e in np.eye(6)], axis=1
+        )
+        assert np.linalg.norm(lin.A - fd) < FD_RTOL * np.linalg.norm(fd), np.abs(lin.A - fd).max()
+
+
+@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+def test_linearize_along_a_run_ends_at_the_goals_model(plant):
+    config = ScenarioConfig(plant=plant, duration=20.0)
+    config.initial = PoseConfig(xyz=[0.02, -0.01, -0.52], rpy=[0.02, -0.01, 0.1])
+    result = simulate(config)
+    along = linearize_along(result, [0.0, 1.0, 20.0])
+    assert along.eigenvalues.shape == (3, 12 if plant == "dynamic" else 6)
+    goal = linearize_at_goal(config)
+    # At 20 s the state is at the goal to rounding: the same spectrum.
+    assert np.allclose(along.eigenvalues[-1], goal.eigenvalues, atol=1e-6)
+    assert along.max_real_part[-1] == pytest.approx(goal.max_real_part, abs=1e-6)
+    # At t = 0 it is linearize at the logged start.
+    direct = linearize(config, result.states[0])
+    assert np.allclose(along.models[0].A, direct.A)
+
+
+def test_a_state_of_the_wrong_size_is_refused():
+    with pytest.raises(ValueError, match="state must have 7 entries"):
+        linearize(ScenarioConfig(plant="kinematic"), np.zeros(13))
+
+
+def test_state_at_puts_the_camera_where_asked():
+    config = ScenarioConfig(plant="kinematic")
+    X = RigidTransform(RollPitchYaw(0.1, -0.2, 0.3), [0.01, 0.02, -0.6])
+    x = state_at(config, X)
+    X_WC = RigidTransform(Quaternion(x[0:4]), x[4:7])
+    assert np.allclose((config.X_WB.inverse() @ X_WC).GetAsMatrix4(), X.GetAsMatrix4())
