@@ -10,6 +10,7 @@ differences of the vector field written in the Gibbs chart itself.
 from __future__ import annotations
 
 import copy
+import json
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
 from geovs_drake.analysis.linearization import (
+    closed_form_A,
     linearize,
     linearize_along,
     linearize_at_goal,
@@ -176,3 +178,45 @@ def test_state_at_puts_the_camera_where_asked():
     x = state_at(config, X)
     X_WC = RigidTransform(Quaternion(x[0:4]), x[4:7])
     assert np.allclose((config.X_WB.inverse() @ X_WC).GetAsMatrix4(), X.GetAsMatrix4())
+
+
+# ---- geovs-drake linearize
+
+
+def test_cli_json_at_the_goal_is_the_closed_forms_spectrum(run_cli, tmp_path):
+    run = run_cli("linearize", "--plant", "kinematic", "--json", "--out", str(tmp_path))
+    assert run.code == 0, run.err
+    out = json.loads(run.out)
+    assert out["plant"] == "kinematic" and out["stable"] and out["at_equilibrium"]
+    closed = np.sort_complex(np.linalg.eigvals(closed_form_A(ScenarioConfig(), "kinematic")))
+    lam = np.array([complex(re, im) for re, im in out["eigenvalues"]])
+    assert np.allclose(lam, closed, rtol=1e-9)
+    assert out["max_real_part"] == pytest.approx(closed.real.max(), rel=1e-9)
+    assert np.allclose(out["damping_ratios"], -closed.real / np.abs(closed))
+    assert np.allclose(out["time_constants"], -1 / closed.real)
+    assert np.array(out["A"]).shape == (6, 6)
+    assert json.loads((tmp_path / "linearize.json").read_text()) == out
+
+
+def test_cli_text_at_a_pose_names_the_frozen_model(run_cli):
+    run = run_cli("linearize", "--at=0.02,-0.01,-0.52,0.02,-0.01,0.1")
+    assert run.code == 0, run.err
+    first = run.out.splitlines()[0]
+    assert first.startswith("dynamic loop linearised at X_BC = (0.02,-0.01,-0.52")
+    assert "stable" in first and "frozen-time" in first
+    assert len(run.out.splitlines()) == 2 + 12  # the heading, the columns, 12 modes
+
+
+@pytest.mark.parametrize(
+    ("at", "expected"),
+    [
+        ("--at=0,0,-0.5,0,2,0", "--at 0,0,-0.5,0,2,0 is outside D: fov margin = -1.333 < 0"),
+        ("--at=0,0,-0.5,0,0", "expected 6 finite numbers x,y,z,roll,pitch,yaw"),
+        ("--at=goal,1", "expected 6 numbers x,y,z,roll,pitch,yaw: 'goal,1'"),
+    ],
+)
+def test_cli_bad_at_is_one_line_and_exit_2(run_cli, at, expected):
+    run = run_cli("linearize", at)
+    assert run.code == 2 and run.out == ""
+    assert len(run.err.strip().splitlines()) == 1 and expected in run.err
+    assert "Traceback" not in run.err

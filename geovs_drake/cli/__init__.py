@@ -1,5 +1,5 @@
-"""Command line: ``geovs-drake simulate``, ``demo``, ``sweep``, ``compare``, ``robustness``
-and ``camera-accuracy``; one module per command, the shared options in ``_options``.
+"""Command line: ``geovs-drake simulate``, ``demo``, ``sweep``, ``compare``, ``robustness``,
+``camera-accuracy`` and ``linearize``; one module per command, the shared options in ``_options``.
 
 Examples::
 
@@ -15,6 +15,8 @@ Examples::
     geovs-drake compare --plant kinematic --out results/compare
     geovs-drake robustness --starts 20 --workers 2
     geovs-drake camera-accuracy --poses 200 --resolution 320x240
+    geovs-drake linearize --plant kinematic --json
+    geovs-drake linearize --at=0.02,-0.01,-0.52,0.02,-0.01,0.1
 
 A scenario is read once, in layers: ``--config FILE``, then ``--scenario-text YAML``,
 then each option that sets a field (``--plant kinematic`` is ``{plant: kinematic}``),
@@ -33,7 +35,15 @@ import sys
 
 from geovs_drake import __version__
 from geovs_drake._optional import MissingExtra
-from geovs_drake.cli import camera_accuracy, compare, demo, robustness, simulate, sweep
+from geovs_drake.cli import (
+    camera_accuracy,
+    compare,
+    demo,
+    linearize,
+    robustness,
+    simulate,
+    sweep,
+)
 from geovs_drake.cli._options import (
     EXIT_BAD_INPUT,
     EXIT_BROKEN_PIPE,
@@ -82,6 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_parser(sub)
     robustness.add_parser(sub)
     camera_accuracy.add_parser(sub)
+    linearize.add_parser(sub)
     return parser
 
 
