@@ -145,7 +145,7 @@ def linearize_at_goal(
 # --- The loop linearised at any state (issue 21): an AffineSystem in Drake's state and
 # --- its minimal model in the coordinates above.
 
-#: |xdot| below which a state counts as an equilibrium: there Drake's ``Linearize``
+#: ``|xdot|`` below which a state counts as an equilibrium: there Drake's ``Linearize``
 #: (which checks it) gives a LinearSystem; elsewhere FirstOrderTaylorApproximation's
 #: AffineSystem keeps the drift f0.
 EQUILIBRIUM_TOLERANCE = 1e-9
@@ -187,7 +187,7 @@ class LoopLinearization:
 
     @property
     def at_equilibrium(self) -> bool:
-        """x0 is an equilibrium (|xdot| <= :data:`EQUILIBRIUM_TOLERANCE`)."""
+        """x0 is an equilibrium (``|xdot|`` <= :data:`EQUILIBRIUM_TOLERANCE`)."""
         return bool(np.linalg.norm(self.f0) <= EQUILIBRIUM_TOLERANCE)
 
     @property

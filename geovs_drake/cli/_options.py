@@ -33,7 +33,7 @@ EXIT_BROKEN_PIPE = 141
 #: The exit codes of every command, in one place (``--help`` and the README show them).
 EXIT_CODES: dict[int, str] = {
     EXIT_CONVERGED: "ran and converged (simulate, demo); the table finished (sweep, compare,\n"
-    "robustness, camera-accuracy)",
+    "robustness, camera-accuracy, linearize)",
     EXIT_BAD_INPUT: "bad input: an argument, the --config file or --scenario-text, a start\n"
     "outside D, or a missing extra (one line on stderr, nothing run)",
     EXIT_NOT_CONVERGED: "ran and did not converge (simulate, demo): status not_converged,\n"
