@@ -429,10 +429,13 @@ def _finite_numbers(values, n: int) -> list[float] | None:
 #: The automatic step limit's cap [s]; the NF's loops on the free rig run with the
 #: smaller of it and their goal's stability bound (:mod:`geovs_drake.simulation.step_limit`).
 DEFAULT_MAX_STEP = 0.05
-#: ``simulator.max_step_size`` = 0, the default: not set, the step limit is automatic
-#: (:func:`geovs_drake.simulation.step_limit.step_limit`). Drake's integrators never
-#: run with a zero limit, so a 0 is never a user's step; any value > 0 is used as given.
-AUTOMATIC_STEP = 0.0
+#: ``simulator.max_step_size`` at Drake's own default (``SimulatorConfig()``'s, 0.1 s), the
+#: default scenario's: not set, the step limit is automatic
+#: (:func:`geovs_drake.simulation.step_limit.step_limit`); any other value is the user's
+#: and is used as given. Why Drake's default and not a 0 or None: the struct stays one
+#: that Drake's ``ApplySimulatorConfig`` runs as it is (a zero limit would crawl), for
+#: code that builds its own Simulator from it. The price: a user's 0.1 reads as not set.
+AUTOMATIC_STEP = SimulatorConfig().max_step_size
 
 
 def _default_simulator() -> SimulatorConfig:
@@ -568,10 +571,10 @@ class ScenarioConfig:
                 f"one Drake knows ({', '.join(schemes)})"
             )
         step = self.simulator.max_step_size
-        if not (math.isfinite(step) and step >= 0):
+        if not (math.isfinite(step) and step > 0):
             raise ValueError(
-                "simulator.max_step_size must be finite and >= 0 (0: automatic, from the "
-                f"goal's stability bound), got {step!r}"
+                f"simulator.max_step_size must be finite and > 0 [s] ({AUTOMATIC_STEP:g}, "
+                f"Drake's default: automatic, from the goal's stability bound), got {step!r}"
             )
         twist = _finite_numbers(self.initial_velocity, 6)
         if twist is None:

@@ -12,6 +12,7 @@ import json
 
 import numpy as np
 import pytest
+from pydrake.systems.analysis import SimulatorConfig
 
 from geovs_drake.scenario import DEFAULT_MAX_STEP, PoseConfig, ScenarioConfig, resolve
 from geovs_drake.simulation import simulate
@@ -43,6 +44,8 @@ def test_the_stable_step_of_a_real_mode_is_rk3s_real_axis_bound():
 
 def test_a_limit_the_user_sets_is_used_as_given():
     config = ScenarioConfig(plant="kinematic")
+    # Not set: Drake's own default, which Drake's ApplySimulatorConfig runs as it is.
+    assert config.simulator.max_step_size == SimulatorConfig().max_step_size
     config.simulator.max_step_size = DEFAULT_MAX_STEP  # the old default, now explicit
     limit = step_limit(resolve(config))
     assert not limit.automatic and limit.max_step_size == DEFAULT_MAX_STEP

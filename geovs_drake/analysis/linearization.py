@@ -158,9 +158,9 @@ class LoopLinearization:
     Attributes:
         plant: ``"dynamic"`` or ``"kinematic"``.
         state: x0, Drake's continuous state (13 dynamic, 7 kinematic).
-        system: Drake's model there, ``xdot = A_drake (x - x0) + f0``: a ``LinearSystem``
-            (``Linearize``) at an equilibrium, else an ``AffineSystem``
-            (``FirstOrderTaylorApproximation``); no inputs or outputs.
+        system: Drake's model there: a ``LinearSystem`` (``Linearize``, in ``x - x0``)
+            at an equilibrium, else an ``AffineSystem`` (``FirstOrderTaylorApproximation``:
+            ``xdot = A_drake x + f0``, ``f0 = xdot(x0) - A_drake x0``); no inputs or outputs.
         T: minimal coordinates -> Drake state perturbation at x0 (the chart's Jacobian).
         A: the minimal model ``T^+ A_drake T`` (12 dynamic, 6 kinematic).
         f0: the drift in minimal coordinates, ``T^+ xdot(x0)`` (0 at an equilibrium).

@@ -277,7 +277,8 @@ def make_simulator(
     is called with each accepted step's time (progress); ``max_step_size``, if given,
     is the integrator's step limit, by default the one
     :func:`~geovs_drake.simulation.step_limit.step_limit` decides for ``config`` (the
-    configured ``simulator.max_step_size`` is 0 where it is automatic). A law with feature points
+    configured ``simulator.max_step_size`` is Drake's default where it is automatic).
+    A law with feature points
     (point IBVS) gets them checked too (:func:`feature_point_check`). For the dynamic
     loop (a diagram with a ``plant``) the context starts in the carrier's start
     (:attr:`~geovs_drake.loop.carriers.CarrierParts.set_initial_state`): for the free

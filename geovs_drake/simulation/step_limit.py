@@ -16,12 +16,11 @@ It is the one place that decides the step limit: the simulator
 (:func:`~geovs_drake.simulation.monitor.make_simulator`) and the batch engine both read
 :attr:`StepLimit.max_step_size`.
 
-Who decides. ``simulator.max_step_size`` = 0
-(:data:`~geovs_drake.scenario.AUTOMATIC_STEP`, the default scenario's) means "not
-set": the loop runs with the automatic limit, the smaller of
-:data:`~geovs_drake.scenario.DEFAULT_MAX_STEP` and the stability bound's share.
-Drake's integrators never take a zero limit, so a 0 cannot be a user's step; any
-value > 0 is the user's and is used as given, with one warning line
+Who decides. ``simulator.max_step_size`` left at Drake's default
+(:data:`~geovs_drake.scenario.AUTOMATIC_STEP`, 0.1 s, the default scenario's) means
+"not set": the loop runs with the automatic limit, the smaller of
+:data:`~geovs_drake.scenario.DEFAULT_MAX_STEP` and the stability bound's share. Any
+other value is the user's and is used as given, with one warning line
 (:meth:`StepLimit.warning`) where it puts the goal's fastest mode outside the region.
 Explicit methods whose stability polynomial is the truncated exponential only
 (``runge_kutta2``, ``runge_kutta3``: as many stages as their order); the NF's law on the
@@ -107,8 +106,8 @@ class StepLimit:
             f"simulator.max_step_size {self.max_step_size:g} s puts the goal's fastest mode "
             f"({lam.real:.4g}{lam.imag:+.4g}j 1/s) outside {scheme}'s stability region "
             f"(h |lambda| = {self.max_step_size * abs(lam):.3g}, bound at h = "
-            f"{self.stable_step:.3g} s): the pose error may stall near the goal; leave "
-            f"max_step_size at 0 for the automatic {STABILITY_MARGIN * self.stable_step:.3g} s"
+            f"{self.stable_step:.3g} s): the pose error may stall near the goal; leave it at "
+            f"{AUTOMATIC_STEP:g} for the automatic {STABILITY_MARGIN * self.stable_step:.3g} s"
         )
 
 
