@@ -38,8 +38,9 @@ from pydrake.systems.primitives import Linearize
 from geovs_drake.analysis.linearization import config_at_goal
 from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
 from geovs_drake.geometry import kernels
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import ScenarioConfig, resolve
 from geovs_drake.simulation import make_simulator, simulate
+from geovs_drake.simulation.step_limit import step_limit
 from geovs_drake.systems import ImageJacobianForce_, NavigationController_, SphericalCamera_
 
 
@@ -120,6 +121,7 @@ def real_time_factors(config: ScenarioConfig, repeat: int) -> dict[str, float]:
     build = (
         make_dynamic_servo_diagram if config.plant == "dynamic" else make_kinematic_servo_diagram
     )
+    limit = step_limit(resolve(config)).max_step_size
     out = {}
     out["simulate() (recorder)"] = max(
         (r := simulate(config)).sim_time_s / r.wall_time_s for _ in range(repeat)
@@ -137,6 +139,8 @@ def real_time_factors(config: ScenarioConfig, repeat: int) -> dict[str, float]:
             else:
                 simulator = Simulator(diagram)
                 ApplySimulatorConfig(config.simulator, simulator)
+                # The step limit the other rows run with (simulation.step_limit).
+                simulator.get_mutable_integrator().set_maximum_step_size(limit)
             simulator.Initialize()
             start = time.perf_counter()
             simulator.AdvanceTo(config.duration)
