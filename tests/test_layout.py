@@ -34,7 +34,7 @@ def _imports() -> dict[str, set[str]]:
 
 
 #: Below every layer: modules that import nothing of ours (the optional-import helper).
-BASE = ("geovs_drake._optional",)
+BASE = ("geovs_drake._optional", "geovs_drake._lazy")
 
 
 def test_geometry_and_systems_import_only_the_layers_below():

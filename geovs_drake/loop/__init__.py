@@ -1,18 +1,17 @@
-"""Loop assembly: a visual-servo loop is carrier + sensor + law (:func:`build_loop`)."""
+"""Loop assembly: a visual-servo loop is carrier + sensor + law (:func:`build_loop`).
 
-from geovs_drake.loop.build import Loop, build_loop, loop_of, refusal
-from geovs_drake.loop.carriers import CARRIERS, CarrierParts
-from geovs_drake.loop.laws import LAWS, TWIST_CONTROLLERS
-from geovs_drake.loop.sensors import SENSORS
+The names below are imported from their modules on first use (:mod:`geovs_drake._lazy`),
+so that ``geovs_drake.loop.state`` comes without the Drake systems.
+"""
 
-__all__ = [
-    "CARRIERS",
-    "LAWS",
-    "SENSORS",
-    "TWIST_CONTROLLERS",
-    "CarrierParts",
-    "Loop",
-    "build_loop",
-    "loop_of",
-    "refusal",
-]
+from geovs_drake._lazy import attach
+
+__getattr__, __dir__, __all__ = attach(
+    __name__,
+    {
+        "build": ("Loop", "build_loop", "loop_of", "refusal"),
+        "carriers": ("CARRIERS", "CarrierParts"),
+        "laws": ("LAWS", "TWIST_CONTROLLERS"),
+        "sensors": ("SENSORS",),
+    },
+)

@@ -1,71 +1,32 @@
-"""The servo's Drake systems, one LeafSystem per module, all TemplateSystems."""
+"""The servo's Drake systems, one LeafSystem per module, all TemplateSystems.
 
-from geovs_drake.systems.arm_camera import ArmCamera, ArmCamera_
-from geovs_drake.systems.feature_extractor import FeatureExtractor, FeatureExtractor_
-from geovs_drake.systems.fixed_camera_kinematic_mount import (
-    FixedCameraKinematicMount,
-    FixedCameraKinematicMount_,
-)
-from geovs_drake.systems.fixed_camera_mount import FixedCameraMount, FixedCameraMount_
-from geovs_drake.systems.ibvs_controller import IbvsController, IbvsController_
-from geovs_drake.systems.image_jacobian_force import ImageJacobianForce, ImageJacobianForce_
-from geovs_drake.systems.kinematic_arm import KinematicArm, KinematicArm_
-from geovs_drake.systems.kinematic_controller import KinematicController, KinematicController_
-from geovs_drake.systems.kinematic_rigid_body import KinematicRigidBody, KinematicRigidBody_
-from geovs_drake.systems.navigation_controller import (
-    NavigationController,
-    NavigationController_,
-)
-from geovs_drake.systems.path_following_controller import (
-    PathFollowingController,
-    PathFollowingController_,
-)
-from geovs_drake.systems.pbvs_controller import PbvsController, PbvsController_
-from geovs_drake.systems.pinhole_feature_sensor import (
-    PinholeFeatureSensor,
-    PinholeFeatureSensor_,
-)
-from geovs_drake.systems.spherical_camera import SphericalCamera, SphericalCamera_
-from geovs_drake.systems.spherical_feature_controller import (
-    SphericalFeatureController,
-    SphericalFeatureController_,
-)
-from geovs_drake.systems.velocity_tracking_force import (
-    VelocityTrackingForce,
-    VelocityTrackingForce_,
-)
+The names below are imported from their modules on first use
+(:mod:`geovs_drake._lazy`): a loop imports the systems it uses, not all of them.
+"""
 
-__all__ = [
-    "ArmCamera",
-    "ArmCamera_",
-    "KinematicArm",
-    "KinematicArm_",
-    "FixedCameraKinematicMount",
-    "FixedCameraKinematicMount_",
-    "FixedCameraMount",
-    "FixedCameraMount_",
-    "IbvsController",
-    "IbvsController_",
-    "FeatureExtractor",
-    "FeatureExtractor_",
-    "ImageJacobianForce",
-    "ImageJacobianForce_",
-    "KinematicController",
-    "KinematicController_",
-    "KinematicRigidBody",
-    "KinematicRigidBody_",
-    "NavigationController",
-    "NavigationController_",
-    "PathFollowingController",
-    "PathFollowingController_",
-    "PbvsController",
-    "PbvsController_",
-    "PinholeFeatureSensor",
-    "PinholeFeatureSensor_",
-    "SphericalCamera",
-    "SphericalCamera_",
-    "SphericalFeatureController",
-    "SphericalFeatureController_",
-    "VelocityTrackingForce",
-    "VelocityTrackingForce_",
-]
+from geovs_drake._lazy import attach
+
+__getattr__, __dir__, __all__ = attach(
+    __name__,
+    {
+        "arm_camera": ("ArmCamera", "ArmCamera_"),
+        "feature_extractor": ("FeatureExtractor", "FeatureExtractor_"),
+        "fixed_camera_kinematic_mount": ("FixedCameraKinematicMount", "FixedCameraKinematicMount_"),
+        "fixed_camera_mount": ("FixedCameraMount", "FixedCameraMount_"),
+        "ibvs_controller": ("IbvsController", "IbvsController_"),
+        "image_jacobian_force": ("ImageJacobianForce", "ImageJacobianForce_"),
+        "kinematic_arm": ("KinematicArm", "KinematicArm_"),
+        "kinematic_controller": ("KinematicController", "KinematicController_"),
+        "kinematic_rigid_body": ("KinematicRigidBody", "KinematicRigidBody_"),
+        "navigation_controller": ("NavigationController", "NavigationController_"),
+        "path_following_controller": ("PathFollowingController", "PathFollowingController_"),
+        "pbvs_controller": ("PbvsController", "PbvsController_"),
+        "pinhole_feature_sensor": ("PinholeFeatureSensor", "PinholeFeatureSensor_"),
+        "spherical_camera": ("SphericalCamera", "SphericalCamera_"),
+        "spherical_feature_controller": (
+            "SphericalFeatureController",
+            "SphericalFeatureController_",
+        ),
+        "velocity_tracking_force": ("VelocityTrackingForce", "VelocityTrackingForce_"),
+    },
+)
