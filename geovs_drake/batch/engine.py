@@ -49,15 +49,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit, prange
 
-from geovs_drake.diagrams import (
-    initial_body_states,
-    make_dynamic_servo_diagram,
-    make_kinematic_servo_diagram,
-)
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
+from geovs_drake.loop.state import initial_body_states
 from geovs_drake.scenario import ScenarioConfig, resolve
-from geovs_drake.simulation import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
+from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
 from geovs_drake.simulation.step_limit import step_limit
 from geovs_drake.systems.spherical_camera import CAMERA_OFFSET
 
@@ -99,6 +95,9 @@ class LoopParameters:
     body: np.ndarray  # (mass, Ixx, Iyy, Izz); unused by the kinematic plant
     pose_error: np.ndarray  # [R_RC, p_RC, R_WC*, p_WC*]
     potential_gain: float  # k_p: the energy bound of Appendix C (1 for phi, kinematic)
+    #: The error control's step limit [s]: the Drake loop's, decided in one place
+    #: (:func:`~geovs_drake.simulation.step_limit.step_limit`).
+    max_step_size: float
 
 
 def loop_parameters(config: ScenarioConfig) -> LoopParameters:
@@ -121,6 +120,10 @@ def loop_parameters(config: ScenarioConfig) -> LoopParameters:
             f"the batch engine reads the exact y = c(H); camera.sensor "
             f"{config.camera.sensor!r} runs through simulate()"
         )
+    # Here, not at the top: a sweep's workers get these parameters from the client and
+    # run the kernels without importing the Drake systems (geovs_drake._lazy).
+    from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
+
     dynamic = config.plant == "dynamic"
     build = make_dynamic_servo_diagram if dynamic else make_kinematic_servo_diagram
     diagram = build(config, log=False)
@@ -142,6 +145,7 @@ def loop_parameters(config: ScenarioConfig) -> LoopParameters:
         body=np.array([config.rig.mass, *config.rig.inertia_diagonal], dtype=float),
         pose_error=np.concatenate([camera[CAMERA_OFFSET], goal]),
         potential_gain=config.control.potential_gain if dynamic else 1.0,
+        max_step_size=step_limit(resolve(config)).max_step_size,
     )
 
 
@@ -399,9 +403,9 @@ def run_batch(
         raise ValueError(f"accuracy must be in (0, 1): accuracy = {accuracy}")
     p = parameters or loop_parameters(config)
     X0 = initial_body_states(config, X_BC, twists)
-    # The step limit the Drake loop runs with, decided in one place (simulation.step_limit):
-    # Bogacki-Shampine's third-order solution has RK3's stability polynomial.
-    max_step = step_limit(resolve(config)).max_step_size if step is None else step
+    # The step limit the Drake loop runs with (LoopParameters.max_step_size): Bogacki-
+    # Shampine's third-order solution has RK3's stability polynomial.
+    max_step = p.max_step_size if step is None else step
     h0 = min(DEFAULT_STEP, max_step) if step is None else step
     out = _integrate(
         p.plant != "dynamic",

@@ -33,7 +33,6 @@ from geovs_drake.analysis.sweep.summary import SweepSummary
 from geovs_drake.batch import STATUS_NAMES, LoopParameters, loop_parameters, run_batch
 from geovs_drake.loop.state import poses_in_target
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
-from geovs_drake.simulation import StartOutsideDomain, simulate
 
 __all__ = ["ROW_FIELDS", "SUMMARY_KEY", "Part", "part_name", "read_part_summary", "run_part"]
 
@@ -81,6 +80,9 @@ class Part:
     """One task: starts [first, last) of a sweep, and how to run and keep them.
 
     ``config_yaml``: the scenario as YAML (Drake's SimulatorConfig does not pickle).
+    ``parameters``: its :func:`~geovs_drake.batch.loop_parameters`, read once by the
+    client from the built diagram, so that a worker runs the batch engine's kernels
+    without importing the Drake systems (None: the worker builds the diagram itself).
     ``seed``/``velocity``: where the starts come from, unless ``X_BC``/``twists``
     give them. ``results``: the folder of the part files, or None to return the
     table instead. ``single_thread``: one numba thread (K worker processes on K
@@ -93,6 +95,7 @@ class Part:
     last: int
     duration: float
     engine: str
+    parameters: LoopParameters | None = None
     seed: int = 0
     velocity: str = "none"
     X_BC: np.ndarray | None = None
@@ -108,10 +111,15 @@ def part_name(index: int, parts: int) -> str:
 
 
 @functools.lru_cache(maxsize=4)
-def _worker_setup(config_yaml: str) -> tuple[ScenarioConfig, LoopParameters]:
-    """The config and its loop parameters, once per worker process."""
-    config = load_scenario(data=config_yaml)
-    return config, loop_parameters(config)
+def _worker_config(config_yaml: str) -> ScenarioConfig:
+    """The config, parsed once per worker process."""
+    return load_scenario(data=config_yaml)
+
+
+@functools.lru_cache(maxsize=4)
+def _worker_parameters(config_yaml: str) -> LoopParameters:
+    """The loop parameters of a part that came without them, once per worker process."""
+    return loop_parameters(_worker_config(config_yaml))
 
 
 def run_part(part: Part, name: str | None = None) -> tuple[dict, object | None]:
@@ -123,7 +131,8 @@ def run_part(part: Part, name: str | None = None) -> tuple[dict, object | None]:
         # Not NUMBA_NUM_THREADS in the workers' environment: numba rereads it when it
         # compiles, and refuses a value that differs from the one its pool started with.
         numba.set_num_threads(1)
-    config, p = _worker_setup(part.config_yaml)
+    config = _worker_config(part.config_yaml)
+    p = part.parameters or _worker_parameters(part.config_yaml)
     n = part.last - part.first
     if part.X_BC is None:
         X_BC, twists = sample_starts(config, n, part.seed, part.velocity, part.first, p)
@@ -205,6 +214,9 @@ def _drake_columns(
 
 
 def _drake_row(config: ScenarioConfig, k_p: float) -> dict:
+    # Here, not at the top: the batch engine's workers need none of the Drake loop.
+    from geovs_drake.simulation import StartOutsideDomain, simulate
+
     try:
         r = simulate(config)
     except StartOutsideDomain as e:  # stopped at t = 0, as the batch engine would

@@ -39,6 +39,7 @@ from geovs_drake.analysis.sweep.parts import (
 )
 from geovs_drake.analysis.sweep.starts import SampledStarts, SweepError
 from geovs_drake.analysis.sweep.summary import SweepSummary, plot_summary
+from geovs_drake.batch import loop_parameters
 from geovs_drake.scenario import ScenarioConfig
 
 __all__ = [
@@ -391,6 +392,13 @@ def run_sweep(
     out = None if out is None else Path(out)
     if resume and out is None:
         raise SweepError("resume needs the sweep's folder (out)")
+    manifest = _manifest(text, n, source, duration, chunk, engine, config.plant)
+    if resume:  # before anything else: a different sweep in the folder is the first thing to say
+        _check_record(out, manifest)
+    try:  # read once here from the built diagram, and shipped with every part
+        parameters = loop_parameters(config)
+    except ValueError as e:  # a loop the batch engine does not run
+        raise SweepError(str(e)) from e
     parts, names = [], []
     count = math.ceil(n / chunk)
     for index in range(count):
@@ -406,6 +414,7 @@ def run_sweep(
                 last=b,
                 duration=float(duration),
                 engine=engine,
+                parameters=parameters,
                 seed=getattr(source, "seed", 0),
                 velocity=getattr(source, "velocity", "none"),
                 results=None if out is None else str(out / "results"),
@@ -415,10 +424,8 @@ def run_sweep(
         )
         names.append(part_name(index, count))
     summary = SweepSummary.empty(config, duration)
-    manifest = _manifest(text, n, source, duration, chunk, engine, config.plant)
     done: dict[int, dict] = {}
     if resume:
-        _check_record(out, manifest)
         done = _finished_parts(out, parts, names, warn or warnings.warn)
     for data in done.values():
         summary.merge(SweepSummary.from_json(data))
