@@ -419,3 +419,37 @@ def test_pose_columns_are_drakes_roll_pitch_yaw():
         assert np.allclose(got, rpy, atol=1e-9), i
         assert [columns[k][i] for k in ("x", "y", "z")] == X[i, :3, 3].tolist()
     assert all(np.isnan(columns[k][7]) for k in ("x", "roll", "yaw"))
+
+
+_WORKER = """
+import pickle, sys
+from geovs_drake.analysis.sweep.parts import Part, run_part
+text, parameters = pickle.loads(sys.stdin.buffer.read())
+part = Part(text, 0, 0, 3, 1.0, "batch", parameters, seed=4, velocity="bounded")
+summary, table = run_part(part)
+heavy = [m for m in ("geovs_drake.diagrams", "geovs_drake.loop.build", "pydrake.multibody.plant")
+         if m in sys.modules]
+sys.stdout.buffer.write(pickle.dumps((heavy, table.to_pandas())))
+"""
+
+
+def test_a_worker_runs_its_part_without_building_or_importing_a_diagram():
+    """The client ships loop_parameters; a worker then needs the engine only (start-up)."""
+    import pickle
+    import subprocess
+    import sys
+
+    from geovs_drake.analysis.sweep.parts import Part, run_part
+    from geovs_drake.batch import loop_parameters
+
+    config = ScenarioConfig()
+    shipped = pickle.dumps((yaml_dump_typed(config), loop_parameters(config)))
+    done = subprocess.run(
+        [sys.executable, "-c", _WORKER], input=shipped, capture_output=True, check=True
+    )
+    heavy, table = pickle.loads(done.stdout)
+    assert heavy == []
+    # The same rows as a part run here, where the diagram is built (parameters=None).
+    text = yaml_dump_typed(config)
+    _, here = run_part(Part(text, 0, 0, 3, 1.0, "batch", None, seed=4, velocity="bounded"))
+    pd.testing.assert_frame_equal(table, here.to_pandas())
