@@ -37,7 +37,9 @@ system-deps:
 demo: $(STAMP) system-deps
 	$(BIN)/geovs-drake demo --out results
 
-# GEOVS_FAST=1 shortens the notebooks' runs (same code paths, fewer samples); -n auto runs
+# The notebooks run once, in `make docs` (two kernels side by side, GEOVS_FAST=1: the
+# same code paths, fewer samples), which renders them with their outputs; a failing
+# cell fails the build, and tests/test_docs.py checks each page's figures. -n auto runs
 # one pytest process per core (pytest-xdist), the wheel check (make wheel-check) among
 # the tests and started first, so that it overlaps the rest; the slow studies are
 # `make test-slow`.
@@ -45,13 +47,13 @@ test: $(STAMP) system-deps
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(MAKE) --no-print-directory docs
-	GEOVS_FAST=1 $(BIN)/python -m pytest --nbmake -q -n auto -m "not slow"
+	GEOVS_FAST=1 $(BIN)/python -m pytest -q -n auto -m "not slow"
 
 # The long studies and the real-cluster sweeps (pytest -m slow), outside `make test`'s budget.
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow
 
-# The API reference into docs/_build/html; a warning (a broken docstring, an
+# The manual, the notebooks (executed here) and the API reference into docs/_build/html; a warning (a broken docstring, an
 # undocumented public object, a module on no page) fails the build.
 docs: $(STAMP)
 	$(BIN)/python -m sphinx -E -W --keep-going -q -b html docs docs/_build/html
@@ -70,11 +72,14 @@ format: $(STAMP)
 	$(BIN)/ruff format .
 	$(BIN)/ruff check --fix .
 
+# Each benchmark rewrites its benchmarks/results/NAME.json, which the docs render.
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_camera_map.py
 	$(BIN)/python benchmarks/bench_closed_loop.py
 	$(BIN)/python benchmarks/bench_batch.py
 	$(BIN)/python benchmarks/bench_rendered.py
+	$(BIN)/python benchmarks/bench_arm.py
+	$(BIN)/python benchmarks/bench_sweep.py overhead
 	$(BIN)/python benchmarks/time_to_converge.py
 
 clean:

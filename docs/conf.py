@@ -17,13 +17,16 @@ release = version = geovs_drake.__version__
 extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",
-    "myst_parser",
+    "myst_nb",  # MyST Markdown pages, and the notebooks with their outputs
     "pydrake_system",
     "geovs_docs",
+    "notebook_pages",  # runs notebooks/*.ipynb into docs/notebooks/ before the read
 ]
-source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
+# notebook_pages has just executed them: render those outputs, do not run them again.
+nb_execution_mode = "off"
 # paper-notes.md is included by paper_notes.rst (when it exists), not a page of its own.
-exclude_patterns = ["_build", "paper-notes.md", "images/*"]
+exclude_patterns = ["_build", "paper-notes.md", "images/*", "**/.ipynb_checkpoints"]
 myst_heading_anchors = 3
 myst_enable_extensions = ["dollarmath"]
 # The Markdown pages are written to be read on a forge too (README, CHANGELOG, the

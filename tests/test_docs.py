@@ -81,3 +81,46 @@ def test_every_system_in_the_package_is_checked():
 def test_malformed_block_is_one_clear_error(text, needle):
     with pytest.raises(ValueError, match=re.escape(needle)):
         pydrake_system.parse_block(text)
+
+
+# ------------------------------------------------- the notebooks, as the docs show them
+ROOT = Path(__file__).resolve().parents[1]
+HTML = ROOT / "docs" / "_build" / "html"
+NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
+
+
+@pytest.mark.parametrize("notebook", NOTEBOOKS, ids=lambda p: p.name)
+def test_each_notebook_has_a_page_that_shows_its_figures(notebook):
+    """`make docs` (run by `make test` before pytest) executes the notebooks and renders
+    them: each gets a page with at least one image of its own outputs, built from the
+    notebook as it is now."""
+    if not (HTML / "index.html").is_file():
+        pytest.skip("the docs are not built here: `make docs` builds them (make test does)")
+    page = HTML / "notebooks" / f"{notebook.stem}.html"
+    assert page.is_file(), f"{page.relative_to(ROOT)}: no page for {notebook.name}"
+    assert page.stat().st_mtime >= notebook.stat().st_mtime, "the page predates the notebook"
+    images = re.findall(r'<img [^>]*src="\.\./(_images/[^"]+\.(?:png|svg))"', page.read_text())
+    assert images, f"{page.name}: no figure"
+    for image in images:
+        assert (HTML / image).stat().st_size > 1000, image  # a real picture, not a stub
+
+
+RECORDS = sorted((ROOT / "benchmarks" / "results").glob("*.json"))
+
+
+@pytest.mark.parametrize("record", RECORDS, ids=lambda p: p.name)
+def test_each_benchmark_record_holds_its_baselines_and_is_on_the_performance_page(record):
+    """benchmarks/_record.py's files: every figure beside a baseline from the same run, and
+    the provenance the performance page prints; the built page shows each record."""
+    import json
+
+    data = json.loads(record.read_text())
+    assert data["benchmark"] == record.stem
+    assert {"date", "commit", "command", "machine", "title"} <= set(data)
+    assert data["figures"]
+    for f in data["figures"]:
+        assert f["baseline"] and f["baseline_value"] > 0, f["name"]
+        assert f["ratio"] == pytest.approx(f["value"] / f["baseline_value"]), f["name"]
+    if not (HTML / "performance.html").is_file():
+        pytest.skip("the docs are not built here: `make docs` builds them (make test does)")
+    assert data["title"] in (HTML / "performance.html").read_text()

@@ -1,0 +1,108 @@
+"""Run the notebooks once, at the start of the docs build, and show them as pages.
+
+The notebooks are committed without outputs. Before Sphinx reads its sources,
+this extension executes every ``notebooks/*.ipynb`` of the repository with
+nbclient, two at a time in separate processes (each notebook is one kernel; the
+machine has 2 cores), in the ``notebooks/`` folder so that their relative paths
+(``../results/notebooks``) mean what they mean in JupyterLab. The executed
+copies go to ``docs/notebooks/`` (ignored by git), where myst-nb renders them
+with ``nb_execution_mode = "off"``: the docs show the outputs of this very run.
+
+This is the one place the notebooks run in ``make test`` (pytest no longer
+runs them): a cell that raises fails the build, naming the notebook and the
+error. The fast settings (``GEOVS_FAST=1``: shorter runs, the same code paths)
+apply unless the environment sets ``GEOVS_FAST`` itself.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+from sphinx.application import Sphinx
+from sphinx.errors import ExtensionError
+from sphinx.util import logging
+from sphinx.util.typing import ExtensionMetadata
+
+logger = logging.getLogger(__name__)
+
+#: Notebooks run side by side (one kernel each).
+PARALLEL_NOTEBOOKS = 2
+#: Seconds a cell may run before the build fails.
+CELL_TIMEOUT_S = 600
+
+
+def _execute(source: str, target: str) -> tuple[str, float, str | None]:
+    """Run one notebook in its own folder and write the executed copy; the error's
+    one-line description instead when a cell raises."""
+    import nbformat
+    from nbclient import NotebookClient
+    from nbclient.exceptions import CellExecutionError
+
+    # The kernels' and nbclient's chatter (TCP warnings, "Executing notebook") would
+    # drown Sphinx's -q output; a failing cell is reported from the exception instead.
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 2)
+    start = time.perf_counter()
+    notebook = nbformat.read(source, as_version=4)
+    client = NotebookClient(
+        notebook,
+        timeout=CELL_TIMEOUT_S,
+        kernel_name="python3",
+        resources={"metadata": {"path": str(Path(source).parent)}},
+    )
+    try:
+        client.execute()
+    except CellExecutionError as e:
+        lines = [line for line in str(e).splitlines() if line.strip()]
+        return source, time.perf_counter() - start, lines[-1] if lines else repr(e)
+    nbformat.write(notebook, target)
+    return source, time.perf_counter() - start, None
+
+
+def run_notebooks(app: Sphinx) -> None:
+    """Execute ``notebooks/*.ipynb`` into ``docs/notebooks/`` (see the module's docstring)."""
+    sources = sorted(Path(app.srcdir, "..", "notebooks").resolve().glob("*.ipynb"))
+    target_dir = Path(app.srcdir) / "notebooks"
+    target_dir.mkdir(exist_ok=True)
+    for stale in set(target_dir.glob("*.ipynb")) - {target_dir / s.name for s in sources}:
+        stale.unlink()  # a notebook renamed or removed in the repository
+    os.environ.setdefault("GEOVS_FAST", "1")
+    failures = []
+    with ProcessPoolExecutor(PARALLEL_NOTEBOOKS) as pool:
+        jobs = [pool.submit(_execute, str(s), str(target_dir / s.name)) for s in sources]
+        for job in jobs:
+            source, seconds, error = job.result()
+            name = Path(source).name
+            if error is None:
+                logger.info(f"notebook {name}: executed in {seconds:.1f} s")
+            else:
+                failures.append(f"{name}: {error}")
+    if failures:
+        raise ExtensionError("a notebook failed: " + "; ".join(failures))
+
+
+#: What notebook 01 records in Meshcat, and where the gallery page embeds it.
+MESHCAT_RECORDING = Path("results", "notebooks", "servo.html")
+EMBEDDED_AS = Path("_static", "servo.html")
+
+
+def copy_recording(app: Sphinx, exception: Exception | None) -> None:
+    """Put notebook 01's standalone Meshcat recording beside the pages (the gallery
+    embeds it); a build without it (no notebooks run) says so."""
+    source = Path(app.srcdir).parent / MESHCAT_RECORDING
+    if exception is not None or app.builder.format != "html":
+        return
+    if not source.is_file():
+        logger.warning(f"{MESHCAT_RECORDING}: missing, the gallery's Meshcat view is empty")
+        return
+    shutil.copyfile(source, Path(app.outdir) / EMBEDDED_AS)
+
+
+def setup(app: Sphinx) -> ExtensionMetadata:
+    app.connect("builder-inited", run_notebooks)
+    app.connect("build-finished", copy_recording)
+    return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
