@@ -12,6 +12,7 @@ from __future__ import annotations
 import timeit
 
 import numpy as np
+from _record import Figure, record
 from pydrake.math import RigidTransform
 
 from geovs_drake import camera_map, camera_map_inverse, image_jacobian
@@ -45,10 +46,24 @@ def main() -> None:
     ]
     print("cost per pose, as a ratio to numpy's 4x4 inverse of the same batch size")
     print(f"{'function':<20} {'N=1 / base(N=1)':>16} {'N=1e4 / base(1e4)':>18} {'N=1 / N=1e4':>12}")
+    figures = []
     for name, single, batch in rows:
         t1 = per_call(single, number=500)
         tN = per_call(batch, number=3) / len(X)
         print(f"{name:<20} {t1 / base_single:>16.1f} {tN / base_batch:>18.1f} {t1 / tN:>12.0f}")
+        figures.append(
+            Figure(f"{name}, one pose", t1 * 1e6, "us", "numpy 4x4 inverse, one", base_single * 1e6)
+        )
+        figures.append(
+            Figure(
+                f"{name}, per pose in a batch of 10^4",
+                tN * 1e9,
+                "ns",
+                "numpy 4x4 inverse, batched",
+                base_batch * 1e9,
+            )
+        )
+    record("bench_camera_map", "The camera map and its Jacobian, per pose", figures)
     print(
         f"(context only: baseline {base_single * 1e6:.2f} us single, "
         f"{base_batch * 1e9:.1f} ns/pose batched)"

@@ -31,6 +31,7 @@ import time
 import timeit
 
 import numpy as np
+from _record import Figure, record
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
@@ -175,6 +176,14 @@ def main() -> None:
         f"{(t_diag - t_floor) / t_bare:.2f}"
     )
 
+    figures = [
+        Figure("bare derivative evaluation (kernels + plant)", t_bare * 1e6, "us",
+               "a 3x3 numpy matrix-vector product", t_numpy * 1e6, target="<= 40 us"),
+        Figure("diagram derivative evaluation (CalcTimeDerivatives)", t_diag * 1e6, "us",
+               "the bare evaluation", t_bare * 1e6, target="<= 2x bare"),
+        Figure("the framework's floor (an empty diagram of the same shape)", t_floor * 1e6, "us",
+               "the bare evaluation", t_bare * 1e6),
+    ]  # fmt: skip
     for controller in ("dynamic", "kinematic"):
         c = ScenarioConfig(plant=controller)
         rates = real_time_factors(c, args.repeat)
@@ -182,6 +191,11 @@ def main() -> None:
         print(f"real-time factor, default {controller} scenario ({c.duration:.0f} s): {text}")
         cost = rates["bare Simulator"] / rates["simulate() (recorder)"] - 1
         print(f"  monitor + step recorder cost {cost:.0%} of a step")
+        figures.append(
+            Figure(f"{controller} loop, simulate(), default scenario ({c.duration:.0f} s)",
+                   rates["simulate() (recorder)"], "x real time", "a bare Simulator of the loop",
+                   rates["bare Simulator"], target=">= 50x" if controller == "dynamic" else "")
+        )  # fmt: skip
 
     lin_diagram = make_dynamic_servo_diagram(config_at_goal(config), log=False)
     lin_ctx = lin_diagram.CreateDefaultContext()
@@ -200,6 +214,9 @@ def main() -> None:
         f"Linearize of the whole dynamic loop: {t_lin * 1e3:.1f} ms "
         f"= {t_lin / t_diag:.0f} float derivative evaluations"
     )
+    figures.append(Figure("Drake's Linearize of the whole dynamic loop", t_lin * 1e3, "ms",
+                          "one diagram derivative evaluation", t_diag * 1e3))  # fmt: skip
+    record("bench_closed_loop", "The closed loops: derivatives, real time, Linearize", figures)
 
 
 if __name__ == "__main__":

@@ -36,6 +36,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import psutil
+from _record import Figure, record
 
 from geovs_drake.analysis.sweep import sample_starts
 from geovs_drake.batch import loop_parameters, run_batch
@@ -106,6 +107,15 @@ def overhead(args: argparse.Namespace) -> None:
         f"{args.starts} starts x {args.duration:g} s: engine on 2 threads in one process "
         f"{engine:.1f} s; geovs-drake sweep --workers 2 {cli:.1f} s; ratio {cli / engine:.2f}"
     )
+    figure = Figure(
+        f"geovs-drake sweep --workers 2, {args.starts} dynamic starts x {args.duration:g} s",
+        cli,
+        "s",
+        "the engine alone on 2 threads in one process, same starts",
+        engine,
+        target="<= 1.2",
+    )
+    record("bench_sweep_overhead", "The sweep command against the engine alone", [figure])
 
 
 def _sweep(argv: list[str]) -> tuple[float, Peaks, int]:

@@ -2,6 +2,8 @@
 
 * ``.. optional-include:: FILE``: include a Markdown file when it exists (the paper
   notes), else a short note saying it is not written yet.
+* ``.. benchmark-tables::``: the benchmarks' latest figures, from
+  ``benchmarks/results/*.json`` (``benchmarks/_record.py``).
 * ``.. cli-help:: [COMMAND]``: the ``--help`` text of ``geovs-drake [COMMAND]``,
   from the parser itself (:func:`geovs_drake.cli.build_parser`).
 * napoleon reads Google-style sections everywhere but in attribute, data and
@@ -94,6 +96,74 @@ class CliHelp(SphinxDirective):
             parser.print_help()
         text = out.getvalue().rstrip()
         return [nodes.literal_block(text, text, language="text")]
+
+
+def _number(value: float | None) -> str:
+    """A figure as the table shows it: 3 significant digits, no exponent under 10^5."""
+    if value is None:
+        return ""
+    return f"{value:.3g}" if abs(value) < 1e5 else f"{value:.3e}"
+
+
+def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> nodes.table:
+    """A docutils table of plain-text cells (whatever parser the page uses)."""
+    table = nodes.table()
+    group = nodes.tgroup(cols=len(header))
+    table += group
+    group += [nodes.colspec(colwidth=1) for _ in header]
+
+    def row(cells: tuple[str, ...]) -> nodes.row:
+        out = nodes.row()
+        for cell in cells:
+            out += nodes.entry("", nodes.paragraph(text=cell))
+        return out
+
+    group += nodes.thead("", row(header))
+    group += nodes.tbody("", *(row(r) for r in rows))
+    return table
+
+
+class BenchmarkTables(SphinxDirective):
+    """One table per ``benchmarks/results/*.json`` file (``benchmarks/_record.py``): each
+    figure beside its baseline from the same run, then the run's machine, date, commit
+    and command. A file that does not parse is a warning (an error under ``-W``)."""
+
+    def run(self) -> list[nodes.Node]:
+        import json
+
+        folder = Path(self.env.srcdir).parent / "benchmarks" / "results"
+        out: list[nodes.Node] = []
+        for path in sorted(folder.glob("*.json")):
+            self.env.note_dependency(str(path))
+            try:
+                data = json.loads(path.read_text())
+                figures, machine = data["figures"], data["machine"]
+            except (ValueError, KeyError) as e:
+                logger.warning(f"{path.name}: not a benchmark record ({e})")
+                continue
+            rows = []
+            for f in figures:
+                baseline = f["baseline"]
+                if f.get("baseline_value") is not None:
+                    baseline += f": {_number(f['baseline_value'])} {f['unit']}"
+                rows.append((f["name"], f"{_number(f['value'])} {f['unit']}", baseline,
+                             _number(f.get("ratio")), f.get("target", "")))  # fmt: skip
+            load = machine.get("load_average_at_end")
+            where = (
+                f"{data['command']}, {data['date']}, commit {data['commit']}; "
+                f"{machine['cores']} cores ({machine['cpu']}), {machine['numba_threads']} numba "
+                f"threads, Python {machine['python']}, Drake {machine['drake']}"
+                + ("" if load is None else f", load average {load:.1f} at the end")
+                + "."
+            )
+            section = nodes.rubric(text=data["title"])
+            header = ("figure", "value", "baseline (same run)", "value / baseline", "target")
+            out += [section, _table(header, rows), nodes.paragraph(text=where)]
+            if data.get("note"):
+                out.append(nodes.paragraph(text=data["note"]))
+        if not out:
+            logger.warning(f"no benchmark records in {folder}")
+        return out
 
 
 def _is_template_instantiation(obj) -> bool:
@@ -257,6 +327,7 @@ def setup(app: Sphinx) -> ExtensionMetadata:
     _reroute_napoleon(app)
     app.add_directive("optional-include", OptionalInclude)
     app.add_directive("cli-help", CliHelp)
+    app.add_directive("benchmark-tables", BenchmarkTables)
     app.add_directive("leafsystem", LeafSystemDirective)
     app.connect("autodoc-skip-member", _skip_member)
     app.connect("autodoc-process-docstring", _check_docstring)
