@@ -132,8 +132,8 @@ def test_readme_says_how_to_open_each_notebook_and_they_carry_no_outputs():
                 assert cell["outputs"] == [] and cell["execution_count"] is None, name
 
 
-def test_readme_lists_each_property_test_with_its_examples():
-    """The README's table of hypothesis tests: every test of tests/test_properties.py, with
+def test_docs_list_each_property_test_with_its_examples():
+    """The testing page's table of hypothesis tests: every test of tests/test_properties.py, with
     the max_examples its settings give."""
     import ast
 
@@ -153,6 +153,6 @@ def test_readme_lists_each_property_test_with_its_examples():
                 elif isinstance(deco, ast.Call) and getattr(deco.func, "id", "") == "settings":
                     count = next(k.value.value for k in deco.keywords if k.arg == "max_examples")
             examples[node.name] = count
-    readme = (ROOT / "README.md").read_text()
+    readme = (ROOT / "docs" / "testing.md").read_text()
     table = dict(re.findall(r"^\|[^|]*\| `(test_\w+)` \| (\d+) \|$", readme, re.M))
     assert {k: int(v) for k, v in table.items()} == examples

@@ -9,7 +9,7 @@ sphere, the cone and the marked point; the navigation function's range on D
 and its value on the faces; and the loader's messages on random YAML.
 
 The number of examples each runs is set by its ``settings`` (``SETTINGS``: 150;
-more where an example costs little) and listed in the README's testing section.
+more where an example costs little) and listed on the docs' testing page (docs/testing.md).
 """
 
 import math
