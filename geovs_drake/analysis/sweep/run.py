@@ -296,7 +296,11 @@ def _connect(scheduler: str | None, workers: int):
                 threads_per_worker=1,
                 processes=True,
                 dashboard_address=None,
-                silence_logs=logging.ERROR,  # not a warning per task cancelled by Ctrl-C
+                # Not a warning per task cancelled by Ctrl-C, nor the ERROR with two
+                # tracebacks that a worker logs when its heartbeat is in flight as the
+                # scheduler closes (seen on a loaded machine, every row in): a task's
+                # own error still reaches this process, raised by its future.
+                silence_logs=logging.CRITICAL,
             )
     finally:
         signal.signal(signal.SIGINT, previous)
