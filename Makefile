@@ -46,8 +46,14 @@ demo: $(STAMP) system-deps
 test: $(STAMP) system-deps
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
-	$(MAKE) --no-print-directory docs
-	GEOVS_FAST=1 $(BIN)/python -m pytest -q -n auto -m "not slow"
+	@# The docs (with the notebooks) build while pytest runs: the wheel check spends
+	@# much of its time installing, and the two overlap there. Then the tests that read
+	@# the built HTML.
+	@$(MAKE) --no-print-directory docs > .docs-build.log 2>&1 & docs=$$!; \
+	GEOVS_FAST=1 $(BIN)/python -m pytest -q -n auto -m "not slow and not built_docs"; tests=$$?; \
+	wait $$docs; built=$$?; cat .docs-build.log; rm -f .docs-build.log; \
+	test $$tests -eq 0 && test $$built -eq 0
+	$(BIN)/python -m pytest -q -m built_docs
 
 # The long studies and the real-cluster sweeps (pytest -m slow), outside `make test`'s budget.
 test-slow: $(STAMP)

@@ -89,6 +89,7 @@ HTML = ROOT / "docs" / "_build" / "html"
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 
 
+@pytest.mark.built_docs
 @pytest.mark.parametrize("notebook", NOTEBOOKS, ids=lambda p: p.name)
 def test_each_notebook_has_a_page_that_shows_its_figures(notebook):
     """`make docs` (run by `make test` before pytest) executes the notebooks and renders
@@ -108,6 +109,7 @@ def test_each_notebook_has_a_page_that_shows_its_figures(notebook):
 RECORDS = sorted((ROOT / "benchmarks" / "results").glob("*.json"))
 
 
+@pytest.mark.built_docs
 @pytest.mark.parametrize("record", RECORDS, ids=lambda p: p.name)
 def test_each_benchmark_record_holds_its_baselines_and_is_on_the_performance_page(record):
     """benchmarks/_record.py's files: every figure beside a baseline from the same run, and
