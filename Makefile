@@ -39,10 +39,10 @@ demo: $(STAMP) system-deps
 
 # The notebooks run once, in `make docs` (two kernels side by side, GEOVS_FAST=1: the
 # same code paths, fewer samples), which renders them with their outputs; a failing
-# cell fails the build, and tests/test_docs.py checks each page's figures. -n auto runs
-# one pytest process per core (pytest-xdist), the wheel check (make wheel-check) among
-# the tests and started first, so that it overlaps the rest; the slow studies are
-# `make test-slow`.
+# cell fails the build, and tests/test_docs.py (-m built_docs) checks each page's
+# figures. -n auto runs one pytest process per core (pytest-xdist), the wheel check
+# (make wheel-check) among the tests and started first, so that it overlaps the rest;
+# the slow studies are `make test-slow`.
 test: $(STAMP) system-deps
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
