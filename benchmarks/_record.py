@@ -16,7 +16,7 @@ import os
 import platform
 import subprocess
 import sys
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -26,8 +26,9 @@ RESULTS = Path(__file__).resolve().parent / "results"
 class Figure:
     """One measured figure, and what it is measured against in the same run.
 
-    ``ratio`` is ``value / baseline_value`` unless given (a speed-up may be the inverse);
-    ``target`` is what the project aims at, as text (``<= 1.2``), or empty.
+    ``ratio`` is always ``value / baseline_value`` (derived, so a record cannot carry a
+    ratio its two figures contradict); ``target`` is what the project aims at, as text
+    (``<= 1.2``), or empty.
     """
 
     name: str
@@ -35,11 +36,11 @@ class Figure:
     unit: str
     baseline: str = ""
     baseline_value: float | None = None
-    ratio: float | None = None
     target: str = ""
+    ratio: float | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
-        if self.ratio is None and self.baseline_value:
+        if self.baseline_value:
             self.ratio = self.value / self.baseline_value
 
 

@@ -46,6 +46,7 @@ def _execute(source: str, target: str) -> tuple[str, float, str | None]:
     # drown Sphinx's -q output; a failing cell is reported from the exception instead.
     devnull = os.open(os.devnull, os.O_WRONLY)
     os.dup2(devnull, 2)
+    os.close(devnull)
     start = time.perf_counter()
     notebook = nbformat.read(source, as_version=4)
     client = NotebookClient(
