@@ -10,26 +10,36 @@ differences of the vector field written in the Gibbs chart itself.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 
 import numpy as np
 import pytest
+from pydrake.autodiffutils import ExtractGradient, InitializeAutoDiff
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
 from geovs_drake.analysis.linearization import (
+    INPUTS,
+    OUTPUTS,
     closed_form_A,
     linearize,
     linearize_along,
     linearize_at_goal,
+    rig_spatial_inertia,
     state_at,
+    wrench_to_generalized_force,
 )
 from geovs_drake.batch.engine import _rhs, loop_parameters
 from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
+from geovs_drake.geometry.camera import ImageFeatures, camera_map
+from geovs_drake.geometry.navigation import NavigationFunction, image_chart
+from geovs_drake.loop import build_loop
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 from geovs_drake.simulation import StartOutsideDomain, check_start, simulate
+from geovs_drake.simulation.step_limit import chart_jacobian, navigation_hessian
 
 #: Random states per plant, and the spread of their poses about the goal and twists.
 N_STATES = 4
@@ -167,6 +177,157 @@ def test_linearize_along_a_run_ends_at_the_goals_model(plant):
     # At t = 0 it is linearize at the logged start.
     direct = linearize(config, result.states[0])
     assert np.allclose(along.models[0].A, direct.A)
+
+
+# ---- inputs (disturbance, feature noise) and outputs (pose error, y)
+
+
+def _offset_config(plant: str) -> ScenarioConfig:
+    """A rig whose camera sits off its centre of mass, turned: the disturbance's map to
+    the plant's generalized force and the rig's inertia about C are not trivial."""
+    config = ScenarioConfig(plant=plant)
+    config.rig.camera_offset = PoseConfig(xyz=[0.03, -0.02, 0.05], rpy=[0.2, -0.1, 0.3])
+    return config
+
+
+def test_the_wrench_map_is_the_force_systems_own():
+    """G (F_C -> the free rig's generalized force) against ImageJacobianForce, which
+    outputs both at a random rig state."""
+    config = _offset_config("dynamic")
+    loop = build_loop(config, log=False)
+    force = loop.diagram.GetSubsystemByName("image_jacobian_force")
+    x0 = _states_in_D("dynamic", seed=3)[0]
+    context = loop.diagram.CreateDefaultContext()
+    context.SetContinuousState(x0)
+    sub = force.GetMyContextFromRoot(context)
+    F_C = force.wrench_C_output.Eval(sub)
+    generalized = force.generalized_force_output.Eval(sub)
+    X_WR = RigidTransform(Quaternion(x0[0:4] / np.linalg.norm(x0[0:4])), x0[4:7])
+    G = wrench_to_generalized_force(X_WR, config.X_RC)
+    assert np.allclose(G @ F_C, generalized, rtol=1e-12, atol=1e-12 * np.abs(generalized).max())
+
+
+@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+def test_at_the_goal_inputs_and_outputs_are_the_closed_form(plant):
+    """At the goal: the disturbance enters as M^-1 (a wrench on the rig's inertia about
+    C, Appendix C.0.6) or as the twist itself; the pose error is the minimal coordinates;
+    nothing feeds through."""
+    config = _offset_config(plant)
+    lin = linearize(config)
+    assert type(lin.minimal).__name__ == "LinearSystem"
+    dist, noise = INPUTS["disturbance"], INPUTS["feature_noise"]
+    if plant == "dynamic":
+        expected = np.vstack([np.zeros((6, 6)), np.linalg.inv(rig_spatial_inertia(config))])
+    else:
+        expected = np.eye(6)
+    assert np.allclose(lin.B[:, dist], expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
+    n = lin.A.shape[0]
+    assert np.allclose(lin.C[OUTPUTS["pose_error"]], np.eye(6, n), atol=1e-12)
+    assert np.all(lin.D == 0)
+    # The law reads the chart coordinate xi = -C_chart eps + n (the image moves by
+    # -C_chart eps, module linearization): F = -K eps + k_p C_chart^T H n (Eq. 45) and
+    # nu = -k C_chart^-1 H (-C_chart eps + n) with the kinematic sign (Eqs. 17-19).
+    y = config.goal_features()
+    nf = NavigationFunction(config.domain.to_domain(), y, config.navigation.to_gains())
+    H, Cc = navigation_hessian(nf, y), chart_jacobian(y, config.radius)
+    if plant == "dynamic":
+        M = rig_spatial_inertia(config)
+        gain = config.control.potential_gain * Cc.T @ H
+        expected = np.vstack([np.zeros((6, 6)), np.linalg.solve(M, gain)])
+    else:
+        expected = config.control.kinematic_gain * np.linalg.solve(Cc, H)
+    scale = np.abs(expected).max()
+    assert np.allclose(lin.B[:, noise], expected, rtol=1e-8, atol=1e-9 * scale), (
+        np.abs(lin.B[:, noise] - expected).max() / scale
+    )
+
+
+@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+def test_B_matches_central_differences_of_the_diagram_in_its_inputs(plant):
+    """B at random states in D (AffineSystems) against central differences of the
+    study diagram's double derivative in u, mapped as linearize documents."""
+    config = _offset_config(plant)
+    loop = build_loop(
+        dataclasses.replace(config, camera=dataclasses.replace(config.camera, sensor="exact")),
+        log=False,
+        study_ports=True,
+    )
+    diagram = loop.diagram
+    for x0 in _states_in_D(plant, seed=8)[:2]:
+        lin = linearize(config, x0)
+        context = diagram.CreateDefaultContext()
+        context.SetContinuousState(x0)
+
+        y0 = loop.camera.image_features_output.Eval(loop.camera.GetMyContextFromRoot(context))
+
+        def xdot(u: np.ndarray, context=context, y0=y0) -> np.ndarray:
+            # The noise moves y within the image space, along the chart (exactly).
+            y = image_chart(ImageFeatures.from_vector(y0), u[6:12]).to_vector()
+            diagram.GetInputPort("disturbance").FixValue(context, u[0:6])
+            diagram.GetInputPort("feature_noise").FixValue(context, y - y0)
+            return diagram.EvalTimeDerivatives(context).CopyToVector()
+
+        fd = np.stack(
+            [(xdot(FD_STEP * e) - xdot(-FD_STEP * e)) / (2 * FD_STEP) for e in np.eye(12)], axis=1
+        )
+        if loop.disturbance == "generalized_force":
+            X_WR = RigidTransform(Quaternion(x0[0:4] / np.linalg.norm(x0[0:4])), x0[4:7])
+            fd[:, 0:6] = fd[:, 0:6] @ wrench_to_generalized_force(X_WR, config.X_RC)
+        expected = np.linalg.pinv(lin.T) @ fd
+        assert np.linalg.norm(lin.B - expected) < FD_RTOL * np.linalg.norm(expected)
+
+
+def _gibbs(d):
+    """The rotation whose Gibbs vector is d (2 vec(q) / w, q = (1, d / 2) normalised),
+    for AutoDiffXd entries."""
+    w, x, y, z = np.r_[1.0, d / 2] / np.sqrt(1.0 + d @ d / 4)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+def test_C_is_the_autodiff_of_the_camera_map_and_the_pose_error(plant):
+    """C's y rows against AutoDiffXd of c(H) (the geometry, not the diagram) along the
+    minimal coordinates, X_WC = X_WC0 (Cay(dtheta), dp); its pose-error rows against
+    the same of the goal's chart."""
+    config = _offset_config(plant)
+    for x0 in _states_in_D(plant, seed=13)[:2]:
+        lin = linearize(config, x0)
+        X_WR = RigidTransform(Quaternion(x0[0:4] / np.linalg.norm(x0[0:4])), x0[4:7])
+        X_WC0 = X_WR @ (config.X_RC if plant == "dynamic" else RigidTransform())
+        eps = InitializeAutoDiff(np.zeros(6)).ravel()
+        R = X_WC0.rotation().matrix() @ _gibbs(eps[0:3])
+        p = X_WC0.translation() + X_WC0.rotation().matrix() @ eps[3:6]
+        X_WC = np.block([[R, p[:, None]], [np.zeros((1, 3)), np.ones((1, 1))]])
+        X_CB = _inverse(X_WC) @ config.X_WB.GetAsMatrix4()
+        y = camera_map(X_CB, config.radius).to_vector()
+        J_y = ExtractGradient(y)
+        n = lin.A.shape[0]
+        assert np.allclose(lin.C[OUTPUTS["image_features"]][:, 0:6], J_y, atol=1e-10)
+        assert np.all(lin.C[:, 6:n] == 0)  # neither output sees the twist
+        X_goal = config.X_WB @ config.X_BC_goal
+        R_err = X_goal.rotation().matrix().T @ R
+        g = _gibbs_vector(R_err)
+        dp = X_goal.rotation().matrix().T @ (p - X_goal.translation())
+        J_e = ExtractGradient(np.concatenate([g, dp]))
+        assert np.allclose(lin.C[OUTPUTS["pose_error"]][:, 0:6], J_e, atol=1e-10)
+
+
+def _inverse(X):
+    R, p = X[0:3, 0:3], X[0:3, 3]
+    return np.block([[R.T, (-R.T @ p)[:, None]], [np.zeros((1, 3)), np.ones((1, 1))]])
+
+
+def _gibbs_vector(R):
+    """2 vec(q) / w of a rotation matrix (from its skew part and trace: w vec(q) =
+    (R - R^T)^vee / 4, w^2 = (1 + tr R) / 4), for AutoDiffXd entries."""
+    skew = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return 2.0 * skew / (1.0 + R[0, 0] + R[1, 1] + R[2, 2])
 
 
 def test_a_state_of_the_wrong_size_is_refused():

@@ -26,13 +26,30 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
+from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
-from pydrake.systems.framework import InputPortSelection, OutputPortSelection
-from pydrake.systems.primitives import FirstOrderTaylorApproximation, Linearize
+from pydrake.systems.framework import (
+    Diagram,
+    DiagramBuilder,
+    InputPortSelection,
+    OutputPortSelection,
+)
+from pydrake.systems.primitives import (
+    AffineSystem,
+    Demultiplexer,
+    FirstOrderTaylorApproximation,
+    Linearize,
+    LinearSystem,
+    Multiplexer,
+)
 
 from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
+from geovs_drake.geometry.camera import ImageFeatures
+from geovs_drake.geometry.navigation import image_chart
 from geovs_drake.geometry.so3 import hat
+from geovs_drake.loop import build_loop
+from geovs_drake.loop.build import FEATURE_SIZE
 from geovs_drake.loop.state import initial_body_states
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 from geovs_drake.simulation.step_limit import (
@@ -44,6 +61,8 @@ from geovs_drake.simulation.step_limit import (
 
 __all__ = [
     "EQUILIBRIUM_TOLERANCE",
+    "INPUTS",
+    "OUTPUTS",
     "LinearizationAlong",
     "LinearizationResult",
     "LoopLinearization",
@@ -53,9 +72,12 @@ __all__ = [
     "linearize_along",
     "linearize_at_goal",
     "navigation_hessian",
+    "noise_directions",
+    "pose_error",
     "rig_spatial_inertia",
     "state_at",
     "tangent_map",
+    "wrench_to_generalized_force",
 ]
 
 
@@ -150,6 +172,18 @@ def linearize_at_goal(
 #: AffineSystem keeps the drift f0.
 EQUILIBRIUM_TOLERANCE = 1e-9
 
+#: The minimal model's input u and output z, by name: u = (disturbance, feature noise),
+#: z = (pose error, y). The disturbance is the camera's wrench F_C about Co in C
+#: (torque first; dynamic loop) or its body twist (Omega, V) in C (kinematic loop),
+#: added to the law's. The noise moves the y that the NF and the law read within the
+#: image space, in the NF's chart about y(x0) (:func:`~geovs_drake.geometry.navigation.image_chart`:
+#: a rotation of Q, lambda, then s along its tangent plane; 6): the diagram adds
+#: ``image_chart(y, n) - y`` to y. The pose error is :func:`pose_error` of the camera;
+#: y is the true y = c(H) (Q as 9 entries, lambda, s).
+INPUTS = {"disturbance": slice(0, 6), "feature_noise": slice(6, 12)}
+OUTPUTS = {"pose_error": slice(0, 6), "image_features": slice(6, 6 + FEATURE_SIZE)}
+_POSE_SIZE = 7
+
 
 @dataclass
 class LoopLinearization:
@@ -158,9 +192,14 @@ class LoopLinearization:
     Attributes:
         plant: ``"dynamic"`` or ``"kinematic"``.
         state: x0, Drake's continuous state (13 dynamic, 7 kinematic).
-        system: Drake's model there: a ``LinearSystem`` (``Linearize``, in ``x - x0``)
-            at an equilibrium, else an ``AffineSystem`` (``FirstOrderTaylorApproximation``:
-            ``xdot = A_drake x + f0``, ``f0 = xdot(x0) - A_drake x0``); no inputs or outputs.
+        system: Drake's model there, of the loop with one input (the disturbance, then
+            the noise, in the loop's own conventions) and one output (the body pose
+            ``[q, p]``, then y): a ``LinearSystem`` (``Linearize``, in ``x - x0``) at an
+            equilibrium, else an ``AffineSystem`` (``FirstOrderTaylorApproximation``).
+        minimal: the same model in minimal coordinates, with u and z as :data:`INPUTS`
+            and :data:`OUTPUTS` lay them out: a ``LinearSystem`` in deviations from
+            (x0, 0, z0) at an equilibrium, else an ``AffineSystem``
+            (``xdot = A x + B u + f0``, ``z = C x + D u + z0``, x the displacement from x0).
         T: minimal coordinates -> Drake state perturbation at x0 (the chart's Jacobian).
         A: the minimal model ``T^+ A_drake T`` (12 dynamic, 6 kinematic).
         f0: the drift in minimal coordinates, ``T^+ xdot(x0)`` (0 at an equilibrium).
@@ -170,6 +209,7 @@ class LoopLinearization:
     plant: str
     state: np.ndarray
     system: object
+    minimal: object
     T: np.ndarray
     A: np.ndarray
     f0: np.ndarray
@@ -179,6 +219,21 @@ class LoopLinearization:
     def A_drake(self) -> np.ndarray:
         """Drake's A in its own state."""
         return self.system.A()
+
+    @property
+    def B(self) -> np.ndarray:
+        """The minimal model's B on u = (disturbance, feature noise)."""
+        return self.minimal.B()
+
+    @property
+    def C(self) -> np.ndarray:
+        """The minimal model's C to z = (pose error, y)."""
+        return self.minimal.C()
+
+    @property
+    def D(self) -> np.ndarray:
+        """The minimal model's D (the true y and the pose do not see u: zero)."""
+        return self.minimal.D()
 
     @property
     def max_real_part(self) -> float:
@@ -250,25 +305,115 @@ def state_at(
     return initial_body_states(c, X, twists)[0]
 
 
+def pose_error(X_WC_goal: RigidTransform, body_pose, X_RC: RigidTransform):
+    """The camera's pose error from the goal, ``(g, dp)``: the Gibbs vector g of
+    ``R_WC*^T R_WC`` (``2 vec(q) / w``, the rotation vector to first order) and
+    ``dp = R_WC*^T (p_WC - p_WC*)``, from the body pose ``[q_WR, p_WR]`` (7) that the
+    camera system reads, with the camera at X_RC on the body. The minimal coordinates
+    centred at the goal: at rest there its Jacobian along them is the identity.
+    Written for float and AutoDiffXd entries (undefined at a half turn, w = 0)."""
+    z = np.asarray(body_pose)
+    q, p = z[0:4] / np.sqrt(np.dot(z[0:4], z[0:4])), z[4:7]
+    q_RC = X_RC.rotation().ToQuaternion().wxyz()
+    R_WR = _quaternion_matrix(q)
+    q_WC = _quaternion_product(q, q_RC)
+    p_WC = p + R_WR @ X_RC.translation()
+    q_goal = X_WC_goal.rotation().ToQuaternion().wxyz()
+    q_err = _quaternion_product(q_goal * np.array([1.0, -1.0, -1.0, -1.0]), q_WC)
+    g = 2.0 * q_err[1:4] / q_err[0]
+    dp = X_WC_goal.rotation().matrix().T @ (p_WC - X_WC_goal.translation())
+    return np.concatenate([g, dp])
+
+
+def _quaternion_product(a, b):
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array(
+        [
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ]
+    )
+
+
+def _quaternion_matrix(q):
+    """R(q) of a unit quaternion (w, x, y, z), for float and AutoDiffXd entries."""
+    w, x, y, z = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def wrench_to_generalized_force(X_WR: RigidTransform, X_RC: RigidTransform) -> np.ndarray:
+    """G: a wrench F_C on the camera about Co in C (torque first) to the free rig's
+    generalized force (torque about R's origin, then force, in W):
+    ``[[R_WC, hat(p_W) R_WC], [0, R_WC]]``, p_W the camera's offset from R in W."""
+    R_WC = (X_WR.rotation() @ X_RC.rotation()).matrix()
+    p_W = X_WR.rotation() @ X_RC.translation()
+    G = np.zeros((6, 6))
+    G[:3, :3] = R_WC
+    G[:3, 3:] = hat(p_W) @ R_WC
+    G[3:, 3:] = R_WC
+    return G
+
+
+def noise_directions(y: np.ndarray) -> np.ndarray:
+    """d y / d n (13 x 6) of ``image_chart(y, n)`` at n = 0: the noise's chart
+    directions in y's 13 entries (AutoDiffXd of the chart)."""
+    n = InitializeAutoDiff(np.zeros(6)).ravel()
+    return ExtractGradient(image_chart(ImageFeatures.from_vector(y), n).to_vector())
+
+
+def _study_diagram(loop) -> Diagram:
+    """The loop with its study ports gathered into one input u_drake = (disturbance,
+    noise) and one output (body pose, y): Drake's ``Linearize`` takes one of each."""
+    builder = DiagramBuilder()
+    inner = builder.AddSystem(loop.diagram)
+    split = builder.AddSystem(Demultiplexer([6, FEATURE_SIZE]))
+    builder.ExportInput(split.get_input_port(), "u")
+    builder.Connect(split.get_output_port(0), inner.GetInputPort("disturbance"))
+    builder.Connect(split.get_output_port(1), inner.GetInputPort("feature_noise"))
+    join = builder.AddSystem(Multiplexer([_POSE_SIZE, FEATURE_SIZE]))
+    builder.Connect(inner.GetOutputPort("body_pose"), join.get_input_port(0))
+    builder.Connect(inner.GetOutputPort("image_features"), join.get_input_port(1))
+    builder.ExportOutput(join.get_output_port(), "z")
+    return builder.Build()
+
+
+def _pose_error_jacobian(X_WC_goal: RigidTransform, body_pose: np.ndarray, X_RC):
+    z = InitializeAutoDiff(np.asarray(body_pose, dtype=float)).ravel()
+    e = pose_error(X_WC_goal, z, X_RC)
+    return ExtractValue(e).ravel(), ExtractGradient(e)
+
+
 def linearize(
     config: ScenarioConfig | None = None,
     state: np.ndarray | None = None,
     plant: str | None = None,
 ) -> LoopLinearization:
     """The closed loop's linear model at ``state`` (Drake's continuous state; default: at
-    rest at the goal), as a Drake system and in minimal coordinates.
+    rest at the goal), as a Drake system and in minimal coordinates, with its inputs
+    (a disturbance, the feature noise) and outputs (the pose error, y): :data:`INPUTS`,
+    :data:`OUTPUTS`.
 
     Drake's ``Linearize`` where x0 is an equilibrium, ``FirstOrderTaylorApproximation``
-    elsewhere (both by AutoDiffXd of the whole diagram). The minimal model is the tangent
-    projection ``T^+ A_drake T`` (:func:`tangent_map`): at an equilibrium it is the
-    minimal linearisation of :func:`linearize_at_goal` (chart-independent there); away
-    from one, for the kinematic loop it is the Jacobian of the vector field in the chart
-    (Drake's qdot is orthogonal to q, so the Gibbs chart's second-order term vanishes),
-    and for a moving rig it leaves out the chart's terms proportional to xdot (the
-    frozen-time model, whose eigenvalues only indicate, Eq. 45's energy argument decides).
+    elsewhere (both by AutoDiffXd of the whole diagram, built by ``build_loop`` with its
+    study ports). The minimal model is the tangent projection ``T^+ A_drake T``
+    (:func:`tangent_map`): at an equilibrium it is the minimal linearisation of
+    :func:`linearize_at_goal` (chart-independent there); away from one, for the
+    kinematic loop it is the Jacobian of the vector field in the chart (Drake's qdot is
+    orthogonal to q, so the Gibbs chart's second-order term vanishes), and for a moving
+    rig it leaves out the chart's terms proportional to xdot (the frozen-time model,
+    whose eigenvalues only indicate, Eq. 45's energy argument decides).
 
-    Inputs and outputs (a disturbance wrench or twist; the pose error and y) are not
-    modelled yet: the diagrams have no such ports, so ``system`` has none.
+    Raises ValueError for a loop it does not model (a fixed camera, the arm) or a state
+    of the wrong size.
     """
     config = copy.deepcopy(config or ScenarioConfig())
     config.plant = plant or config.plant
@@ -278,20 +423,20 @@ def linearize(
             f"mount = {config.mount!r}, carrier = {config.carrier!r}"
         )
     config.camera.sensor = "exact"  # a sampled camera has discrete state: no A
-    if config.plant == "dynamic":
-        diagram = make_dynamic_servo_diagram(config, log=False)
-    else:
-        diagram = make_kinematic_servo_diagram(config, log=False)
+    loop = build_loop(config, log=False, study_ports=True)
+    diagram = _study_diagram(loop)
     x0 = state_at(config) if state is None else np.asarray(state, dtype=float)
     n = diagram.num_continuous_states()
     if x0.shape != (n,):
         raise ValueError(f"state must have {n} entries for the {config.plant} loop: {x0.shape}")
     context = diagram.CreateDefaultContext()
     context.SetContinuousState(x0)
+    diagram.get_input_port().FixValue(context, np.zeros(6 + FEATURE_SIZE))
     xdot = diagram.EvalTimeDerivatives(context).CopyToVector()
+    z_drake = diagram.get_output_port().Eval(context)
     ports = dict(
-        input_port_index=InputPortSelection.kNoInput,
-        output_port_index=OutputPortSelection.kNoOutput,
+        input_port_index=InputPortSelection.kUseFirstInputIfItExists,
+        output_port_index=OutputPortSelection.kUseFirstOutputIfItExists,
     )
     if np.linalg.norm(xdot) <= EQUILIBRIUM_TOLERANCE:
         system = Linearize(diagram, context, **ports)
@@ -300,13 +445,34 @@ def linearize(
     T = tangent_map(config, x0)
     P = np.linalg.pinv(T)
     A = P @ system.A() @ T
+    # u: Drake's disturbance in its convention -> F_C (the free rig takes the plant's
+    # generalized force) or the twist; the noise's chart to its 13 ambient entries.
+    to_drake = np.zeros((6 + FEATURE_SIZE, 12))
+    to_drake[0:6, 0:6] = np.eye(6)
+    to_drake[6:, 6:] = noise_directions(z_drake[_POSE_SIZE:])
+    if loop.disturbance == "generalized_force":
+        X_WR = RigidTransform(Quaternion(x0[0:4] / np.linalg.norm(x0[0:4])), x0[4:7])
+        to_drake[0:6, 0:6] = wrench_to_generalized_force(X_WR, config.X_RC)
+    B = P @ system.B() @ to_drake
+    # z: the pose error through the body pose's rows, then y's rows as Drake gives them.
+    X_WC_goal = config.X_WB @ config.X_BC_goal
+    e0, J_e = _pose_error_jacobian(X_WC_goal, z_drake[0:_POSE_SIZE], loop.carrier.X_RC)
+    out = np.vstack([J_e @ system.C()[0:_POSE_SIZE], system.C()[_POSE_SIZE:]])
+    C = out @ T
+    D = np.vstack([J_e @ system.D()[0:_POSE_SIZE], system.D()[_POSE_SIZE:]]) @ to_drake
+    f0 = P @ xdot
+    if np.linalg.norm(xdot) <= EQUILIBRIUM_TOLERANCE:
+        minimal = LinearSystem(A, B, C, D)
+    else:
+        minimal = AffineSystem(A, B, f0, C, D, np.concatenate([e0, z_drake[_POSE_SIZE:]]))
     return LoopLinearization(
         plant=config.plant,
         state=x0,
         system=system,
+        minimal=minimal,
         T=T,
         A=A,
-        f0=P @ xdot,
+        f0=f0,
         eigenvalues=np.sort_complex(np.linalg.eigvals(A)),
     )
 

@@ -95,6 +95,7 @@ from geovs_drake.geometry._ops import (
 from geovs_drake.geometry.camera import ImageFeatures, as_features, validated_components
 from geovs_drake.geometry.domain import SafeDomain, domain_margins, fov_cap, occlusion_cap
 from geovs_drake.geometry.kernels import navigation as navigation_kernel
+from geovs_drake.geometry.so3 import so3_exp
 
 __all__ = [
     "ModelCoordinates",
@@ -112,6 +113,7 @@ __all__ = [
     "navigation_value",
     "saddle_of",
     "chart_basis",
+    "image_chart",
 ]
 
 
@@ -481,3 +483,14 @@ def chart_basis(s: np.ndarray) -> np.ndarray:
         ke = np.cross(k, e)
         cols.append(e + ke + np.cross(k, ke) / denom)
     return np.stack(cols, axis=-1)
+
+
+def image_chart(y: ImageFeatures, d: np.ndarray) -> ImageFeatures:
+    """The NF's chart about y: ``d = (dtheta, dlambda, ds)`` (6) to
+    ``(exp(hat(dtheta)) Q, lambda + dlambda, (s + B(s) ds) / |s + B(s) ds|)``, the image
+    moved within the image space (float and AutoDiffXd entries of d; y float)."""
+    B = chart_basis(y.s)
+    s = y.s + B @ d[4:6]
+    return ImageFeatures(
+        so3_exp(d[0:3]) @ y.Q, np.asarray(y.lam + d[3]), s / np.sqrt(np.sum(s * s))
+    )

@@ -25,6 +25,13 @@ camera model's ``log_measured_features`` and ``log_feature_status``, at
 ``config.log_rate``. :func:`geovs_drake.simulation.simulate` builds with
 ``log=False`` and logs from its recorded steps instead: periodic loggers cut
 every integrator step at each sample time.
+
+With ``study_ports=True`` the diagram also exports what a linear study needs (Drake's
+``Linearize`` takes the diagram's ports): the inputs ``disturbance`` (6), added to
+the law's command where the carrier takes it, and ``feature_noise`` (13), added to
+the sensor's y before the NF and the law read it; the outputs ``image_features``
+(13, the true y) and ``body_pose`` (7, what the camera system reads).
+:attr:`Loop.disturbance` names the disturbance's convention, :data:`DISTURBANCES`.
 """
 
 from __future__ import annotations
@@ -33,7 +40,7 @@ from dataclasses import dataclass
 
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem, OutputPort
-from pydrake.systems.primitives import LogVectorOutput
+from pydrake.systems.primitives import Adder, LogVectorOutput
 
 from geovs_drake.loop.carriers import CARRIERS, CarrierParts, carrier_key
 from geovs_drake.loop.laws import LAWS
@@ -41,7 +48,21 @@ from geovs_drake.loop.sensors import SENSORS, add_feature_loggers
 from geovs_drake.scenario import ResolvedScenario, ScenarioConfig, resolve
 from geovs_drake.systems import NavigationController, SphericalCamera, VelocityTrackingForce
 
-__all__ = ["Loop", "build_loop", "loop_of", "refusal"]
+__all__ = ["DISTURBANCES", "FEATURE_SIZE", "Loop", "build_loop", "loop_of", "refusal"]
+
+#: The size of y = (Q, lambda, s) as the ports carry it (Q as 9 entries).
+FEATURE_SIZE = 13
+#: What the ``disturbance`` input of a study diagram adds to, by the carrier's port it
+#: enters: a twist-driven carrier's body twist, a wrench-driven carrier's wrench F_C
+#: (the NF's Eq. 45 convention) or, on the free rig, the plant's generalized force.
+DISTURBANCES = {
+    "twist_C": "the camera's body twist (Omega, V) in C, added to the law's",
+    "wrench_C": "a wrench F_C on the camera about Co in C (torque first), added to the law's",
+    "generalized_force": (
+        "the rig's generalized force (torque about R's origin, then force, in W), added "
+        "to the law's"
+    ),
+}
 
 
 @dataclass
@@ -61,6 +82,9 @@ class Loop:
     navigation: LeafSystem
     features: OutputPort
     feature_sensor: LeafSystem | None = None
+    #: The ``disturbance`` input's convention (a :data:`DISTURBANCES` key), for a
+    #: diagram built with ``study_ports``; else None.
+    disturbance: str | None = None
 
 
 def refusal(config: ScenarioConfig) -> str | None:
@@ -90,13 +114,16 @@ def build_loop(
     config: ScenarioConfig | ResolvedScenario | None = None,
     meshcat: Meshcat | None = None,
     log: bool = True,
+    study_ports: bool = False,
 ) -> Loop:
     """The loop ``config`` describes (validated and resolved once, :func:`resolve`;
     a :class:`~geovs_drake.scenario.ResolvedScenario` is trusted as it is).
 
     ``meshcat`` adds a MeshcatVisualizer and the camera frame's axes (a carrier
     with geometry only; double only: leave it out of diagrams you will convert to
-    AutoDiffXd). Raises ValueError in one line for parts that make no loop.
+    AutoDiffXd). ``study_ports`` exports the disturbance and noise inputs and the
+    y and pose outputs (module docstring). Raises ValueError in one line for parts
+    that make no loop.
     """
     resolved = resolve(config)
     config = resolved.config
@@ -118,13 +145,21 @@ def build_loop(
     )
     builder.Connect(carrier.body_pose, camera.body_pose_input)
     features = sensor.add(builder, resolved, carrier, camera)
+    if study_ports:
+        # The law and the NF see y + n; the camera's own output stays the truth.
+        noise = builder.AddNamedSystem("feature_noise_adder", Adder(2, FEATURE_SIZE))
+        builder.Connect(features, noise.get_input_port(0))
+        builder.ExportInput(noise.get_input_port(1), "feature_noise")
+        builder.ExportOutput(camera.image_features_output, "image_features")
+        builder.ExportOutput(carrier.body_pose, "body_pose")
+        features = noise.get_output_port()
     nav = builder.AddNamedSystem(
         "navigation_controller",
         NavigationController(goal=resolved.y_goal, domain=resolved.domain, gains=resolved.gains),
     )
     builder.Connect(features, nav.image_features_input)
     command = LAWS[resolved.controller].add(builder, resolved, features, nav, carrier)
-    _drive(builder, resolved, carrier, command)
+    disturbance = _drive(builder, resolved, carrier, command, study_ports)
     feature_sensor = (
         builder.GetSubsystemByName("feature_sensor")
         if builder.HasSubsystemNamed("feature_sensor")
@@ -146,28 +181,64 @@ def build_loop(
         carrier.add_meshcat(builder, meshcat)
     diagram = builder.Build()
     diagram.set_name(_diagram_name(config))
-    loop = Loop(diagram, resolved, carrier, camera, nav, features, feature_sensor)
+    loop = Loop(diagram, resolved, carrier, camera, nav, features, feature_sensor, disturbance)
     # The simulator, the monitor and the logs find the parts from the diagram
     # the earlier builders return (loop_of).
     diagram.geovs_loop = loop
     return loop
 
 
-def _drive(builder: DiagramBuilder, resolved: ResolvedScenario, carrier, command) -> None:
+def _drive(
+    builder: DiagramBuilder, resolved: ResolvedScenario, carrier, command, disturbed: bool
+) -> str | None:
     """Connect the law's command to the carrier; a twist on a force-driven carrier goes
-    through ``VelocityTrackingForce`` (F = B (nu_cmd - nu))."""
-    if isinstance(command, LeafSystem):  # a force system (the NF's Eq. 45)
-        carrier.connect_force(builder, command)
-        return
-    if carrier.drive == "twist":
-        builder.Connect(command, carrier.twist_input)
-        return
-    adapter = builder.AddNamedSystem(
-        "velocity_tracking_force",
-        VelocityTrackingForce(gains=resolved.config.control.tracking_gains, X_RC=carrier.X_RC),
-    )
-    builder.Connect(command, adapter.camera_velocity_command_input)
-    carrier.connect_force(builder, adapter)
+    through ``VelocityTrackingForce`` (F = B (nu_cmd - nu)). With ``disturbed``, a
+    ``disturbance`` input is added to the command where the carrier takes it; returns
+    its :data:`DISTURBANCES` key (None without)."""
+    if not isinstance(command, LeafSystem) and carrier.drive == "wrench":
+        adapter = builder.AddNamedSystem(
+            "velocity_tracking_force",
+            VelocityTrackingForce(gains=resolved.config.control.tracking_gains, X_RC=carrier.X_RC),
+        )
+        builder.Connect(command, adapter.camera_velocity_command_input)
+        command = adapter
+    if isinstance(command, LeafSystem):  # a force system (Eq. 45 or the adapter)
+        force = _DisturbedForce(builder, command) if disturbed else command
+        carrier.connect_force(builder, force)
+        return force.convention if disturbed else None
+    if disturbed:
+        adder = builder.AddNamedSystem("disturbance_adder", Adder(2, 6))
+        builder.Connect(command, adder.get_input_port(0))
+        builder.ExportInput(adder.get_input_port(1), "disturbance")
+        command = adder.get_output_port()
+    builder.Connect(command, carrier.twist_input)
+    return "twist_C" if disturbed else None
+
+
+class _DisturbedForce:
+    """A force system as a carrier's ``connect_force`` sees it, with the ``disturbance``
+    input added to whichever of its outputs the carrier takes (a carrier reads one:
+    the free rig the generalized force, the fixed mount and the arm F_C)."""
+
+    def __init__(self, builder: DiagramBuilder, force: LeafSystem) -> None:
+        self._builder, self._force = builder, force
+        self.body_state_input = force.body_state_input
+        self.convention: str | None = None
+
+    def _disturbed(self, port: OutputPort, convention: str) -> OutputPort:
+        adder = self._builder.AddNamedSystem("disturbance_adder", Adder(2, port.size()))
+        self._builder.Connect(port, adder.get_input_port(0))
+        self._builder.ExportInput(adder.get_input_port(1), "disturbance")
+        self.convention = convention
+        return adder.get_output_port()
+
+    @property
+    def generalized_force_output(self) -> OutputPort:
+        return self._disturbed(self._force.generalized_force_output, "generalized_force")
+
+    @property
+    def wrench_C_output(self) -> OutputPort:
+        return self._disturbed(self._force.wrench_C_output, "wrench_C")
 
 
 def loop_of(diagram: Diagram) -> Loop:

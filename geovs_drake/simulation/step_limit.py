@@ -40,9 +40,10 @@ from geovs_drake.geometry.camera import ImageFeatures, image_jacobian
 from geovs_drake.geometry.navigation import (
     NavigationFunction,
     chart_basis,
+    image_chart,
     navigation_differential,
 )
-from geovs_drake.geometry.so3 import hat, so3_exp
+from geovs_drake.geometry.so3 import hat
 from geovs_drake.scenario import (
     AUTOMATIC_STEP,
     DEFAULT_MAX_STEP,
@@ -114,10 +115,7 @@ class StepLimit:
 def navigation_hessian(nf: NavigationFunction, y: ImageFeatures) -> np.ndarray:
     """The chart Hessian of phi at y by AutoDiffXd of dphi (exact to rounding)."""
     B = chart_basis(y.s)
-    d = InitializeAutoDiff(np.zeros(6)).ravel()
-    s = y.s + B @ d[4:6]
-    s = s / np.sqrt(np.sum(s * s))
-    ya = ImageFeatures(so3_exp(d[0:3]) @ y.Q, np.asarray(y.lam + d[3]), s)
+    ya = image_chart(y, InitializeAutoDiff(np.zeros(6)).ravel())
     _, dphi = navigation_differential(ya, nf.goal, nf.domain, nf.gains)
     F = np.concatenate([dphi[0:4], B.T @ dphi[4:7]])
     H = np.stack([f.derivatives() for f in F])
