@@ -8,14 +8,17 @@ body (Eqs. 17-19), whose eigenvalues are ``-k eig(H)``.
 
 * **Kinematic**: the slowest mode is ``-k lambda_min(H)``; ``k`` follows from the
   settling time alone (every mode is real).
-* **Dynamic**: the damping B keeps the scenario's diagonal profile (``control.damping``,
-  the law's 6 entries), scaled by beta. Scaling ``k_p`` by ``c^2`` and beta by ``c``
-  scales every eigenvalue by ``c`` and keeps every damping ratio, so the slowest
-  mode's damping ratio depends on ``r = beta / sqrt(k_p)`` alone: ``r`` is found by
-  bisection on the requested ratio, then ``c`` by the requested settling time. A
-  diagonal B places one mode exactly, not all six pairs (that would need a full 6x6
-  B, e.g. modal damping ``M V diag(2 zeta omega) V^T M``, which the law's diagonal
-  damping cannot hold): :attr:`GainDesign.min_damping_ratio` reports the worst mode.
+* **Dynamic**: the request is the least-damped mode's damping ratio zeta (no mode is
+  less damped) and the slowest mode's settling time. The damping B keeps the
+  scenario's diagonal profile (``control.damping``, the law's 6 entries), scaled by
+  beta. Scaling ``k_p`` by ``c^2`` and beta by ``c`` scales every eigenvalue by ``c``
+  and keeps every damping ratio, so the smallest damping ratio depends on
+  ``r = beta / sqrt(k_p)`` alone (and continuously): ``r`` is found by bisection on
+  zeta, then ``c`` by the settling time. Why not the slowest mode's own ratio: with a
+  diagonal B it jumps (with the default profile, from 0.57 to 1 where a better-damped
+  pair splits into a slow real mode), so most ratios cannot be met by it; placing
+  every pair at zeta would need a full 6x6 B (modal damping
+  ``M V diag(2 zeta omega) V^T M``), which the law's diagonal damping cannot hold.
 
 The settling time is the 2 % envelope of the slowest mode:
 ``t_s = -ln(SETTLING_FRACTION) / sigma``, sigma its decay rate. What it costs:
@@ -37,6 +40,8 @@ from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.geometry.so3 import so3_exp
 from geovs_drake.loop import build_loop
 from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.simulation import simulate
+from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
 from geovs_drake.simulation.step_limit import (
     chart_jacobian,
     closed_form_A,
@@ -80,8 +85,8 @@ def _check_request(plant: str, settling_time: float, damping_ratio: float | None
         return
     if damping_ratio is None or not (0 < damping_ratio < 1):
         raise ValueError(
-            "damping_ratio of the dynamic loop's slowest mode must be in (0, 1) (a real "
-            f"slowest mode has no ratio to place): damping_ratio = {damping_ratio}"
+            "damping_ratio (the dynamic loop's least-damped mode) must be in (0, 1): "
+            f"damping_ratio = {damping_ratio}"
         )
 
 
@@ -141,9 +146,8 @@ class GainDesign:
 
     @property
     def achieved_damping_ratio(self) -> float:
-        """-Re / |lambda| of the slowest mode."""
-        lam = self.slowest
-        return -lam.real / abs(lam)
+        """The smallest ``-Re / |lambda|`` over the modes (what ``damping_ratio`` asks)."""
+        return _min_ratio(self.eigenvalues)
 
     @property
     def achieved_settling_time(self) -> float:
@@ -151,10 +155,10 @@ class GainDesign:
         return -math.log(SETTLING_FRACTION) / -self.slowest.real
 
     @property
-    def min_damping_ratio(self) -> float:
-        """The smallest damping ratio over all modes (a diagonal B places one)."""
-        lam = self.eigenvalues
-        return float(np.min(-lam.real / np.abs(lam)))
+    def slowest_damping_ratio(self) -> float:
+        """-Re / |lambda| of the slowest mode (1 where it is real)."""
+        lam = self.slowest
+        return -lam.real / abs(lam)
 
 
 def _pieces(config: ScenarioConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -174,10 +178,14 @@ def _dynamic_eigenvalues(M, K1, d0, k_p: float, beta: float) -> np.ndarray:
     return np.sort_complex(np.linalg.eigvals(A))
 
 
-def _slowest_ratio(lam: np.ndarray) -> tuple[float, float]:
-    """(damping ratio, decay rate) of the slowest eigenvalue."""
-    s = lam[np.argmax(lam.real)]
-    return -s.real / abs(s), -s.real
+def _min_ratio(lam: np.ndarray) -> float:
+    """The smallest damping ratio -Re / |lambda| over the eigenvalues."""
+    return float(np.min(-lam.real / np.abs(lam)))
+
+
+def _slowest_rate(lam: np.ndarray) -> float:
+    """The slowest eigenvalue's decay rate -Re [1/s]."""
+    return float(-np.max(lam.real))
 
 
 def design_gains(
@@ -187,7 +195,8 @@ def design_gains(
     run_start: bool = True,
 ) -> GainDesign:
     """Gains for which the loop's slowest mode at the goal settles (2 %) in
-    ``settling_time`` [s] with ``damping_ratio`` (dynamic loop; module docstring).
+    ``settling_time`` [s] and, on the dynamic loop, no mode is damped less than
+    ``damping_ratio`` (module docstring).
 
     ``run_start`` also simulates the designed loop from ``config``'s start for the peak
     wrench (or twist) the request costs. Raises ValueError in one line for a request
@@ -212,7 +221,7 @@ def design_gains(
         if not np.any(d0 > 0):
             raise ValueError(f"control.damping's profile must have a positive entry: {d0.tolist()}")
         r = _ratio_for(M, K1, d0, damping_ratio)
-        _, sigma_1 = _slowest_ratio(_dynamic_eigenvalues(M, K1, d0, 1.0, r))
+        sigma_1 = _slowest_rate(_dynamic_eigenvalues(M, K1, d0, 1.0, r))
         c = sigma / sigma_1
         designed.control.potential_gain = c * c
         designed.control.damping = (c * r * d0).tolist()
@@ -230,39 +239,36 @@ def design_gains(
 
 
 def _ratio_for(M, K1, d0, zeta: float) -> float:
-    """r = beta / sqrt(k_p) whose slowest mode has damping ratio zeta: the first
+    """r = beta / sqrt(k_p) whose least-damped mode has damping ratio zeta: the first
     crossing of a log-spaced scan, then bisection within it."""
     grid = np.geomspace(*_R_RANGE, _R_POINTS)
-    ratios = np.array([_slowest_ratio(_dynamic_eigenvalues(M, K1, d0, 1.0, r))[0] for r in grid])
+    ratios = np.array([_min_ratio(_dynamic_eigenvalues(M, K1, d0, 1.0, r)) for r in grid])
     crossing = np.nonzero((ratios[:-1] - zeta) * (ratios[1:] - zeta) <= 0)[0]
     if len(crossing) == 0:
         raise ValueError(
-            f"no damping scale gives the slowest mode damping ratio {zeta}: with "
+            f"no damping scale gives the least-damped mode damping ratio {zeta}: with "
             f"control.damping's profile it ranges over [{ratios.min():.3g}, {ratios.max():.3g}]"
         )
     lo, hi = grid[crossing[0]], grid[crossing[0] + 1]
     f_lo = ratios[crossing[0]] - zeta
     for _ in range(_BISECTIONS):
         mid = math.sqrt(lo * hi)
-        f_mid = _slowest_ratio(_dynamic_eigenvalues(M, K1, d0, 1.0, mid))[0] - zeta
+        f_mid = _min_ratio(_dynamic_eigenvalues(M, K1, d0, 1.0, mid)) - zeta
         if abs(f_mid) < _RATIO_TOL:
             return mid
         if f_mid * f_lo > 0:
             lo, f_lo = mid, f_mid
         else:
             hi = mid
-    # The slowest mode changed within the bracket: the ratio jumps there.
-    raise ValueError(
-        f"the slowest mode's damping ratio jumps across {zeta} near beta / sqrt(k_p) = "
-        f"{math.sqrt(lo * hi):.4g}: no scale of control.damping's profile meets it exactly"
+    raise ValueError(  # continuous in r, so only a 2^-200 bracket could end here
+        f"the least-damped ratio did not converge to {zeta} near beta / sqrt(k_p) = "
+        f"{math.sqrt(lo * hi):.4g}"
     )
 
 
 def _peaks(design: GainDesign) -> None:
     """The designed loop from the scenario's start: the largest wrench (dynamic) or
     twist (kinematic) the law commands along the run (at the logged states)."""
-    from geovs_drake.simulation import simulate
-
     config = copy.deepcopy(design.config)
     config.camera.sensor = "exact"
     result = simulate(config)
@@ -317,10 +323,12 @@ class DecayCheck:
         measured_rates: per start, the slope of ``-ln |e(t)|`` over the sample times
             (least squares), e the pose error (rad and m together).
         times: the sample times [s] (batch runs of these durations).
-        t_converged: per start, when the batch engine saw the error stay within its
-            tolerance [s] (NaN where not within the longest run).
-        predicted_t_converged: per start, ``ln(|e0| / tol) / sigma``, the linear
-            envelope's time to the tolerance.
+        t_converged: per start, when the batch engine saw the error stay within the
+            convergence tolerances [s] (NaN where not within the longest run).
+        predicted_t_converged: per start, ``ln(e0 / tol) / sigma`` for the rotation
+            and the position (the larger): the slowest envelope's time to the
+            tolerances, from the start's error (an upper estimate where the start
+            excites only faster modes).
     """
 
     predicted_rate: float
@@ -368,12 +376,14 @@ def decay_check(
         errors.append(np.hypot(last.final_position_error_m, last.final_rotation_error_rad))
     log_e = np.log(np.array(errors))  # (times, starts)
     slope = np.polyfit(times, log_e, 1)[0]
-    e0 = np.hypot(spread[0], spread[1])
-    tol = config.simulator.accuracy
+    # The tolerances are the simulator's (SimulationResult.converged).
+    to_tolerance = max(
+        math.log(spread[0] / CONVERGENCE_ROTATION_RAD), math.log(spread[1] / CONVERGENCE_POSITION_M)
+    )
     return DecayCheck(
         predicted_rate=sigma,
         measured_rates=-slope,
         times=times,
         t_converged=last.t_converged,
-        predicted_t_converged=np.full(starts, math.log(e0 / tol) / sigma),
+        predicted_t_converged=np.full(starts, max(0.0, to_tolerance) / sigma),
     )
