@@ -25,6 +25,7 @@ __all__ = [
     "plot_navigation_slices",
     "pyplot",
     "plot_run",
+    "plot_root_locus",
     "plot_sensor_comparison",
     "write_block_diagram",
 ]
@@ -348,3 +349,44 @@ def plot_basin_map(basin, path: str | Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_root_locus(
+    gains: np.ndarray,
+    locus: np.ndarray,
+    current: np.ndarray | None = None,
+    damping_ratio: float | None = None,
+    gain_label: str = "k_p",
+    path: str | Path | None = None,
+):
+    """The eigenvalues (rows of ``locus``, one per gain) in the complex plane, coloured by
+    the gain; ``current`` (the loop's own eigenvalues) as crosses; the lines of constant
+    ``damping_ratio`` (Re = -zeta |lambda|) dashed. Returns the figure (closed after
+    saving when ``path`` is given)."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7, 5))
+    colours = np.repeat(np.log10(np.asarray(gains, dtype=float))[:, None], locus.shape[1], axis=1)
+    points = ax.scatter(locus.real.ravel(), locus.imag.ravel(), c=colours.ravel(), s=8)
+    fig.colorbar(points, ax=ax, label=f"log10 {gain_label}")
+    if current is not None:
+        ax.scatter(current.real, current.imag, marker="x", color="black", s=50, label="the loop")
+    if damping_ratio is not None:
+        r = np.abs(locus).max()
+        angle = np.arccos(damping_ratio)
+        for sign in (1, -1):
+            ax.plot(
+                [0, -r * np.cos(angle)],
+                [0, sign * r * np.sin(angle)],
+                "--",
+                color="grey",
+                label=f"damping ratio {damping_ratio:g}" if sign == 1 else None,
+            )
+    ax.axvline(0, color="black", lw=0.5)
+    ax.set(xlabel="Re [1/s]", ylabel="Im [1/s]", title=f"root locus over {gain_label}")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    return fig

@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import json
+import re
 
 import numpy as np
 import pytest
@@ -383,3 +384,37 @@ def test_cli_bad_at_is_one_line_and_exit_2(run_cli, at, expected):
     assert run.code == 2 and run.out == ""
     assert len(run.err.strip().splitlines()) == 1 and expected in run.err
     assert "Traceback" not in run.err
+
+
+def test_cli_studies_in_the_json_and_the_root_locus_written(run_cli, tmp_path):
+    run = run_cli(
+        "linearize", "--settling-time", "2", "--damping-ratio", "0.6", "--latency", "1",
+        "--json", "--out", str(tmp_path),
+    )  # fmt: skip
+    assert run.code == 0, run.err
+    out = json.loads(run.out)
+    design = out["design"]
+    assert design["achieved_damping_ratio"] == pytest.approx(0.6, abs=1e-9)
+    assert design["achieved_settling_time"] == pytest.approx(2.0, rel=1e-9)
+    assert design["energy_bound"] == design["potential_gain"] > 0
+    # The robustness study's finding, predicted: one frame at 30 Hz is beyond the margin.
+    assert out["camera"]["latency_margin_frames"] == 0 and not out["camera"]["stable"]
+    assert (tmp_path / "root_locus.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (["--settling-time", "1", "--damping-ratio", "0"], "damping_ratio = 0.0"),
+        (["--settling-time", "1", "--damping-ratio", "-0.2"], "damping_ratio = -0.2"),
+        (["--settling-time", "-1"], "settling_time = -1.0"),
+        (["--latency", "-1"], "latency_frames = -1"),
+        (["--latency", "1", "--camera-rate", "0"], "rate = 0.0"),
+        (["--at=0,0,-5,0,0,0"], "is outside D"),
+    ],
+)
+def test_cli_bad_study_input_is_one_line_and_writes_nothing(run_cli, tmp_path, args, match):
+    out = tmp_path / "out"
+    run = run_cli("linearize", *args, "--out", str(out))
+    assert run.code == 2 and re.search(match, run.err), run.err
+    assert len(run.err.strip().splitlines()) == 1 and not out.exists()

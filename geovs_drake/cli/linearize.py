@@ -1,6 +1,9 @@
 """``geovs-drake linearize``: the loop's linear model at the goal or at a pose
 (:func:`geovs_drake.analysis.linearization.linearize`): its eigenvalues, damping ratios
-and time constants, and whether it is stable."""
+and time constants, and whether it is stable; on request the studies built on it: gains
+for a response (:mod:`~geovs_drake.analysis.gain_design`), a camera's rate and latency
+(:mod:`~geovs_drake.analysis.latency`) and a sampled Lyapunov region
+(:mod:`~geovs_drake.analysis.region`)."""
 
 from __future__ import annotations
 
@@ -20,11 +23,14 @@ from geovs_drake.cli._options import (
     add_plant,
     check_out,
     load_config,
+    numbers,
     pose_arg,
 )
 
-#: The file ``--out DIR`` writes: the JSON object ``--json`` prints.
+#: The files ``--out DIR`` writes: the JSON object ``--json`` prints, and the root locus
+#: over k_p (the kinematic gain on the kinematic loop) with the loop's eigenvalues.
 OUT_FILE = "linearize.json"
+LOCUS_FILE = "root_locus.png"
 
 
 def at_arg(text: str) -> str | dict[str, list[float]]:
@@ -56,11 +62,47 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="where: the goal, or a camera pose X_BC in the target frame [m, rad], at "
         "rest; write negative first values as --at=-0.1,... (default: goal)",
     )
+    p.add_argument(
+        "--settling-time",
+        type=float,
+        metavar="S",
+        help="design the gains for the slowest mode to settle (2 %%) in S seconds: k_p and "
+        "B (dynamic, with --damping-ratio) or k (kinematic); prints them and their cost "
+        "(peak wrench or twist from the start, the energy bound k_p) (default: no design)",
+    )
+    p.add_argument(
+        "--damping-ratio",
+        type=float,
+        metavar="ZETA",
+        help="with --settling-time on the dynamic loop: no mode less damped than ZETA, in "
+        "(0, 1) (default: 0.7 on the dynamic loop)",
+    )
+    p.add_argument(
+        "--latency",
+        type=int,
+        metavar="FRAMES",
+        help="predict the loop closed through a camera this many frames late (sampled at "
+        "--camera-rate, held): spectral radius, latency margin, slowest stable rate "
+        "(default: no camera study)",
+    )
+    p.add_argument(
+        "--camera-rate",
+        type=float,
+        metavar="HZ",
+        help="the camera's rate for --latency (default: camera.rate)",
+    )
+    p.add_argument(
+        "--region",
+        action="store_true",
+        help="also sample the region of attraction of a quadratic Lyapunov function "
+        "(about 3-6 s): its level and its largest distance and roll from the goal",
+    )
     add_json(p)
     p.add_argument(
         "--out",
         metavar="DIR",
-        help=f"also write the JSON object to DIR/{OUT_FILE} (default: none)",
+        help=f"also write the JSON object to DIR/{OUT_FILE} and the root locus to "
+        f"DIR/{LOCUS_FILE} (default: none)",
     )
     p.set_defaults(func=run)
 
@@ -82,6 +124,128 @@ def summary(lin) -> dict:
         "time_constants": finite_or_none(lin.time_constants),
         "stable": bool(lin.max_real_part < 0),
     }
+
+
+def _design(config, args) -> dict:
+    from geovs_drake.analysis.gain_design import design_gains
+
+    zeta = args.damping_ratio
+    if zeta is None and config.plant == "dynamic":
+        zeta = DEFAULT_DAMPING_RATIO
+    d = design_gains(config, args.settling_time, zeta)
+    out = {
+        "settling_time": d.settling_time,
+        "damping_ratio": d.damping_ratio,
+        "slowest": [d.slowest.real, d.slowest.imag],
+        "achieved_damping_ratio": d.achieved_damping_ratio,
+        "achieved_settling_time": d.achieved_settling_time,
+        "run_status": d.run_status,
+    }
+    if config.plant == "dynamic":
+        out |= {
+            "potential_gain": d.potential_gain,
+            "damping": d.damping.tolist(),
+            "energy_bound": d.potential_gain,
+            "peak_torque_Nm": d.peak_torque,
+            "peak_force_N": d.peak_force,
+        }
+    else:
+        out |= {
+            "kinematic_gain": d.kinematic_gain,
+            "peak_rate_rad_s": d.peak_rate,
+            "peak_speed_m_s": d.peak_speed,
+        }
+    return out
+
+
+def _camera(config, args) -> dict:
+    from geovs_drake.analysis.latency import (
+        check_camera,
+        latency_margin,
+        sampled_model,
+        slowest_stable_rate,
+    )
+
+    rate = config.camera.rate if args.camera_rate is None else args.camera_rate
+    check_camera(rate, args.latency)
+    rho = sampled_model(config).spectral_radius(rate, args.latency)
+    slowest = slowest_stable_rate(config, args.latency) if rate == config.camera.rate else None
+    return {
+        "rate": rate,
+        "latency_frames": args.latency,
+        "spectral_radius": rho,
+        "stable": bool(rho < 1),
+        "latency_margin_frames": latency_margin(config, rate),
+        "slowest_stable_rate_hz": None if slowest is None or slowest != slowest else slowest,
+    }
+
+
+def _region(config) -> dict:
+    from geovs_drake.analysis.region import lyapunov_region
+
+    r = lyapunov_region(config)
+    return {
+        "level": r.rho,
+        "rays": r.rays,
+        "failed_by": r.failed_by,
+        "largest_distance_m": r.largest_distance_m,
+        "largest_roll_rad": r.largest_roll_rad,
+    }
+
+
+#: --settling-time's damping ratio on the dynamic loop when --damping-ratio is not given.
+DEFAULT_DAMPING_RATIO = 0.7
+
+
+def _studies_table(out: dict) -> list[str]:
+    lines = []
+    if "design" in out:
+        d = out["design"]
+        gains = (
+            f"k_p = {d['potential_gain']:.5g} (the energy bound), B = {numbers(d['damping'])}; "
+            f"peak torque {d['peak_torque_Nm']:.3g} N m, force {d['peak_force_N']:.3g} N"
+            if "potential_gain" in d
+            else f"k = {d['kinematic_gain']:.5g} 1/s; peak rate {d['peak_rate_rad_s']:.3g} rad/s, "
+            f"speed {d['peak_speed_m_s']:.3g} m/s"
+        )
+        lines.append(
+            f"designed: settling {d['achieved_settling_time']:.4g} s, least damping ratio "
+            f"{d['achieved_damping_ratio']:.4g}: {gains} (from the start: {d['run_status']})"
+        )
+    if "camera" in out:
+        c = out["camera"]
+        slowest = c["slowest_stable_rate_hz"]
+        lines.append(
+            f"camera at {c['rate']:g} Hz, {c['latency_frames']} frames late: spectral radius "
+            f"{c['spectral_radius']:.4g} ({'stable' if c['stable'] else 'not stable'}); stable "
+            f"up to {c['latency_margin_frames']} frames"
+            + ("" if slowest is None else f"; slowest stable rate {slowest:.3g} Hz")
+        )
+    if "region" in out:
+        r = out["region"]
+        lines.append(
+            f"Lyapunov region (sampled, {r['rays']} rays): level {r['level']:.3g}, largest "
+            f"distance {r['largest_distance_m']:.3g} m and roll {r['largest_roll_rad']:.3g} rad "
+            f"from the goal at rest (bounded where {r['failed_by']})"
+        )
+    return lines
+
+
+def _locus(config, lin, path: Path) -> None:
+    from geovs_drake.analysis.gain_design import root_locus
+    from geovs_drake.plotting import plot_root_locus
+
+    name = "potential_gain" if config.plant == "dynamic" else "kinematic_gain"
+    own = float(getattr(config.control, name))
+    gains = own * np.geomspace(0.1, 10.0, 41)
+    plot_root_locus(
+        gains,
+        root_locus(config, gains, name),
+        current=lin.eigenvalues,
+        damping_ratio=DEFAULT_DAMPING_RATIO if config.plant == "dynamic" else None,
+        gain_label="k_p" if config.plant == "dynamic" else "k",
+        path=path,
+    )
 
 
 def _table(lin, where: str) -> str:
@@ -121,8 +285,26 @@ def run(args: argparse.Namespace) -> int:
         state = state_at(config, config.X_BC_initial)
     lin = linearize(config, state)
     out = summary(lin)
+    # Every study runs before anything is written: bad input leaves no output behind.
+    try:
+        if args.settling_time is not None or args.damping_ratio is not None:
+            if args.settling_time is None:
+                raise ValueError("--damping-ratio needs --settling-time")
+            out["design"] = _design(config, args)
+        if args.latency is not None or args.camera_rate is not None:
+            args.latency = 0 if args.latency is None else args.latency
+            out["camera"] = _camera(config, args)
+    except ValueError as e:
+        print(f"geovs-drake: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.region:
+        out["region"] = _region(config)
     if args.out is not None:
         Path(args.out).mkdir(parents=True, exist_ok=True)
+        _locus(config, lin, Path(args.out) / LOCUS_FILE)
         (Path(args.out) / OUT_FILE).write_text(json.dumps(out, indent=2) + "\n")
-    print(json.dumps(out) if args.json else _table(lin, where))
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print("\n".join([_table(lin, where), *_studies_table(out)]))
     return EXIT_CONVERGED
