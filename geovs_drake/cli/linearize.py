@@ -95,7 +95,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--region",
         action="store_true",
         help="also sample the region of attraction of a quadratic Lyapunov function "
-        "(about 3-6 s): its level and its largest distance and roll from the goal",
+        "(200 rays; about 20 s on the dynamic loop): its level and its largest distance "
+        "and roll from the goal",
     )
     add_json(p)
     p.add_argument(
