@@ -361,7 +361,7 @@ def plot_root_locus(
 ):
     """The eigenvalues (rows of ``locus``, one per gain) in the complex plane, coloured by
     the gain; ``current`` (the loop's own eigenvalues) as crosses; the lines of constant
-    ``damping_ratio`` (Re = -zeta |lambda|) dashed. Returns the figure (closed after
+    ``damping_ratio`` (``Re = -zeta |lambda|``) dashed. Returns the figure (closed after
     saving when ``path`` is given)."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 5))

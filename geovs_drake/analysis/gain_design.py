@@ -100,9 +100,10 @@ class GainDesign:
         eigenvalues: the designed loop's closed form at the goal, sorted by real part.
         stiffness: ``K = k_p K_1`` (dynamic, N m per rad and N per m) or the kinematic
             loop's ``k C_chart^-1 H C_chart`` [1/s].
-        peak_torque, peak_force: the largest |F_C| parts along the run from the start
-            [N m], [N] (dynamic); peak_rate, peak_speed: the largest |Omega|, |V| of
-            the commanded twist [rad/s], [m/s] (kinematic). NaN when not run.
+        peak_torque, peak_force: the largest norms of F_C's torque and force along the
+            run from the start [N m], [N] (dynamic); peak_rate, peak_speed: the largest
+            norms of the commanded twist's Omega and V [rad/s], [m/s] (kinematic).
+            NaN when not run.
         run_status: the designed loop's status from the scenario's start (or None).
     """
 
@@ -156,7 +157,7 @@ class GainDesign:
 
     @property
     def slowest_damping_ratio(self) -> float:
-        """-Re / |lambda| of the slowest mode (1 where it is real)."""
+        """``-Re / |lambda|`` of the slowest mode (1 where it is real)."""
         lam = self.slowest
         return -lam.real / abs(lam)
 

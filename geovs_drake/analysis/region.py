@@ -126,7 +126,7 @@ class LyapunovRegion:
         return np.einsum("ni,ij,nj->n", x, self.P, x)
 
     def largest_offset(self, coordinate: int) -> float:
-        """The largest |x_i| in the region along one coordinate at rest (0-2: the
+        """The largest ``|x_i|`` in the region along one coordinate at rest (0-2: the
         rotation's Gibbs vector about C's x, y, z, ~ rad; 3-5: the position in C* [m])."""
         e = np.zeros(len(self.P))
         e[coordinate] = 1.0
