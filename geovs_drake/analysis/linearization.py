@@ -45,8 +45,10 @@ from pydrake.systems.primitives import (
 )
 
 from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
+from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.camera import ImageFeatures
 from geovs_drake.geometry.navigation import image_chart
+from geovs_drake.geometry.rigid import quaternion_multiply, quaternion_to_rotation
 from geovs_drake.geometry.so3 import hat
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.build import FEATURE_SIZE
@@ -313,41 +315,17 @@ def pose_error(X_WC_goal: RigidTransform, body_pose, X_RC: RigidTransform):
     centred at the goal: at rest there its Jacobian along them is the identity.
     Written for float and AutoDiffXd entries (undefined at a half turn, w = 0)."""
     z = np.asarray(body_pose)
-    q, p = z[0:4] / np.sqrt(np.dot(z[0:4], z[0:4])), z[4:7]
-    q_RC = X_RC.rotation().ToQuaternion().wxyz()
-    R_WR = _quaternion_matrix(q)
-    q_WC = _quaternion_product(q, q_RC)
+    xp = namespace(z[0])
+    norm = xp.sqrt(z[0] * z[0] + z[1] * z[1] + z[2] * z[2] + z[3] * z[3])
+    q, p = tuple(v / norm for v in z[0:4]), z[4:7]
+    R_WR = np.array(quaternion_to_rotation(q, xp)).reshape(3, 3)
+    q_WC = quaternion_multiply(q, tuple(X_RC.rotation().ToQuaternion().wxyz()))
     p_WC = p + R_WR @ X_RC.translation()
-    q_goal = X_WC_goal.rotation().ToQuaternion().wxyz()
-    q_err = _quaternion_product(q_goal * np.array([1.0, -1.0, -1.0, -1.0]), q_WC)
-    g = 2.0 * q_err[1:4] / q_err[0]
+    w, x, y, z_ = X_WC_goal.rotation().ToQuaternion().wxyz()
+    q_err = quaternion_multiply((w, -x, -y, -z_), q_WC)
+    g = 2.0 * np.array(q_err[1:4]) / q_err[0]
     dp = X_WC_goal.rotation().matrix().T @ (p_WC - X_WC_goal.translation())
     return np.concatenate([g, dp])
-
-
-def _quaternion_product(a, b):
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ]
-    )
-
-
-def _quaternion_matrix(q):
-    """R(q) of a unit quaternion (w, x, y, z), for float and AutoDiffXd entries."""
-    w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def wrench_to_generalized_force(X_WR: RigidTransform, X_RC: RigidTransform) -> np.ndarray:
