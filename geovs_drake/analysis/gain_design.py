@@ -36,17 +36,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from geovs_drake.batch.engine import run_batch
-from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.geometry.so3 import so3_exp
 from geovs_drake.loop import build_loop
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.simulation import simulate
 from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
 from geovs_drake.simulation.step_limit import (
-    chart_jacobian,
     closed_form_A,
-    navigation_hessian,
+    goal_stiffness,
     rig_spatial_inertia,
+    second_order_A,
 )
 
 __all__ = [
@@ -162,20 +161,8 @@ class GainDesign:
         return -lam.real / abs(lam)
 
 
-def _pieces(config: ScenarioConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """M, K_1 = C_chart^T H C_chart and C_chart^-1 H C_chart at the goal."""
-    y = config.goal_features()
-    nf = NavigationFunction(config.domain.to_domain(), y, config.navigation.to_gains())
-    H = navigation_hessian(nf, y)
-    Cc = chart_jacobian(y, config.radius)
-    return rig_spatial_inertia(config), Cc.T @ H @ Cc, np.linalg.solve(Cc, H @ Cc)
-
-
 def _dynamic_eigenvalues(M, K1, d0, k_p: float, beta: float) -> np.ndarray:
-    A = np.zeros((12, 12))
-    A[:6, 6:] = np.eye(6)
-    A[6:, :6] = -np.linalg.solve(M, k_p * K1)
-    A[6:, 6:] = -np.linalg.solve(M, beta * np.diag(d0))
+    A = second_order_A(M, k_p * K1, beta * np.diag(d0))
     return np.sort_complex(np.linalg.eigvals(A))
 
 
@@ -212,7 +199,8 @@ def design_gains(
         )
     sigma = settling_rate(settling_time)
     designed = copy.deepcopy(config)
-    M, K1, KC = _pieces(config)
+    M = rig_spatial_inertia(config)
+    K1, KC = goal_stiffness(config)
     if plant == "kinematic":
         lam_min = float(np.min(np.linalg.eigvals(KC).real))
         designed.control.kinematic_gain = sigma / lam_min
@@ -303,15 +291,20 @@ def root_locus(
     names = ("potential_gain", "damping_scale", "kinematic_gain")
     if gain not in names:
         raise ValueError(f"gain must be one of {', '.join(names)}: gain = {gain!r}")
+    # The goal's stiffness once (one AutoDiffXd pass), then each gain's A.
+    M = rig_spatial_inertia(config)
+    K1, KC = goal_stiffness(config)
+    control = config.control
+    d0 = np.asarray(control.damping, dtype=float)
     rows = []
     for g in np.asarray(gains, dtype=float):
-        c = copy.deepcopy(config)
-        if gain == "damping_scale":
-            c.control.damping = (g * np.asarray(config.control.damping)).tolist()
+        if gain == "kinematic_gain" or config.plant == "kinematic":
+            A = -(g if gain == "kinematic_gain" else control.kinematic_gain) * KC
         else:
-            setattr(c.control, gain, float(g))
-        plant = "kinematic" if gain == "kinematic_gain" else c.plant
-        rows.append(np.sort_complex(np.linalg.eigvals(closed_form_A(c, plant))))
+            k_p = g if gain == "potential_gain" else control.potential_gain
+            beta = g if gain == "damping_scale" else 1.0
+            A = second_order_A(M, k_p * K1, beta * np.diag(d0))
+        rows.append(np.sort_complex(np.linalg.eigvals(A)))
     return np.array(rows)
 
 

@@ -58,8 +58,10 @@ __all__ = [
     "StepLimit",
     "chart_jacobian",
     "closed_form_A",
+    "goal_stiffness",
     "navigation_hessian",
     "rig_spatial_inertia",
+    "second_order_A",
     "stable_step",
     "step_limit",
     "velocity_adjoint",
@@ -149,6 +151,28 @@ def rig_spatial_inertia(config: ScenarioConfig) -> np.ndarray:
     return Ad.T @ M_R @ Ad
 
 
+def goal_stiffness(config: ScenarioConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The NF's stiffness at the goal per unit gain, in minimal coordinates:
+    ``K_1 = C_chart^T H C_chart`` (the dynamic loop's, times k_p) and
+    ``C_chart^-1 H C_chart`` (the kinematic loop's, times k), H the chart Hessian of phi
+    at y* (:func:`navigation_hessian`, one AutoDiffXd pass)."""
+    y = config.goal_features()
+    nf = NavigationFunction(config.domain.to_domain(), y, config.navigation.to_gains())
+    H = navigation_hessian(nf, y)
+    Cc = chart_jacobian(y, config.radius)
+    return Cc.T @ H @ Cc, np.linalg.solve(Cc, H @ Cc)
+
+
+def second_order_A(M: np.ndarray, K: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``[[0, I], [-M^-1 K, -M^-1 B]]``: ``M eps'' + B eps' + K eps = 0`` in first order."""
+    n = len(M)
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    A[n:, :n] = -np.linalg.solve(M, K)
+    A[n:, n:] = -np.linalg.solve(M, B)
+    return A
+
+
 def closed_form_A(
     config: ScenarioConfig, plant: str | None = None, damping: tuple[float, ...] | None = None
 ) -> np.ndarray:
@@ -164,20 +188,11 @@ def closed_form_A(
     Drake's ``Linearize``.
     """
     plant = plant or config.plant
-    y = config.goal_features()
-    nf = NavigationFunction(config.domain.to_domain(), y, config.navigation.to_gains())
-    H = navigation_hessian(nf, y)
-    Cc = chart_jacobian(y, config.radius)
+    K1, KC = goal_stiffness(config)
     if plant == "kinematic":
-        return -config.control.kinematic_gain * np.linalg.solve(Cc, H @ Cc)
-    K = config.control.potential_gain * Cc.T @ H @ Cc
-    M = rig_spatial_inertia(config)
+        return -config.control.kinematic_gain * KC
     Bd = np.diag(config.control.damping if damping is None else damping)
-    A = np.zeros((12, 12))
-    A[:6, 6:] = np.eye(6)
-    A[6:, :6] = -np.linalg.solve(M, K)
-    A[6:, 6:] = -np.linalg.solve(M, Bd)
-    return A
+    return second_order_A(rig_spatial_inertia(config), config.control.potential_gain * K1, Bd)
 
 
 def _stable(coefficients: tuple[float, ...], z: np.ndarray) -> bool:
