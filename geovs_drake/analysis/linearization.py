@@ -331,14 +331,10 @@ def pose_error(X_WC_goal: RigidTransform, body_pose, X_RC: RigidTransform):
 def wrench_to_generalized_force(X_WR: RigidTransform, X_RC: RigidTransform) -> np.ndarray:
     """G: a wrench F_C on the camera about Co in C (torque first) to the free rig's
     generalized force (torque about R's origin, then force, in W):
-    ``[[R_WC, hat(p_W) R_WC], [0, R_WC]]``, p_W the camera's offset from R in W."""
-    R_WC = (X_WR.rotation() @ X_RC.rotation()).matrix()
-    p_W = X_WR.rotation() @ X_RC.translation()
-    G = np.zeros((6, 6))
-    G[:3, :3] = R_WC
-    G[:3, 3:] = hat(p_W) @ R_WC
-    G[3:, 3:] = R_WC
-    return G
+    ``[[R_WC, hat(p_W) R_WC], [0, R_WC]]``, p_W the camera's offset from R in W. It is the
+    wrench's adjoint, ``Ad_{X^-1}^T`` for X = (R_WC, p_W) (the power ``F . nu`` holds)."""
+    X = RigidTransform(X_WR.rotation() @ X_RC.rotation(), X_WR.rotation() @ X_RC.translation())
+    return velocity_adjoint(X.inverse()).T
 
 
 def noise_directions(y: np.ndarray) -> np.ndarray:
@@ -411,12 +407,13 @@ def linearize(
     context.SetContinuousState(x0)
     diagram.get_input_port().FixValue(context, np.zeros(6 + FEATURE_SIZE))
     xdot = diagram.EvalTimeDerivatives(context).CopyToVector()
+    at_rest = np.linalg.norm(xdot) <= EQUILIBRIUM_TOLERANCE
     z_drake = diagram.get_output_port().Eval(context)
     ports = dict(
         input_port_index=InputPortSelection.kUseFirstInputIfItExists,
         output_port_index=OutputPortSelection.kUseFirstOutputIfItExists,
     )
-    if np.linalg.norm(xdot) <= EQUILIBRIUM_TOLERANCE:
+    if at_rest:
         system = Linearize(diagram, context, **ports)
     else:
         system = FirstOrderTaylorApproximation(diagram, context, **ports)
@@ -439,7 +436,7 @@ def linearize(
     C = out @ T
     D = np.vstack([J_e @ system.D()[0:_POSE_SIZE], system.D()[_POSE_SIZE:]]) @ to_drake
     f0 = P @ xdot
-    if np.linalg.norm(xdot) <= EQUILIBRIUM_TOLERANCE:
+    if at_rest:
         minimal = LinearSystem(A, B, C, D)
     else:
         minimal = AffineSystem(A, B, f0, C, D, np.concatenate([e0, z_drake[_POSE_SIZE:]]))
