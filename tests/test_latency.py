@@ -1,8 +1,10 @@
 """The camera's rate and latency predicted from the linearisation (analysis.latency).
 
 Truths: the closed form of the continuous part (the rig's kinematics and its damping),
-the robustness study's own sampled model (built from the image Jacobian and the NF's
-stiffness, not from Drake's Linearize), and the pinhole-sensor loop simulated.
+the robustness study's own model of the loop (its stiffness from central differences of
+the image Jacobian and the NF's differential, not from Drake's Linearize; the two share
+only the hold and the delay, Drake's DiscreteTimeApproximation), and the pinhole-sensor
+loop simulated.
 """
 
 from __future__ import annotations

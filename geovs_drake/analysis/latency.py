@@ -72,6 +72,36 @@ class SampledModel:
             Z[k * n : (k + 1) * n, (k - 1) * n : k * n] = np.eye(n)
         return float(np.max(np.abs(np.linalg.eigvals(Z))))
 
+    def latency_margin(self, rate: float, max_frames: int = 30) -> int:
+        """The largest latency [frames] at ``rate`` with a spectral radius below 1 (-1
+        when none is, ``max_frames`` when all up to it are)."""
+        best = -1
+        for L in range(max_frames + 1):
+            if self.spectral_radius(rate, L) >= 1:
+                break
+            best = L
+        return best
+
+    def slowest_stable_rate(self, latency_frames: int, rate: float) -> float:
+        """The slowest camera rate [Hz] with a spectral radius below 1 at
+        ``latency_frames``: bisection on log(rate) between :data:`MIN_RATE_HZ` and
+        ``rate``, which must be stable (the radius need not be monotone in the rate, so
+        this is the boundary nearest ``rate`` from below). NaN when ``rate`` itself is
+        unstable; MIN_RATE_HZ when even that is stable."""
+        hi = float(rate)
+        if self.spectral_radius(hi, latency_frames) >= 1:
+            return math.nan
+        lo = MIN_RATE_HZ
+        if self.spectral_radius(lo, latency_frames) < 1:
+            return lo
+        for _ in range(_RATE_BISECTIONS):
+            mid = math.sqrt(lo * hi)
+            if self.spectral_radius(mid, latency_frames) < 1:
+                hi = mid
+            else:
+                lo = mid
+        return hi
+
 
 def check_camera(rate: float, latency_frames: int) -> None:
     """One line for a camera the model cannot take."""
@@ -111,39 +141,17 @@ def spectral_radius(config: ScenarioConfig, rate: float | None = None, latency_f
 
 
 def latency_margin(config: ScenarioConfig, rate: float | None = None, max_frames: int = 30) -> int:
-    """The largest latency [frames] at ``rate`` with a spectral radius below 1 (-1 when
-    none is, ``max_frames`` when all up to it are)."""
-    model = sampled_model(config)
+    """:meth:`SampledModel.latency_margin` of ``config``'s loop at ``rate`` (default: the
+    scenario's camera rate)."""
     rate = config.camera.rate if rate is None else rate
-    best = -1
-    for L in range(max_frames + 1):
-        if model.spectral_radius(rate, L) >= 1:
-            break
-        best = L
-    return best
+    return sampled_model(config).latency_margin(rate, max_frames)
 
 
 def slowest_stable_rate(config: ScenarioConfig, latency_frames: int | None = None) -> float:
-    """The slowest camera rate [Hz] with a spectral radius below 1 at ``latency_frames``
-    (bisection on log(rate) between :data:`MIN_RATE_HZ` and the scenario's rate, which
-    must be stable; the radius need not be monotone in the rate, so this is the
-    boundary nearest the scenario's rate from below). NaN when the scenario's own rate
-    is unstable; MIN_RATE_HZ when even that is stable."""
-    model = sampled_model(config)
+    """:meth:`SampledModel.slowest_stable_rate` of ``config``'s loop below the scenario's
+    camera rate, at ``latency_frames`` (default: the scenario's)."""
     L = config.camera.latency_frames if latency_frames is None else latency_frames
-    hi = float(config.camera.rate)
-    if model.spectral_radius(hi, L) >= 1:
-        return math.nan
-    lo = MIN_RATE_HZ
-    if model.spectral_radius(lo, L) < 1:
-        return lo
-    for _ in range(_RATE_BISECTIONS):
-        mid = math.sqrt(lo * hi)
-        if model.spectral_radius(mid, L) < 1:
-            hi = mid
-        else:
-            lo = mid
-    return hi
+    return sampled_model(config).slowest_stable_rate(L, config.camera.rate)
 
 
 @dataclass

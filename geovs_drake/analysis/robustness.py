@@ -43,10 +43,9 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
-from pydrake.systems.analysis import DiscreteTimeApproximation
-from pydrake.systems.primitives import LinearSystem
 
 from geovs_drake.analysis._pool import map_scenarios
+from geovs_drake.analysis.latency import SampledModel
 from geovs_drake.analysis.linearization import rig_spatial_inertia
 from geovs_drake.analysis.robustness_levels import LEVELS, NOMINAL, SHRINK
 from geovs_drake.geometry.camera import camera_map, camera_map_inverse, image_jacobian
@@ -171,28 +170,21 @@ def sampled_spectral_radius(config: ScenarioConfig) -> float:
     coordinates (eps, nu) at frame k; between frames ``xdot = A_d x + A_p
     x_{k-L}``, ``A_d = [[0, I], [0, -M^-1 B]]`` (kinematics and the damping
     ``config.damping``, continuous) and ``A_p = [[0, 0], [-M^-1 K, 0]]`` (the
-    potential, sampled and held). Drake's ``DiscreteTimeApproximation`` gives the
-    zero-order-hold discretisation. Below 1: locally stable.
+    potential, sampled and held). :class:`~geovs_drake.analysis.latency.SampledModel`
+    discretises it (Drake's ``DiscreteTimeApproximation``, a zero-order hold) and adds
+    the delay. Below 1: locally stable.
     """
     M = rig_spatial_inertia(config)
     equilibrium = predicted_equilibrium(config)
     K = potential_stiffness(config, equilibrium["pose"])
-    n = 12
-    A_d = np.zeros((n, n))
+    A_d = np.zeros((12, 12))
     A_d[:6, 6:] = np.eye(6)
     A_d[6:, 6:] = -np.linalg.solve(M, np.diag(config.damping))
-    A_p = np.zeros((n, n))
-    A_p[6:, :6] = -np.linalg.solve(M, K)
-    held = DiscreteTimeApproximation(
-        LinearSystem(A_d, np.eye(n), np.eye(n), np.zeros((n, n))), 1.0 / config.camera.rate
-    )
-    L = int(config.camera.latency_frames)
-    Z = np.zeros((n * (L + 1), n * (L + 1)))
-    Z[:n, :n] = held.A()
-    Z[:n, L * n :] += held.B() @ A_p
-    for k in range(1, L + 1):
-        Z[k * n : (k + 1) * n, (k - 1) * n : k * n] = np.eye(n)
-    return float(np.max(np.abs(np.linalg.eigvals(Z))))
+    # The held potential force: A_p = B_n C_xi = [[0, 0], [-M^-1 K, 0]].
+    B_n = np.vstack([np.zeros((6, 6)), np.linalg.inv(M)])
+    C_xi = np.hstack([-K, np.zeros((6, 6))])
+    model = SampledModel(A_c=A_d, B_n=B_n, C_xi=C_xi)
+    return model.spectral_radius(config.camera.rate, int(config.camera.latency_frames))
 
 
 def predicted_equilibrium(config: ScenarioConfig) -> dict:

@@ -160,23 +160,19 @@ def _design(config, args) -> dict:
 
 
 def _camera(config, args) -> dict:
-    from geovs_drake.analysis.latency import (
-        check_camera,
-        latency_margin,
-        sampled_model,
-        slowest_stable_rate,
-    )
+    from geovs_drake.analysis.latency import check_camera, sampled_model
 
     rate = config.camera.rate if args.camera_rate is None else args.camera_rate
     check_camera(rate, args.latency)
-    rho = sampled_model(config).spectral_radius(rate, args.latency)
-    slowest = slowest_stable_rate(config, args.latency) if rate == config.camera.rate else None
+    model = sampled_model(config)  # one linearisation serves every figure below
+    rho = model.spectral_radius(rate, args.latency)
+    slowest = model.slowest_stable_rate(args.latency, rate) if rate == config.camera.rate else None
     return {
         "rate": rate,
         "latency_frames": args.latency,
         "spectral_radius": rho,
         "stable": bool(rho < 1),
-        "latency_margin_frames": latency_margin(config, rate),
+        "latency_margin_frames": model.latency_margin(rate),
         "slowest_stable_rate_hz": None if slowest is None or slowest != slowest else slowest,
     }
 
