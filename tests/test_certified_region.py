@@ -116,7 +116,7 @@ def test_kinematic_certificate_small():
 
 def test_certify_region_rejects_bad_options():
     config = ScenarioConfig(plant="kinematic")
-    with pytest.raises(ValueError, match="solver must be one of"):
+    with pytest.raises(ValueError, match="SOS solver must be one of clarabel, csdp, scs"):
         certify_region(config, solver="mosek")
     with pytest.raises(ValueError, match="Taylor degree must be >= 2"):
         certify_region(config, degree=1)
@@ -126,8 +126,8 @@ def test_certify_region_rejects_bad_options():
 @pytest.mark.parametrize("plant", PLANTS)
 def test_every_start_inside_the_certified_region_converges(plant):
     config = ScenarioConfig(plant=plant)
-    region = certify_region(config, degree=3)
-    model = taylor_field(config, 3, region.T)
+    region = certify_region(config)
+    model = taylor_field(config, region.degree, region.T)
     assert np.all(_polynomial_vdot(region, model, 20000) < 0)
     assert region.nonlinear_check
     batch = check_inside(config, region.as_region(), 10_000)

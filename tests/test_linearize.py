@@ -411,6 +411,7 @@ def test_cli_studies_in_the_json_and_the_root_locus_written(run_cli, tmp_path):
         (["--latency", "-1"], "latency_frames = -1"),
         (["--latency", "1", "--camera-rate", "0"], "rate = 0.0"),
         (["--at=0,0,-5,0,0,0"], "is outside D"),
+        (["--certify", "--sos-solver", "mosek"], "one of clarabel, csdp, scs: .mosek."),
     ],
 )
 def test_cli_bad_study_input_is_one_line_and_writes_nothing(run_cli, tmp_path, args, match):
@@ -418,3 +419,14 @@ def test_cli_bad_study_input_is_one_line_and_writes_nothing(run_cli, tmp_path, a
     run = run_cli("linearize", *args, "--out", str(out))
     assert run.code == 2 and re.search(match, run.err), run.err
     assert len(run.err.strip().splitlines()) == 1 and not out.exists()
+
+
+@pytest.mark.slow
+def test_cli_certify_reports_the_certified_level_inside_the_sampled_one(run_cli):
+    run = run_cli("linearize", "--plant", "kinematic", "--certify", "--json")
+    assert run.code == 0, run.err
+    region = json.loads(run.out)["region"]
+    certified = region["certified"]
+    assert certified["nonlinear_check"] and certified["degree"] == 3  # the kinematic default
+    assert 0 < certified["level"] < region["level"] / 0.9  # below the failing level
+    assert 0 < certified["largest_distance_m"] < region["largest_distance_m"] / 0.9**0.5

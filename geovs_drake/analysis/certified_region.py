@@ -70,14 +70,21 @@ from geovs_drake.geometry.taylor import monomials, variables
 from geovs_drake.scenario import ScenarioConfig
 
 __all__ = [
+    "DEFAULT_DEGREE",
     "SOLVERS",
     "CertifiedRegion",
     "TaylorField",
     "certify_region",
+    "check_solver",
     "minimal_field",
     "taylor_field",
 ]
 
+#: The Taylor degree by plant. Degree 3 keeps Vdot even (degree 4), which the
+#: S-procedure needs to certify more than the odd degree-2 model does; on the dynamic
+#: loop's 12 variables Drake's degree-3 program (SCS) had grown past 14 GB after 225 s
+#: and was stopped, so the dynamic default is 2 (213 s, 0.7 GB).
+DEFAULT_DEGREE = {"kinematic": 3, "dynamic": 2}
 #: The SDP solvers that ship with the drake wheel, by name (one registry; the CLI's
 #: choices). SCS is the default (module docstring).
 SOLVERS = {"scs": ScsSolver.id(), "clarabel": ClarabelSolver.id(), "csdp": CsdpSolver.id()}
@@ -241,19 +248,25 @@ class CertifiedRegion:
         )
 
 
+def check_solver(solver: str) -> None:
+    """ValueError, in one line, unless ``solver`` names one of :data:`SOLVERS`."""
+    if solver not in SOLVERS:
+        raise ValueError(f"the SOS solver must be one of {', '.join(sorted(SOLVERS))}: {solver!r}")
+
+
 def certify_region(
     config: ScenarioConfig,
-    degree: int = 3,
+    degree: int | None = None,
     solver: str = "scs",
     sampled: LyapunovRegion | None = None,
 ) -> CertifiedRegion:
     """Certify a level of the sampled region's V by SOS (module docstring).
 
     ``sampled`` is computed (200 rays) when None; its P is the candidate, its failing
-    level the scale of w.
+    level the scale of w. ``degree`` defaults to :data:`DEFAULT_DEGREE` of the plant.
     """
-    if solver not in SOLVERS:
-        raise ValueError(f"solver must be one of {sorted(SOLVERS)}: {solver!r}")
+    check_solver(solver)
+    degree = DEFAULT_DEGREE[config.plant] if degree is None else degree
     if degree < 2:
         raise ValueError(
             f"the Taylor degree must be >= 2 (degree 1 is the linearisation): {degree}"
