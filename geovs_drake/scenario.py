@@ -252,7 +252,9 @@ class ArmConfig:
     ``end_effector_frame``. The start is ``initial_joints`` [rad] if given, else
     ``initial`` (X_BC(0)) solved by Drake's InverseKinematics within the joint
     limits; ``initial_joint_velocity`` [rad/s] (dynamic plant; empty: at rest).
-    ``joint_damping`` B_q [N m s/rad] adds ``-B_q qdot`` to the torque; the
+    ``joint_damping`` B_q [N m s/rad] adds ``-B_q qdot`` to the torque;
+    ``joint_barrier_width`` [rad] > 0 puts the joint limits inside the NF's guarantee
+    (the dynamic arm under the NF: :mod:`geovs_drake.geometry.joint_barrier`, 0: off); the
     kinematic arm's ``null_space_gain`` [1/s] centres a redundant arm's
     self-motion.
     """
@@ -271,6 +273,7 @@ class ArmConfig:
     initial_joints: list[float] = field(default_factory=list)
     initial_joint_velocity: list[float] = field(default_factory=list)
     joint_damping: float = 0.5
+    joint_barrier_width: float = 0.0
     null_space_gain: float = 1.0
     #: The arm's inertia at the camera is about ten times the default rig's (1 kg): the
     #: dynamic arm runs the NF with k_p and B, and the twist laws' velocity tracking
@@ -617,6 +620,12 @@ class ScenarioConfig:
             values = getattr(arm, name)
             if _finite_numbers(values, len(values)) is None:
                 raise ValueError(f"arm.{name} must be finite numbers [rad, rad/s], got {values!r}")
+        if arm.joint_barrier_width > 0 and (self.plant != "dynamic" or self.controller != "nf"):
+            raise ValueError(
+                "arm.joint_barrier_width applies to the dynamic arm under the NF (it is a "
+                f"term of the NF's energy), got plant {self.plant!r}, controller "
+                f"{self.controller!r}"
+            )
         if arm.initial_joint_velocity and self.plant != "dynamic":
             raise ValueError(
                 "arm.initial_joint_velocity applies to the dynamic arm only (the kinematic "
@@ -673,6 +682,7 @@ _POSITIVE: dict[str, tuple[float, bool, str]] = {
     "control.kinematic_gain": (0.0, True, ""),
     "control.baseline_gain": (0.0, True, ""),
     "arm.joint_damping": (0.0, False, " [N m s/rad]"),
+    "arm.joint_barrier_width": (0.0, False, " [rad]"),
     "arm.null_space_gain": (0.0, False, " [1/s]"),
     "arm.gain_scale": (0.0, True, ""),
 }

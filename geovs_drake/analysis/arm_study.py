@@ -22,6 +22,7 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
@@ -32,7 +33,7 @@ from geovs_drake.scenario import ScenarioConfig, resolve
 from geovs_drake.simulation.step_limit import chart_jacobian, navigation_hessian
 from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 
-__all__ = ["ArmLinearization", "linearize_arm_at_goal"]
+__all__ = ["ArmLinearization", "ReachableGoals", "linearize_arm_at_goal", "reachable_goals"]
 
 
 @dataclass
@@ -100,4 +101,51 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
         A_closed=A_closed,
         jacobian_singular_value=float(np.linalg.svd(J, compute_uv=False)[-1]),
         eigenvalues=np.sort_complex(np.linalg.eigvals(A_drake)),
+    )
+
+
+@dataclass
+class ReachableGoals:
+    """Which goals the joint barrier leaves reachable (:func:`reachable_goals`).
+
+    ``sampled``: goal poses tried (random, in D); ``solvable``: those Drake's
+    InverseKinematics reaches within the joint limits; ``reachable[w]``: those whose
+    joint solution is at least w [rad] from every limit, so phi_q = 0 there and the
+    goal stays the minimum of phi_total for a barrier of width w. A lower bound: the IK
+    keeps the best of its seeds, not every branch.
+    """
+
+    sampled: int
+    solvable: int
+    reachable: dict[float, int]
+
+
+def reachable_goals(
+    config: ScenarioConfig, widths: tuple[float, ...], n: int = 100, seed: int = 0
+) -> ReachableGoals:
+    """Sample n goal poses X_BC in D, 0.2-0.8 m from the target, and count those the
+    arm reaches with every joint ``w`` or more from its limits, for each width w."""
+    from geovs_drake.analysis.region import _in_domain
+    from geovs_drake.loop.arm import Unreachable, joint_limit_margins
+    from geovs_drake.sampling import random_visible_poses
+
+    model = arm_model(config)
+    rng = np.random.default_rng(seed)
+    goals: list[np.ndarray] = []
+    while len(goals) < n:
+        X_CB = random_visible_poses(rng, 4 * n, config.radius, (2.0, 8.0))
+        X_BC = np.linalg.inv(X_CB)
+        goals.extend(X_BC[_in_domain(config, X_BC)][: n - len(goals)])
+    margins = []
+    for X_BC in goals:
+        try:
+            q = solve_joints(model, config.X_WB @ RigidTransform(X_BC))
+        except Unreachable:
+            continue
+        margins.append(float(np.min(joint_limit_margins(model, q))))
+    margins_arr = np.asarray(margins)
+    return ReachableGoals(
+        sampled=n,
+        solvable=len(margins),
+        reachable={float(w): int(np.sum(margins_arr >= w)) for w in widths},
     )

@@ -122,6 +122,16 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         type=joints_arg,
         metavar="v1,v2,...",
     )
+    add_field(
+        p,
+        "--joint-barrier",
+        ("arm", "joint_barrier_width"),
+        "with --carrier arm --plant dynamic (the NF): the width [rad] of the barrier that "
+        "puts the joint limits inside the energy guarantee, phi_total = 1 - (1 - phi)(1 - "
+        "phi_q) (0: off)",
+        type=float,
+        metavar="RAD",
+    )
     # Path following (--controller path) and the fixed camera (--mount): issue 12.
     add_field(
         p,

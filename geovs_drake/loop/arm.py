@@ -19,6 +19,7 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import Solve
 
+from geovs_drake.geometry.joint_barrier import joint_barrier
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems._arm_model import (
     CAMERA_FRAME,
@@ -36,6 +37,7 @@ __all__ = [
     "Unreachable",
     "arm_model",
     "initial_joints",
+    "joint_barrier_values",
     "joint_count",
     "joint_limit_margins",
     "smallest_singular_values",
@@ -85,6 +87,17 @@ def joint_limit_margins(model: ArmModel, q: np.ndarray) -> np.ndarray:
     plant = arm_plant(model)
     q = np.asarray(q, dtype=float)
     return np.minimum(q - plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits() - q)
+
+
+def joint_barrier_values(model: ArmModel, q: np.ndarray, width: float) -> np.ndarray:
+    """phi_q, the joints' barrier of width ``width`` [rad]
+    (:mod:`geovs_drake.geometry.joint_barrier`), at each q (N, nq); 0 with width 0."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if width <= 0:
+        return np.zeros(len(q))
+    plant = arm_plant(model)
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    return np.array([joint_barrier(row, lower, upper, width, min)[0] for row in q])
 
 
 def smallest_singular_values(model: ArmModel, q: np.ndarray) -> np.ndarray:

@@ -158,6 +158,8 @@ def build_loop(
         NavigationController(goal=resolved.y_goal, domain=resolved.domain, gains=resolved.gains),
     )
     builder.Connect(features, nav.image_features_input)
+    if carrier.phi_input is not None:
+        builder.Connect(nav.phi_output, carrier.phi_input)
     command = LAWS[resolved.controller].add(builder, resolved, features, nav, carrier)
     disturbance = _drive(builder, resolved, carrier, command, study_ports)
     feature_sensor = (

@@ -88,6 +88,9 @@ class CarrierParts:
     body_state: OutputPort | None = None
     twist_input: InputPort | None = None
     connect_force: Callable[[DiagramBuilder, LeafSystem], None] | None = None
+    #: An input for the NF's value phi, where the carrier's drive reads it (the dynamic
+    #: arm's joint-limit barrier); the loop builder connects the NF to it.
+    phi_input: InputPort | None = None
     add_meshcat: Callable[[DiagramBuilder, Meshcat], None] | None = None
     plant: MultibodyPlant | None = None
     scene_graph: SceneGraph | None = None
@@ -444,8 +447,15 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
             f"got {len(v0)}"
         )
     plant.SetDefaultPositions(q0)
+    barrier = config.arm.joint_barrier_width
     arm = builder.AddNamedSystem(
-        "arm_camera", ArmCamera(model=model, joint_damping=config.arm.joint_damping)
+        "arm_camera",
+        ArmCamera(
+            model=model,
+            joint_damping=config.arm.joint_damping,
+            joint_barrier_width=barrier,
+            potential_gain=config.control.potential_gain,
+        ),
     )
     builder.Connect(plant.get_state_output_port(), arm.arm_state_input)
     builder.Connect(arm.actuation_output, plant.get_actuation_input_port())
@@ -470,6 +480,7 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
         set_initial_state=set_initial_state,
         body_state=arm.camera_state_output,
         connect_force=connect_force,
+        phi_input=arm.phi_input if barrier > 0 else None,
     )
 
 

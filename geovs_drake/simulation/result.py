@@ -102,13 +102,15 @@ class ArmTrace:
     ``joint_limit_margin``: the nearest joint's distance to its limit [rad], positive
     inside; ``jacobian_singular_value``: sigma_min of J_C; ``velocity_scale`` (the
     kinematic arm): the factor its joint velocities were scaled by to respect the
-    velocity limits (1: not limited), else None.
+    velocity limits (1: not limited), else None; ``joint_barrier``: phi_q, the joints'
+    barrier (``arm.joint_barrier_width`` > 0), else None.
     """
 
     joint_positions: np.ndarray
     joint_limit_margin: np.ndarray
     jacobian_singular_value: np.ndarray
     velocity_scale: np.ndarray | None = None
+    joint_barrier: np.ndarray | None = None
 
     def summary(self) -> dict:
         """The JSON entries of the arm's run."""
@@ -118,6 +120,8 @@ class ArmTrace:
         }
         if self.velocity_scale is not None:
             out["joint_velocity_clipped"] = float(np.mean(self.velocity_scale < 1.0))
+        if self.joint_barrier is not None:
+            out["max_joint_barrier"] = float(np.max(self.joint_barrier))
         return out
 
 

@@ -8,8 +8,14 @@ from collections.abc import Callable
 import numpy as np
 from pydrake.math import RigidTransform
 
+from geovs_drake.geometry.joint_barrier import combine
 from geovs_drake.geometry.navigation import NavigationFunction
-from geovs_drake.loop.arm import joint_count, joint_limit_margins, smallest_singular_values
+from geovs_drake.loop.arm import (
+    joint_barrier_values,
+    joint_count,
+    joint_limit_margins,
+    smallest_singular_values,
+)
 from geovs_drake.loop.build import Loop, build_loop
 from geovs_drake.planning import plan_for_scenario
 from geovs_drake.scenario import (
@@ -71,11 +77,13 @@ def arm_trace(loop: Loop, root, states: np.ndarray) -> ArmTrace:
         for k, x in enumerate(states):
             context.SetContinuousState(x)
             scale[k] = arm.velocity_scale_output.Eval(arm.GetMyContextFromRoot(context))[0]
+    barrier = loop.resolved.config.arm.joint_barrier_width
     return ArmTrace(
         joint_positions=q,
         joint_limit_margin=np.min(joint_limit_margins(model, q), axis=1),
         jacobian_singular_value=smallest_singular_values(model, q),
         velocity_scale=scale,
+        joint_barrier=joint_barrier_values(model, q, barrier) if barrier > 0 else None,
     )
 
 
@@ -160,7 +168,12 @@ def simulate(
         for k, x in enumerate(states):
             plant.SetPositionsAndVelocities(pctx, x)
             kinetic[k] = plant.CalcKineticEnergy(pctx)
-        energy = kinetic + config.control.potential_gain * signals["phi"]
+        potential = signals["phi"]
+        if loop.carrier.phi_input is not None:  # the arm's joint barrier: phi_total
+            q = states[:, : joint_count(loop.carrier.arm)]
+            width = config.arm.joint_barrier_width
+            potential = combine(potential, joint_barrier_values(loop.carrier.arm, q, width))
+        energy = kinetic + config.control.potential_gain * potential
     x_final = root.get_continuous_state_vector().CopyToVector()
     final_X_BC = RigidTransform(loop.carrier.camera_poses(x_final)[0])
     if status == "completed":

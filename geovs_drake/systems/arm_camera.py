@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pydrake.math as pm
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
+from geovs_drake.geometry.joint_barrier import joint_barrier
 from geovs_drake.systems._arm_model import (
     CAMERA_FRAME,
     ArmError,
@@ -48,6 +50,7 @@ def ArmCamera_(T):
             input_ports:
             - arm_state
             - wrench_C
+            - phi
             output_ports:
             - camera_state
             - actuation
@@ -69,6 +72,16 @@ def ArmCamera_(T):
         which is what keeps E = 1/2 v^T M(q) v + k_p phi non-increasing (the
         rig's M becomes the arm's M(q)).
 
+        With a joint-limit barrier of width w > 0 (``joint_barrier_width``, rad;
+        :mod:`geovs_drake.geometry.joint_barrier`) the torque becomes
+
+            tau = (1 - phi_q) J_C^T F_C - k_p (1 - phi) dphi_q/dq - tau_g - B_q v,
+
+        reading the NF's value ``phi`` (the port is read only then), so that
+        E = 1/2 v^T M v + k_p phi_total, phi_total = 1 - (1 - phi)(1 - phi_q), does
+        not increase: the arm stays off its limits as it stays in D. With w = 0 the
+        ``phi`` port is not read and need not be connected.
+
         The arm's kinematics and dynamics come from this system's own model of
         the arm (a MultibodyPlant of its scalar type, as Drake's
         InverseDynamicsController keeps its own). ``camera_state`` depends on
@@ -76,7 +89,14 @@ def ArmCamera_(T):
         parameter vector: B_q per joint [N m s/rad].
         """
 
-        def _construct(self, model: ArmModel | None = None, joint_damping=None, converter=None):
+        def _construct(
+            self,
+            model: ArmModel | None = None,
+            joint_damping=None,
+            joint_barrier_width: float = 0.0,
+            potential_gain: float = 1.0,
+            converter=None,
+        ):
             LeafSystem_[T].__init__(self, converter)
             model = default_arm_model() if model is None else model
             self._plant = arm_plant(model, T)
@@ -86,12 +106,26 @@ def ArmCamera_(T):
             self._B = actuation_permutation(arm_plant(model))
             nq, nv = self._plant.num_positions(), self._plant.num_velocities()
             damping = np.zeros(nv) if joint_damping is None else np.asarray(joint_damping)
-            self._defaults = (model, damping)
+            self._defaults = (model, damping, joint_barrier_width, potential_gain)
+            # The barrier's limits and gain are the model's and the law's: fixed, like the
+            # model itself (a parameter would let them drift from the plant's).
+            float_plant = arm_plant(model)
+            self._barrier = (
+                (
+                    float_plant.GetPositionLowerLimits(),
+                    float_plant.GetPositionUpperLimits(),
+                    float(joint_barrier_width),
+                    float(potential_gain),
+                )
+                if joint_barrier_width > 0
+                else None
+            )
             self._params_index = self.DeclareNumericParameter(
                 BasicVector_[T](np.broadcast_to(damping, (nv,)).astype(float))
             )
             self.arm_state_input = self.DeclareVectorInputPort(name="arm_state", size=nq + nv)
             self.wrench_C_input = self.DeclareVectorInputPort(name="wrench_C", size=6)
+            self.phi_input = self.DeclareVectorInputPort(name="phi", size=1)
             state = self.input_port_ticket(self.arm_state_input.get_index())
             self.camera_state_output = self.DeclareVectorOutputPort(
                 name="camera_state",
@@ -106,6 +140,7 @@ def ArmCamera_(T):
                 prerequisites_of_calc={
                     state,
                     self.input_port_ticket(self.wrench_C_input.get_index()),
+                    self.input_port_ticket(self.phi_input.get_index()),
                     self.all_parameters_ticket(),
                 },
             )
@@ -139,9 +174,15 @@ def ArmCamera_(T):
             F_C = self.wrench_C_input.Eval(context)
             v = self._plant.GetVelocities(self._context)
             damping = param_vector(context, self._params_index, T)
-            tau = (
-                J_C.T @ F_C - self._plant.CalcGravityGeneralizedForces(self._context) - damping * v
-            )
+            tau = -self._plant.CalcGravityGeneralizedForces(self._context) - damping * v
+            if self._barrier is None:
+                tau = tau + J_C.T @ F_C
+            else:
+                lower, upper, width, k_p = self._barrier
+                q = self._plant.GetPositions(self._context)
+                phi_q, dphi_q = joint_barrier(q, lower, upper, width, min if T is float else pm.min)
+                phi = self.phi_input.Eval(context)[0]
+                tau = tau + (1 - phi_q) * (J_C.T @ F_C) - k_p * (1 - phi) * np.asarray(dphi_q)
             output.SetFromVector(self._B.T @ tau)  # B a permutation: its inverse is B^T
 
     return Impl

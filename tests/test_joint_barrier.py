@@ -1,0 +1,190 @@
+"""The joint-limit barrier on the dynamic arm (geometry.joint_barrier, ArmCamera).
+
+Truths: central differences for the barrier's gradient, its definition at the limits
+and away from them, AutoDiffXd of the system's own scalar conversion, and the energy
+E = 1/2 v^T M v + k_p phi_total from Drake's kinetic energy along the Drake loop;
+without the barrier's torque the same E rises, so the check can fail.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geovs_drake.geometry.joint_barrier import combine, joint_barrier, smooth_step
+from geovs_drake.loop.arm import arm_model, joint_barrier_values
+from geovs_drake.scenario import ScenarioConfig, resolve
+from geovs_drake.simulation import simulate
+from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
+
+LOWER, UPPER = np.array([-1.0, -2.0, -0.5]), np.array([1.0, 2.0, 3.0])
+WIDTH = 0.4
+
+
+def test_the_barrier_is_zero_away_from_the_limits_and_one_at_them():
+    phi, grad = joint_barrier([0.0, 0.0, 1.0], LOWER, UPPER, WIDTH, min)
+    assert phi == 0.0 and np.allclose(grad, 0.0)
+    for i in range(3):
+        for q_i in (LOWER[i], UPPER[i]):
+            q = np.array([0.0, 0.0, 1.0])
+            q[i] = q_i
+            assert joint_barrier(q, LOWER, UPPER, WIDTH, min)[0] == pytest.approx(1.0)
+    inside = joint_barrier([0.9, 0.0, 1.0], LOWER, UPPER, WIDTH, min)[0]  # 0.1 from a limit
+    assert 0.0 < inside < 1.0
+    # C^2 where the step ends: value 1, slope 0, and the second difference / h^2 (the
+    # second derivative) shrinks with h (it is h / w^3 from the inside).
+    curvature = []
+    for h in (1e-3, 1e-4):
+        s = [smooth_step(WIDTH + k * h, WIDTH, min)[0] for k in (-1, 0, 1)]
+        assert s[1] == 1.0 and smooth_step(WIDTH, WIDTH, min)[1] == 0.0
+        curvature.append(abs(s[0] - 2 * s[1] + s[2]) / h**2)
+    assert curvature[1] < 0.2 * curvature[0] and curvature[1] < 2e-3
+
+
+def test_the_barrier_gradient_is_its_central_difference():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        q = rng.uniform(LOWER + 1e-3, UPPER - 1e-3)
+        _, grad = joint_barrier(q, LOWER, UPPER, WIDTH, min)
+        h = 1e-7
+        fd = [
+            (
+                joint_barrier(q + h * e, LOWER, UPPER, WIDTH, min)[0]
+                - joint_barrier(q - h * e, LOWER, UPPER, WIDTH, min)[0]
+            )
+            / (2 * h)
+            for e in np.eye(3)
+        ]
+        assert np.allclose(grad, fd, atol=1e-6)
+    assert combine(0.3, 0.0) == 0.3 and combine(0.0, 0.4) == 0.4 and combine(1.0, 0.2) == 1.0
+
+
+def _elbow_swing(width: float) -> ScenarioConfig:
+    """The default start with the elbow (limits +-pi) swung towards its limit, E0 < k_p.
+
+    At the arm's default gains (gain_scale 10) this swing asks wrist 2 for 43.5 N m
+    against its 28 N m effort limit; MultibodyPlant clamps the actuation and the energy
+    balance is off by 0.09 J in the first 60 ms (the argument needs torques within the
+    limits). With the free rig's gains (gain_scale 1) the torques stay within them.
+    """
+    # Logged at 1 kHz: the trapezoid rule must follow the first swing's transient.
+    config = ScenarioConfig(carrier="arm", plant="dynamic", duration=3.0, log_rate=1000.0)
+    config.arm.gain_scale = 1.0
+    config.arm.initial_joint_velocity = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+    config.arm.joint_barrier_width = width
+    return config
+
+
+def _energy_balance(result, width: float) -> np.ndarray:
+    """E(t) - E(0) + the energy dissipated by t, with E = 1/2 v^T M v + k_p phi_total
+    (Drake's kinetic energy) and the dissipation (1 - phi_q) twist^T B twist + v^T B_q v
+    (twist = J_C v), integrated by the trapezoid rule: 0 up to the rule's error where
+    Edot is exactly minus the dissipation."""
+    resolved = resolve(result.config)
+    B, B_q = np.asarray(resolved.damping), resolved.config.arm.joint_damping
+    model = arm_model(resolved.config)
+    plant = arm_plant(model)
+    context = plant.CreateDefaultContext()
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+    nq = plant.num_positions()
+    k_p = result.energy_bound
+    phi_q = joint_barrier_values(model, result.states[:, :nq], width)
+    kinetic, dissipation = [], []
+    for x, barrier in zip(result.states, phi_q, strict=True):
+        plant.SetPositionsAndVelocities(context, x)
+        twist = camera_jacobian(plant, context, camera) @ x[nq:]
+        kinetic.append(plant.CalcKineticEnergy(context))
+        dissipation.append((1 - barrier) * twist @ (B * twist) + B_q * x[nq:] @ x[nq:])
+    E = np.asarray(kinetic) + k_p * combine(result.phi, phi_q)
+    dissipation = np.asarray(dissipation)
+    dt = np.diff(result.times)
+    lost = np.concatenate([[0.0], np.cumsum(dt * 0.5 * (dissipation[1:] + dissipation[:-1]))])
+    return E - E[0] + lost
+
+
+def test_the_barrier_torque_keeps_the_energy_with_phi_total_balanced():
+    width = 2.5  # the elbow's margin: 1.67 rad at the start (phi_q = 0.037 there)
+    barred = simulate(_elbow_swing(width))
+    summary = barred.arm.summary()
+    assert summary["max_joint_barrier"] > 0.05  # the barrier was entered (0.080)
+    assert barred.initial_energy < barred.energy_bound and barred.lyapunov_monotone
+    # Edot = -dissipation along the barred loop, to the trapezoid rule's error (5e-6 J).
+    balance = np.abs(_energy_balance(barred, width)).max()
+    assert balance < 1e-4 * barred.initial_energy, balance
+    # Without the barrier's torque the same E is off balance by k_p times the barrier
+    # it enters (0.26 J: the check can fail), and the elbow comes nearer its limit
+    # (1.29 rad against 1.42).
+    free = simulate(_elbow_swing(0.0))
+    assert np.abs(_energy_balance(free, width)).max() > 1000 * balance
+    assert summary["min_joint_limit_margin"] > free.arm.summary()["min_joint_limit_margin"] + 0.1
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--plant", "kinematic"], "joint_barrier_width applies to the dynamic arm under the NF"),
+        (["--controller", "ibvs"], "joint_barrier_width applies to the dynamic arm under the NF"),
+    ],
+)
+def test_the_barrier_is_for_the_dynamic_arm_under_the_nf(argv, needle, run_cli):
+    text = "arm: {joint_barrier_width: 0.5}"
+    run = run_cli("simulate", "--carrier", "arm", "--scenario-text", text, *argv)
+    assert run.code == 2 and run.err.count("\n") == 1 and needle in run.err, run.err
+
+
+def test_a_negative_barrier_width_is_one_line(run_cli):
+    text = "arm: {joint_barrier_width: -0.1}"
+    run = run_cli("simulate", "--carrier", "arm", "--scenario-text", text)
+    assert run.code == 2 and "arm.joint_barrier_width" in run.err and "-0.1" in run.err, run.err
+
+
+def test_the_barrier_torque_differentiates_by_autodiff_as_by_central_differences():
+    """ArmCamera with the barrier converts to AutoDiffXd (Drake's Linearize needs it);
+    d tau / d q by AutoDiffXd against central differences of the float system, at a q
+    inside the barrier."""
+    from pydrake.autodiffutils import ExtractGradient, InitializeAutoDiff
+
+    from geovs_drake.systems import ArmCamera
+
+    config = ScenarioConfig(carrier="arm", plant="dynamic")
+    model = arm_model(config)
+    system = ArmCamera(model=model, joint_barrier_width=2.5, potential_gain=4.0)
+    ad = system.ToAutoDiffXd()
+    q = np.array([-0.3, -0.25, 2.2, 1.87, 0.49, -1.08])  # the elbow 0.94 rad from its limit
+    v = np.array([0.1, -0.2, 0.3, 0.0, 0.1, -0.1])
+    wrench, phi = np.array([0.5, -0.2, 0.1, 2.0, -1.0, 0.5]), np.array([0.3])
+
+    def tau(sys, x):
+        context = sys.CreateDefaultContext()
+        sys.arm_state_input.FixValue(context, x)
+        sys.wrench_C_input.FixValue(context, wrench)
+        sys.phi_input.FixValue(context, phi)
+        return sys.actuation_output.Eval(context)
+
+    x = np.concatenate([q, v])
+    gradient = ExtractGradient(tau(ad, InitializeAutoDiff(x).ravel()))
+    h = 1e-6
+    fd = np.stack(
+        [(tau(system, x + h * e) - tau(system, x - h * e)) / (2 * h) for e in np.eye(12)], axis=1
+    )
+    assert np.allclose(gradient, fd, rtol=1e-6, atol=1e-5)
+    assert joint_barrier_values(model, q, 2.5)[0] > 0.1  # the barrier term is in play
+
+
+def test_the_barrier_width_shrinks_the_goals_the_arm_can_reach():
+    """A goal whose joints lie within w of a limit is not a minimum of phi_total (phi_q >
+    0 there): the count of reachable goals never grows with w, and at w = 0 it is every
+    goal IK reaches; the default goal (1.98 rad from its nearest limit) stays reachable
+    for the widths the docs suggest."""
+    from geovs_drake.analysis.arm_study import reachable_goals
+    from geovs_drake.loop.arm import joint_limit_margins, solve_joints
+
+    config = ScenarioConfig(carrier="arm", plant="dynamic")
+    widths = (0.0, 0.5, 1.5, 2.5)
+    goals = reachable_goals(config, widths, n=20)
+    counts = [goals.reachable[w] for w in widths]
+    assert goals.reachable[0.0] == goals.solvable <= goals.sampled == 20
+    assert all(a >= b for a, b in zip(counts, counts[1:], strict=False)) and counts[-1] < counts[0]
+    model = arm_model(config)
+    q_goal = solve_joints(model, config.X_WB @ config.X_BC_goal)
+    assert np.min(joint_limit_margins(model, q_goal)) > 1.5
