@@ -173,3 +173,22 @@ def test_demo_without_the_vision_extra_skips_the_rendered_run_and_says_so(
     ) in err
     assert (tmp_path / "summary.json").is_file()
     assert not (tmp_path / "rendered_vs_exact.png").exists()
+
+
+def test_demo_on_the_arm_records_the_arm_servoing(tmp_path, run_cli):
+    """`demo --carrier arm`: the same hard start, IK to the arm's joints, the Meshcat
+    recording of the arm; the rendered run is skipped with its reason."""
+    out = run_cli(
+        "demo", "--carrier", "arm", "--out", str(tmp_path), "--duration", "8", subprocess=True
+    )
+    assert out.code == 0, out.err
+    assert out.out.startswith("nf on the dynamic plant: converged"), out.out
+    assert "skipping the rendered run on the arm" in out.err
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["carrier"] == "arm" and summary["lyapunov_monotone"]
+    assert summary["min_joint_limit_margin"] > 0
+    html = (tmp_path / "servo.html").read_text()
+    assert "<html" in html.lower() and len(html) > 1_000_000  # the arm's meshes, animated
+    assert not (tmp_path / "rendered_summary.json").exists()
+    if shutil.which("dot"):
+        assert "arm_camera" in (tmp_path / "block_diagram.svg").read_text()

@@ -24,7 +24,7 @@ is negative. This module certifies a level with a proof, for a polynomial model:
    solves the dynamic loop's 12-variable program in a few GB).
 
 **What the truncation leaves out.** The certificate is a proof for the degree-d Taylor
-polynomial, not for the loop: the remainder, O(|x|^(d+1)), is not bounded, and neither
+polynomial, not for the loop: the remainder, ``O(|x|^(d+1))``, is not bounded, and neither
 is the safe domain D (the polynomial does not know where the camera map ends). So the
 certified level is then checked against the nonlinear loop, as the sampled level is:
 its ellipsoid's boundary must lie in D with the nonlinear Vdot < 0 there
@@ -89,7 +89,7 @@ DEFAULT_DEGREE = {"kinematic": 3, "dynamic": 2}
 #: choices). SCS is the default (module docstring).
 SOLVERS = {"scs": ScsSolver.id(), "clarabel": ClarabelSolver.id(), "csdp": CsdpSolver.id()}
 #: The equilibrium's residual f(0) (rounding of the kernels at the goal) that is dropped
-#: before Drake's ``RegionOfAttraction``, which requires |f(0)| <= 1e-14; larger is a bug.
+#: before Drake's ``RegionOfAttraction``, which requires ``|f(0)| <= 1e-14``; larger is a bug.
 _EQUILIBRIUM_TOLERANCE = 1e-9
 #: Points on the certified ellipsoid's boundary checked against the nonlinear loop.
 _BOUNDARY_POINTS = 200
@@ -207,7 +207,7 @@ class CertifiedRegion:
         plant, degree, solver: the loop, the Taylor degree and the SDP solver.
         sampled: the sampled region (its P is this region's P).
         rho: the certified level of V = x^T P x (for the Taylor polynomial).
-        T: the scaling x = T w of the certified program (V = failing level |w|^2).
+        T: the scaling ``x = T w`` of the certified program (``V = failing level |w|^2``).
         seconds: the wall time of Drake's ``RegionOfAttraction``.
         nonlinear_check: on :data:`_BOUNDARY_POINTS` points of the certified boundary,
             the state lies in D and the nonlinear loop's Vdot < 0 at every one.
@@ -226,6 +226,7 @@ class CertifiedRegion:
 
     @property
     def P(self) -> np.ndarray:
+        """The Lyapunov matrix, the sampled region's (``A^T P + P A = -I``)."""
         return self.sampled.P
 
     @property

@@ -11,6 +11,7 @@ from geovs_drake.cli._options import (
     exit_code_of,
     field_default,
 )
+from geovs_drake.scenario import CARRIERS
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -27,6 +28,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     add_out(p, "results", "output folder, created if missing")
     add_duration(p, "simulated time", None, f"{field_default(('duration',)):g}")
+    p.add_argument(
+        "--carrier",
+        choices=CARRIERS,
+        default="free",
+        help="free: the paper's free rig; arm: the camera on the arm shipped in the "
+        "package, IK from the same start (default: free)",
+    )
     p.add_argument(
         "--no-meshcat",
         action="store_true",
@@ -47,6 +55,10 @@ def run(args: argparse.Namespace) -> int:
 
     check_demo_args(args.out, args.duration)  # before any side effect
     result = run_demo(
-        args.out, args.duration, meshcat=not args.no_meshcat, rendered=not args.no_rendered
+        args.out,
+        args.duration,
+        meshcat=not args.no_meshcat,
+        rendered=not args.no_rendered,
+        carrier=args.carrier,
     )
     return exit_code_of(result.status)

@@ -151,6 +151,7 @@ class Jet:
         )
 
     def sqrt(self) -> Jet:
+        """The square root (``numpy.sqrt`` of a jet calls it)."""
         a = self.value
         derivatives, c = [], 1.0  # d^k/da^k a^(1/2) = (1/2)(1/2 - 1)...(1/2 - k + 1) a^(1/2 - k)
         for k in range(self.degree + 1):
@@ -159,10 +160,12 @@ class Jet:
         return self._series(derivatives)
 
     def sin(self) -> Jet:
+        """The sine (``numpy.sin`` of a jet calls it)."""
         s, c = math.sin(self.value), math.cos(self.value)
         return self._series([(s, c, -s, -c)[k % 4] for k in range(self.degree + 1)])
 
     def cos(self) -> Jet:
+        """The cosine (``numpy.cos`` of a jet calls it)."""
         s, c = math.sin(self.value), math.cos(self.value)
         return self._series([(c, -s, -c, s)[k % 4] for k in range(self.degree + 1)])
 
