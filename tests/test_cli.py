@@ -131,7 +131,11 @@ def test_demo_exit_3_when_the_run_did_not_converge(monkeypatch, tmp_path, capsys
         status = "left_domain"
 
     def fake_run_demo(
-        out: str, duration: float | None, meshcat: bool, rendered: bool = True
+        out: str,
+        duration: float | None,
+        meshcat: bool,
+        rendered: bool = True,
+        carrier: str = "free",
     ) -> SimulationResult:
         return _Result()  # type: ignore[return-value]
 
