@@ -61,6 +61,7 @@ from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SE
 from geovs_drake.geometry.rigid import (
     apply,
     cross,
+    gibbs_quaternion,
     matmul,
     quaternion_multiply,
     quaternion_to_rotation,
@@ -113,8 +114,7 @@ def minimal_field(config: ScenarioConfig, x, p: LoopParameters | None = None) ->
     X_WC_goal = config.X_WB @ config.X_BC_goal
     x = np.asarray(x, dtype=object)
     g, dp = x[0:3], x[3:6]
-    norm = NUMPY.sqrt(1 + (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) / 4)
-    q_g = (1 / norm, g[0] / (2 * norm), g[1] / (2 * norm), g[2] / (2 * norm))
+    q_g = gibbs_quaternion(tuple(g), NUMPY)
     q_WC = quaternion_multiply(tuple(X_WC_goal.rotation().ToQuaternion().wxyz()), q_g)
     w, a, b, c = X_RC.rotation().ToQuaternion().wxyz()
     q_WR = quaternion_multiply(q_WC, (w, -a, -b, -c))
@@ -183,10 +183,16 @@ class TaylorField:
         ]
 
 
-def taylor_field(config: ScenarioConfig, degree: int, T: np.ndarray | None = None) -> TaylorField:
+def taylor_field(
+    config: ScenarioConfig,
+    degree: int,
+    T: np.ndarray | None = None,
+    p: LoopParameters | None = None,
+) -> TaylorField:
     """The exact degree-d Taylor polynomial of the loop at the goal, in ``w = T^-1 x``
-    (T = I when None). Raises ValueError if the goal is not an equilibrium."""
-    p = loop_parameters(config)
+    (T = I when None; ``p``: the loop's parameters, built when None). Raises ValueError
+    if the goal is not an equilibrium."""
+    p = loop_parameters(config) if p is None else p
     n = 12 if config.plant == "dynamic" else 6
     T = np.eye(n) if T is None else np.asarray(T, dtype=float)
     w = variables(np.zeros(n), degree)
@@ -275,7 +281,8 @@ def certify_region(
     sampled = lyapunov_region(config) if sampled is None else sampled
     scale = sampled.failing_level
     T = math.sqrt(scale) * np.linalg.inv(np.linalg.cholesky(sampled.P).T)  # V = scale |w|^2
-    model = taylor_field(config, degree, T)
+    p = loop_parameters(config)
+    model = taylor_field(config, degree, T, p)
     n = len(T)
     w = np.array([sym.Variable(f"w{i}") for i in range(n)])
     system = SymbolicVectorSystem(state=w, dynamics=model.expressions(w))
@@ -298,7 +305,7 @@ def certify_region(
     inside = _in_domain(config, X_BC)
     vdot = np.full(len(x), np.inf)
     if np.any(inside):
-        vdot[inside] = _vdot(config, sampled.P, states[inside], loop_parameters(config))
+        vdot[inside] = _vdot(config, sampled.P, states[inside], p)
     return CertifiedRegion(
         plant=config.plant,
         degree=degree,

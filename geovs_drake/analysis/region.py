@@ -31,9 +31,10 @@ from pydrake.math import RealContinuousLyapunovEquation, RigidTransform, Rotatio
 
 from geovs_drake.analysis.linearization import linearize, pose_error
 from geovs_drake.batch.engine import _rhs, loop_parameters, run_batch
-from geovs_drake.geometry._ops import NUMPY
+from geovs_drake.geometry._ops import MATH, NUMPY
 from geovs_drake.geometry.camera import camera_map, visibility
 from geovs_drake.geometry.domain import domain_margins
+from geovs_drake.geometry.rigid import gibbs_quaternion, quaternion_to_rotation
 from geovs_drake.loop.state import initial_body_states
 from geovs_drake.scenario import ScenarioConfig
 
@@ -55,8 +56,7 @@ _SCALES = np.geomspace(1e-3, 1e1, 500)
 
 
 def _gibbs_rotation(g: np.ndarray) -> np.ndarray:
-    q = np.r_[1.0, np.asarray(g) / 2]
-    return RotationMatrix(Quaternion(q / np.linalg.norm(q))).matrix()
+    return np.array(quaternion_to_rotation(gibbs_quaternion(tuple(g), MATH), MATH)).reshape(3, 3)
 
 
 def states_of(config: ScenarioConfig, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

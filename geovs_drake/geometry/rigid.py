@@ -25,6 +25,7 @@ __all__ = [
     "camera_state_in_target",
     "cross",
     "matmul",
+    "gibbs_quaternion",
     "quaternion_multiply",
     "quaternion_to_rotation",
     "rig_velocity",
@@ -34,6 +35,14 @@ __all__ = [
     "transpose",
     "wrench_to_rig",
 ]
+
+
+def gibbs_quaternion(g: tuple, xp: Ops) -> tuple:
+    """The unit quaternion ``(1, g/2) / |(1, g/2)|`` of a Gibbs vector g, the inverse of
+    ``g = 2 vec(q) / w``: the rotation ``Cay(g)`` of the minimal coordinates about a goal
+    (``analysis.linearization.pose_error``)."""
+    norm = xp.sqrt(1 + (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) / 4)
+    return (1 / norm, g[0] / (2 * norm), g[1] / (2 * norm), g[2] / (2 * norm))
 
 
 def quaternion_to_rotation(q: tuple, xp: Ops) -> tuple:

@@ -158,6 +158,7 @@ def simulate(
     times, states = monitor.resample(config.log_rate)
     signals = camera_signals(diagram, root, states)
     energy = None
+    arm = arm_trace(loop, root, states) if loop.carrier.arm is not None else None
     nf_law = isinstance(resolved.law, Nf)
     if loop.carrier.plant is not None and loop.carrier.drive == "wrench" and nf_law:
         # Drake's own kinetic energy of the free body (or of the arm, 1/2 v^T M(q) v),
@@ -169,10 +170,8 @@ def simulate(
             plant.SetPositionsAndVelocities(pctx, x)
             kinetic[k] = plant.CalcKineticEnergy(pctx)
         potential = signals["phi"]
-        if loop.carrier.phi_input is not None:  # the arm's joint barrier: phi_total
-            q = states[:, : joint_count(loop.carrier.arm)]
-            width = config.arm.joint_barrier_width
-            potential = combine(potential, joint_barrier_values(loop.carrier.arm, q, width))
+        if arm is not None and arm.joint_barrier is not None:  # the barrier: phi_total
+            potential = combine(potential, arm.joint_barrier)
         energy = kinetic + config.control.potential_gain * potential
     x_final = root.get_continuous_state_vector().CopyToVector()
     final_X_BC = RigidTransform(loop.carrier.camera_poses(x_final)[0])
@@ -201,9 +200,8 @@ def simulate(
         energy=energy,
         final_X_BC=final_X_BC,
         states=states,
+        arm=arm,
     )
-    if loop.carrier.arm is not None:
-        result.arm = arm_trace(loop, root, states)
     result.step_limit = limit
     # A limit the user chose beyond the goal's bound: one line to say so (None otherwise).
     result.step_warning = limit.warning(config.simulator.integration_scheme)

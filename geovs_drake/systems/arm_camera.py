@@ -103,13 +103,13 @@ def ArmCamera_(T):
             self._context = self._plant.CreateDefaultContext()
             self._last = None
             self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
-            self._B = actuation_permutation(arm_plant(model))
+            float_plant = arm_plant(model)
+            self._B = actuation_permutation(float_plant)
             nq, nv = self._plant.num_positions(), self._plant.num_velocities()
             damping = np.zeros(nv) if joint_damping is None else np.asarray(joint_damping)
             self._defaults = (model, damping, joint_barrier_width, potential_gain)
             # The barrier's limits and gain are the model's and the law's: fixed, like the
             # model itself (a parameter would let them drift from the plant's).
-            float_plant = arm_plant(model)
             self._barrier = (
                 (
                     float_plant.GetPositionLowerLimits(),
