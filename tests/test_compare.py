@@ -194,3 +194,23 @@ def test_the_shipped_suite_loads_and_every_start_is_in_D():
 def test_bad_suites_are_one_line_errors(suite, match):
     with pytest.raises(ValueError, match=match):
         suite.validate()
+
+
+def test_compare_on_the_arm_shows_how_ibvs_fails_at_180_deg(tmp_path, run_cli):
+    """`compare --carrier arm` on the conundrum: both point-IBVS baselines take the
+    camera out of the field of view (left D), neither reaches a joint limit first;
+    the NF sits on its saddle (not converged, in D)."""
+    suite = tmp_path / "suite.yaml"
+    suite.write_text(
+        "duration: 1.0\nconundrum: roll_180\nscenarios:\n"
+        "  - {name: roll_180, description: rolled 180 deg, xyz: [0.0, 0.0, -0.5], "
+        "rpy_deg: [0.0, 0.0, 180.0]}\n"
+    )
+    run = run_cli(
+        "compare", "--carrier", "arm", "--suite", str(suite), "--out", str(tmp_path / "o"),
+        "--workers", "1", "--json",
+    )  # fmt: skip
+    assert run.code == 0, run.err
+    status = {r["law"]: r["status"] for r in json.loads(run.out)["rows"]}
+    assert status["ibvs-true"] == status["ibvs-desired"] == "left_domain", status
+    assert status["nf"] == "not_converged" and "joint_limit" not in status.values(), status

@@ -10,6 +10,7 @@ from geovs_drake.cli._options import (
     add_command,
     add_config,
     add_duration,
+    add_field,
     add_json,
     add_out,
     add_plant,
@@ -18,7 +19,7 @@ from geovs_drake.cli._options import (
     load_config,
 )
 from geovs_drake.progress import Progress
-from geovs_drake.scenario import load_suite
+from geovs_drake.scenario import CARRIERS, load_suite
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -34,6 +35,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     add_config(p)
     add_plant(p, ", the baselines through the velocity-tracking wrench")
+    add_field(
+        p,
+        "--carrier",
+        ("carrier",),
+        "free: the paper's free rig; arm: the camera on the arm shipped in the package, "
+        "each start's joints by IK (the baselines' twists through the arm's velocity-"
+        "tracking torques, or the kinematic arm's J_C^+)",
+        choices=CARRIERS,
+    )
     p.add_argument(
         "--suite",
         metavar="FILE",
