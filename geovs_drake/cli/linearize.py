@@ -103,12 +103,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="also certify a level of that region's V by sum of squares (Drake's "
         "RegionOfAttraction on the loop's Taylor polynomial, degree 3 kinematic, 2 "
-        "dynamic; implies --region; about 10 s on the kinematic loop, 4 min on the "
-        "dynamic one)",
+        "dynamic; implies --region; about 10 s on the kinematic loop, 4 to 9 minutes on "
+        "the dynamic one)",
     )
     p.add_argument(
         "--sos-solver",
         default="scs",
+        metavar="NAME",
         help="the SDP solver for --certify: scs, clarabel or csdp (all ship with the drake "
         "wheel; default: scs)",
     )
