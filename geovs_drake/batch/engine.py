@@ -115,6 +115,11 @@ def loop_parameters(config: ScenarioConfig) -> LoopParameters:
             f"the batch engine runs the eye-in-hand loops only: mount = {config.mount!r} "
             "(use simulate() for the fixed camera)"
         )
+    if config.carrier != "free":
+        raise ValueError(
+            f"the batch engine runs the free rig only: carrier = {config.carrier!r} "
+            "(use the Drake engine, sweep --engine drake, or simulate())"
+        )
     if config.camera.sensor != "exact":
         raise ValueError(
             f"the batch engine reads the exact y = c(H); camera.sensor "
