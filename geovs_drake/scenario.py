@@ -31,6 +31,7 @@ from geovs_drake.geometry.navigation import NavigationGains
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
 
 __all__ = [
+    "free_twin",
     "CONTROLLERS",
     "IBVS_DEPTHS",
     "MOUNTS",
@@ -718,6 +719,13 @@ def _check_law(law: LawConfig, config: ScenarioConfig) -> None:
                         f"{where}.{name} must be finite and {'>' if strict else '>='} 0{unit}: "
                         f"{where}.{name} = {value}"
                     )
+
+
+def free_twin(config: ScenarioConfig) -> ScenarioConfig:
+    """The same scenario on the free rig (``carrier: free``): the camera, domain, NF and
+    law the batch engine's kernels and the sweep's start sampler read, for a loop whose
+    own carrier (the arm) they do not integrate."""
+    return dataclasses.replace(config, carrier="free")
 
 
 def law_of(config: ScenarioConfig) -> LawConfig:

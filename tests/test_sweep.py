@@ -455,3 +455,23 @@ def test_a_worker_runs_its_part_without_building_or_importing_a_diagram():
     text = yaml_dump_typed(config)
     _, here = run_part(Part(text, 0, 0, 3, 1.0, "batch", None, seed=4, velocity="bounded"))
     pd.testing.assert_frame_equal(table, here.to_pandas())
+
+
+def test_the_drake_engine_runs_the_arm_keeping_each_starts_energy_ratio():
+    """`sweep --engine drake` on the arm: IK for each start (``unreachable`` where there
+    is none), the sampled twist carried to the joints at the kinetic energy that keeps
+    E0 / k_p. The truth: the batch engine's E0 / k_p of the same starts on the free rig
+    (the arm's k_p is ten times the rig's, its kinetic energy scaled alike)."""
+    arm = ScenarioConfig(carrier="arm")
+    starts = sweep.SampledStarts(5, seed=3, velocity="bounded")
+    on_arm = sweep.run_sweep(arm, starts, 2.0, engine="drake", workers=1)
+    free = sweep.run_sweep(ScenarioConfig(), starts, 2.0, workers=1)
+    rows, reference = on_arm.table, free.table
+    counts = on_arm.summary.counts
+    assert set(sweep.ARM_STATUSES) <= set(counts) and sum(counts.values()) == 5
+    reached = (rows["status"] != "unreachable").to_numpy()
+    assert reached.any() and on_arm.potential_gain == 10 * free.potential_gain
+    ratio = rows["initial_energy_ratio"].to_numpy()[reached]
+    assert np.allclose(ratio, reference["initial_energy_ratio"].to_numpy()[reached], rtol=1e-6)
+    assert np.all(ratio < 1) and rows["monotone"].all()
+    assert counts["joint_limit"] == 0 and counts["left_domain"] == 0

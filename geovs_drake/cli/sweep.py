@@ -172,11 +172,13 @@ def run(args: argparse.Namespace) -> int:
         # kinematic loop, which has no energy, phi below 1 (every start in D).
         covered = "E0 < k_p" if result.plant == "dynamic" else "phi0 < 1"
         resumed = f", {result.resumed_parts} parts resumed" if result.resumed_parts else ""
+        # The arm's joint limit, only where the arm ran (a free rig has none).
+        limit = f", joint limit {g['joint_limit']}" if "joint_limit" in summary["counts"] else ""
         print(
             f"{result.plant}: {finished} of {result.starts} starts x "
             f"{result.duration:g} s ({result.engine}{resumed}): {counts} | {covered}: "
             f"{g['starts']} starts, of which left D {g['left_domain']}, lost visibility "
-            f"{g['lost_visibility']}, non-finite {g['non_finite']} | "
+            f"{g['lost_visibility']}, non-finite {g['non_finite']}{limit} | "
             f"{result.wall_time_s:.1f} s wall | {out}/"
         )
     if code == EXIT_INTERRUPTED:

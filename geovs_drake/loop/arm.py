@@ -40,6 +40,7 @@ __all__ = [
     "joint_barrier_values",
     "joint_count",
     "joint_limit_margins",
+    "joint_velocity_for",
     "smallest_singular_values",
     "solve_joints",
 ]
@@ -98,6 +99,23 @@ def joint_barrier_values(model: ArmModel, q: np.ndarray, width: float) -> np.nda
     plant = arm_plant(model)
     lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
     return np.array([joint_barrier(row, lower, upper, width, min)[0] for row in q])
+
+
+def joint_velocity_for(
+    model: ArmModel, q: np.ndarray, twist: np.ndarray, kinetic_energy: float
+) -> np.ndarray:
+    """The joint velocity along ``J_C(q)^+ (Omega, V)`` whose kinetic energy
+    ``1/2 v^T M(q) v`` (the arm's, rotor inertia included) is ``kinetic_energy``: a
+    camera twist's direction carried to the joints, at a chosen energy (the sweep's
+    moving starts keep E0 / k_p on the arm). Zero for a zero twist."""
+    plant = arm_plant(model)
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, q)
+    direction = np.linalg.pinv(camera_jacobian(plant, context, plant.GetFrameByName(CAMERA_FRAME)))
+    v = direction @ np.asarray(twist, dtype=float)
+    plant.SetVelocities(context, v)
+    unit = plant.CalcKineticEnergy(context)
+    return v * np.sqrt(kinetic_energy / unit) if unit > 0 else np.zeros_like(v)
 
 
 def smallest_singular_values(model: ArmModel, q: np.ndarray) -> np.ndarray:

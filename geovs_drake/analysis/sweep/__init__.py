@@ -49,10 +49,16 @@ from geovs_drake.analysis.sweep.starts import (
     SweepError,
     sample_starts,
 )
-from geovs_drake.analysis.sweep.summary import TIME_BINS, SweepSummary, plot_summary
+from geovs_drake.analysis.sweep.summary import (
+    ARM_STATUSES,
+    TIME_BINS,
+    SweepSummary,
+    plot_summary,
+)
 
 __all__ = [
     "ABOVE_RANGE",
+    "ARM_STATUSES",
     "CSV_LIMIT",
     "ENERGY_FACTOR",
     "ENGINES",

@@ -32,7 +32,7 @@ from geovs_drake.analysis.sweep.starts import sample_starts
 from geovs_drake.analysis.sweep.summary import SweepSummary
 from geovs_drake.batch import STATUS_NAMES, LoopParameters, loop_parameters, run_batch
 from geovs_drake.loop.state import poses_in_target
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
+from geovs_drake.scenario import PoseConfig, ScenarioConfig, free_twin, load_scenario, resolve
 
 __all__ = ["ROW_FIELDS", "SUMMARY_KEY", "Part", "part_name", "read_part_summary", "run_part"]
 
@@ -196,9 +196,15 @@ def _batch_columns(
 def _drake_columns(
     config: ScenarioConfig, p: LoopParameters, X_BC, twists, duration: float
 ) -> dict[str, np.ndarray]:
-    """The same columns, a start at a time through simulate() (slow: for cross-checks).
-    Margins and energies are those of simulate()'s logs (``config.log_rate``), not of
-    every step as in the batch engine."""
+    """The same columns, a start at a time through simulate() (slow: for cross-checks,
+    and the only engine of the arm). Margins and energies are those of simulate()'s logs
+    (``config.log_rate``), not of every step as in the batch engine.
+
+    On the arm (``carrier: arm``) each start's joints come from IK (a start the arm
+    cannot reach gets the status ``unreachable``), and a start's twist becomes a joint
+    velocity along ``J_C^+ (Omega, V)`` whose kinetic energy is the free rig's for that
+    twist times the ratio of the loops' k_p, so that E0 / k_p keeps the sampler's
+    distribution (``velocity bounded``: E0 < k_p on the arm too)."""
     dynamic = config.plant == "dynamic"
     rows = []
     for X, twist in zip(X_BC, twists, strict=True):
@@ -206,25 +212,51 @@ def _drake_columns(
         c.duration = duration
         c.initial = PoseConfig.from_rigid_transform(RigidTransform(X))
         c.initial_velocity = [float(v) for v in twist] if dynamic else [0.0] * 6
-        rows.append(_drake_row(c, p.potential_gain))
+        if config.carrier == "arm":
+            rows.append(_drake_arm_row(c, p, X, twist))
+        else:
+            rows.append(_drake_row(c))
     names = [k for k in ROW_FIELDS if k not in ("start", *_POSE, *_TWIST)]
     return {
         k: np.array([r[k] for r in rows], dtype=object if k == "status" else None) for k in names
     }
 
 
-def _drake_row(config: ScenarioConfig, k_p: float) -> dict:
+def _stopped_row(status: str) -> dict:
+    """A start that stopped before its first step, with its status."""
+    row = dict.fromkeys(ROW_FIELDS[14:], math.nan)
+    row.update(status=status, monotone=True)
+    return row
+
+
+def _drake_arm_row(config: ScenarioConfig, p: LoopParameters, X: np.ndarray, twist) -> dict:
+    """:func:`_drake_row` on the arm: IK for the joints, the twist to joint velocities."""
+    from geovs_drake.analysis.sweep.starts import kinetic_energy
+    from geovs_drake.loop.arm import Unreachable, arm_model, joint_velocity_for, solve_joints
+
+    model = arm_model(config)
+    try:
+        q = solve_joints(model, config.X_WB @ RigidTransform(X))
+    except Unreachable:
+        return _stopped_row("unreachable")
+    config.initial_velocity = [0.0] * 6
+    if config.plant == "dynamic" and np.any(np.asarray(twist) != 0):
+        k_p_arm = resolve(config).config.control.potential_gain
+        free = kinetic_energy(free_twin(config), p, X[None], np.asarray(twist)[None])[0]
+        v = joint_velocity_for(model, q, twist, free * k_p_arm / p.potential_gain)
+        config.arm.initial_joint_velocity = [float(x) for x in v]
+    return _drake_row(config)
+
+
+def _drake_row(config: ScenarioConfig) -> dict:
     # Here, not at the top: the batch engine's workers need none of the Drake loop.
     from geovs_drake.simulation import StartOutsideDomain, simulate
 
     try:
         r = simulate(config)
     except StartOutsideDomain as e:  # stopped at t = 0, as the batch engine would
-        nan = math.nan
-        status = "lost_visibility" if "not visible" in str(e) else "left_domain"
-        row = dict.fromkeys(ROW_FIELDS[14:], nan)
-        row.update(status=status, monotone=True)
-        return row
+        return _stopped_row("lost_visibility" if "not visible" in str(e) else "left_domain")
+    k_p = r.energy_bound or 1.0  # the loop's own (the arm's is scaled; 1 for phi)
     dp, dr = r.final_errors
     L = r.lyapunov
     final = r.final_X_BC

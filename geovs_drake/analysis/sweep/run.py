@@ -40,7 +40,7 @@ from geovs_drake.analysis.sweep.parts import (
 from geovs_drake.analysis.sweep.starts import SampledStarts, SweepError
 from geovs_drake.analysis.sweep.summary import SweepSummary, plot_summary
 from geovs_drake.batch import loop_parameters
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import ScenarioConfig, free_twin, resolve
 
 __all__ = [
     "CSV_LIMIT",
@@ -400,7 +400,9 @@ def run_sweep(
     if resume:  # before anything else: a different sweep in the folder is the first thing to say
         _check_record(out, manifest)
     try:  # read once here from the built diagram, and shipped with every part
-        parameters = loop_parameters(config)
+        # The Drake engine runs any carrier; its starts are drawn with the free rig's
+        # kernels (the same camera, domain and NF), which the batch engine also runs.
+        parameters = loop_parameters(config if engine == "batch" else free_twin(config))
     except ValueError as e:  # a loop the batch engine does not run
         raise SweepError(str(e)) from e
     parts, names = [], []
@@ -475,7 +477,8 @@ def run_sweep(
         interrupted=interrupted,
         scheduler=scheduler,
         out=out,
-        potential_gain=float(config.control.potential_gain) if dynamic else 1.0,
+        # The loop's own k_p (resolve() scales the arm's), 1 for the kinematic loop's phi.
+        potential_gain=float(resolve(config).config.control.potential_gain) if dynamic else 1.0,
         resumed_parts=len(done),
     )
     if out is None:

@@ -36,6 +36,7 @@ __all__ = [
     "VELOCITIES",
     "SampledStarts",
     "SweepError",
+    "kinetic_energy",
     "sample_starts",
 ]
 
@@ -138,7 +139,7 @@ def _block(
     )
     direction = rng.normal(size=(START_BLOCK, 6))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-    kinetic_unit = _kinetic_energy(config, p, X_BC, direction)
+    kinetic_unit = kinetic_energy(config, p, X_BC, direction)
     if velocity == "above":
         kinetic = p.potential_gain * (rng.uniform(*ABOVE_RANGE, size=START_BLOCK) - phi0)
     else:
@@ -157,7 +158,7 @@ def _inverse(X: np.ndarray) -> np.ndarray:
     return out
 
 
-def _kinetic_energy(
+def kinetic_energy(
     config: ScenarioConfig, p: LoopParameters, X_BC: np.ndarray, twists: np.ndarray
 ) -> np.ndarray:
     """1/2 nu^T M nu of the rig for camera poses and twists (the ``free_body`` kernel)."""

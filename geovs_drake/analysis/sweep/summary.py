@@ -28,6 +28,7 @@ from geovs_drake.batch import STATUS_NAMES
 from geovs_drake.scenario import ScenarioConfig
 
 __all__ = [
+    "ARM_STATUSES",
     "DISTANCE_BINS",
     "FAILED",
     "SLOWEST",
@@ -45,8 +46,11 @@ SLOWEST = 20
 #: Grid of the starts plot: log-spaced distance bins, uniform yaw bins on [-pi, pi].
 DISTANCE_BINS = 48
 YAW_BINS = 48
-#: Statuses that count as a failure: neither converged nor still on the way.
+#: Statuses that count as a failure: neither converged nor still on the way (on the arm
+#: also its ``joint_limit``; an ``unreachable`` start never ran and is neither).
 FAILED = ("left_domain", "lost_visibility", "non_finite")
+#: The arm's own statuses (the Drake engine): a joint left its range, IK found no joints.
+ARM_STATUSES = ("joint_limit", "unreachable")
 #: The layers of the starts grid.
 _GRID_LAYERS = ("all", "not_converged", "failed")
 
@@ -107,11 +111,15 @@ class SweepSummary:
         status = np.asarray(columns["status"], dtype=object)
         n = len(status)
         s.finished = n
-        for name in STATUS_NAMES:
+        # The arm's statuses on the arm (joint_limit, unreachable), and any other present.
+        arm = config.carrier == "arm"
+        names = [*STATUS_NAMES, *(ARM_STATUSES if arm else ())]
+        for name in (*names, *sorted(set(status) - set(names))):
             s.counts[name] = int(np.sum(status == name))
+        failed = (*FAILED, "joint_limit") if arm else FAILED
         covered = np.asarray(columns["initial_energy_ratio"], float) < 1
         s.covered = int(np.sum(covered))
-        for name in FAILED:
+        for name in failed:
             s.covered_failed[name] = int(np.sum(covered & (status == name)))
         for key, column in (
             ("fov", "min_fov_margin"),
@@ -143,7 +151,7 @@ class SweepSummary:
         masks = (
             np.ones(n, bool),
             status == "not_converged",
-            np.isin(status, FAILED),
+            np.isin(status, failed),
         )
         for layer, mask in enumerate(masks):
             np.add.at(s.grid[layer], (cells[0][mask[finite]], cells[1][mask[finite]]), 1)
@@ -154,11 +162,11 @@ class SweepSummary:
         if other.duration != self.duration or other.t_histogram.shape != self.t_histogram.shape:
             raise ValueError("summaries of different sweeps do not merge")
         self.finished += other.finished
-        for name in self.counts:
-            self.counts[name] += other.counts[name]
+        for name, count in other.counts.items():
+            self.counts[name] = self.counts.get(name, 0) + count
         self.covered += other.covered
-        for name in self.covered_failed:
-            self.covered_failed[name] += other.covered_failed[name]
+        for name, count in other.covered_failed.items():
+            self.covered_failed[name] = self.covered_failed.get(name, 0) + count
         for key in self.min_margins:
             self.min_margins[key] = min(self.min_margins[key], other.min_margins[key])
         self.max_energy_ratio = max(self.max_energy_ratio, other.max_energy_ratio)
@@ -306,7 +314,7 @@ def plot_summary(summary: SweepSummary, plant: str, out_dir: str | Path) -> list
         s=30,
         c="r",
         marker="x",
-        label=f"left D / failed ({sum(s.counts[k] for k in FAILED)})",
+        label=f"left D / failed ({sum(s.counts.get(k, 0) for k in (*FAILED, 'joint_limit'))})",
     )
     ax.set_xscale("log")
     ax.set_xlabel("distance |p_BC| [m]")
