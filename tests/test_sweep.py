@@ -286,7 +286,7 @@ def test_cli_end_to_end(tmp_path, run_cli):
         (["--starts", "100001", "--csv"], "--csv writes at most 100000 starts"),
         (["--seed=-1"], "the seed must be an integer >= 0"),
         # The batch engine integrates the free rig: an arm would silently run as one.
-        (["--scenario-text", "carrier: arm"], "the batch engine runs the free rig only"),
+        (["--carrier", "arm"], "the batch engine runs the free rig only"),
     ],
 )
 def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, monkeypatch, run_cli):

@@ -12,6 +12,7 @@ from geovs_drake.cli._options import (
     add_command,
     add_config,
     add_duration,
+    add_field,
     add_json,
     add_out,
     add_plant,
@@ -22,6 +23,7 @@ from geovs_drake.cli._options import (
     load_config,
 )
 from geovs_drake.progress import Progress
+from geovs_drake.scenario import CARRIERS
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -40,6 +42,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     add_config(p)
     add_plant(p)
+    add_field(
+        p,
+        "--carrier",
+        ("carrier",),
+        "free: the paper's free rig; arm: the camera on the arm shipped in the package "
+        "(with --engine drake: each start's joints by IK, its twist carried to the joints "
+        "at the same E0 / k_p)",
+        choices=CARRIERS,
+    )
     p.add_argument(
         "--starts", type=int, default=1000, metavar="N", help="number of starts (default: 1000)"
     )
