@@ -49,8 +49,10 @@ YAW_BINS = 48
 #: Statuses that count as a failure: neither converged nor still on the way (on the arm
 #: also its ``joint_limit``; an ``unreachable`` start never ran and is neither).
 FAILED = ("left_domain", "lost_visibility", "non_finite")
-#: The arm's own statuses (the Drake engine): a joint left its range, IK found no joints.
+#: The arm's own statuses (the Drake engine): a joint left its range, IK found no joints;
+#: the first is a failure like FAILED's.
 ARM_STATUSES = ("joint_limit", "unreachable")
+_ARM_FAILED = ARM_STATUSES[:1]
 #: The layers of the starts grid.
 _GRID_LAYERS = ("all", "not_converged", "failed")
 
@@ -116,7 +118,7 @@ class SweepSummary:
         names = [*STATUS_NAMES, *(ARM_STATUSES if arm else ())]
         for name in (*names, *sorted(set(status) - set(names))):
             s.counts[name] = int(np.sum(status == name))
-        failed = (*FAILED, "joint_limit") if arm else FAILED
+        failed = (*FAILED, *_ARM_FAILED) if arm else FAILED
         covered = np.asarray(columns["initial_energy_ratio"], float) < 1
         s.covered = int(np.sum(covered))
         for name in failed:
@@ -314,7 +316,7 @@ def plot_summary(summary: SweepSummary, plant: str, out_dir: str | Path) -> list
         s=30,
         c="r",
         marker="x",
-        label=f"left D / failed ({sum(s.counts.get(k, 0) for k in (*FAILED, 'joint_limit'))})",
+        label=f"left D / failed ({sum(s.counts.get(k, 0) for k in (*FAILED, *_ARM_FAILED))})",
     )
     ax.set_xscale("log")
     ax.set_xlabel("distance |p_BC| [m]")
