@@ -23,6 +23,7 @@ import os
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
@@ -33,6 +34,9 @@ from geovs_drake.analysis.sweep.summary import SweepSummary
 from geovs_drake.batch import STATUS_NAMES, LoopParameters, loop_parameters, run_batch
 from geovs_drake.loop.state import poses_in_target
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, free_twin, load_scenario, resolve
+
+if TYPE_CHECKING:  # the Drake loop stays out of the batch engine's workers
+    from geovs_drake.systems._arm_model import ArmModel
 
 __all__ = ["ROW_FIELDS", "SUMMARY_KEY", "Part", "part_name", "read_part_summary", "run_part"]
 
@@ -206,16 +210,14 @@ def _drake_columns(
     twist times the ratio of the loops' k_p, so that E0 / k_p keeps the sampler's
     distribution (``velocity bounded``: E0 < k_p on the arm too)."""
     dynamic = config.plant == "dynamic"
+    arm = _ArmStarts.of(config, p) if config.carrier == "arm" else None  # once per part
     rows = []
     for X, twist in zip(X_BC, twists, strict=True):
         c = copy.deepcopy(config)
         c.duration = duration
         c.initial = PoseConfig.from_rigid_transform(RigidTransform(X))
         c.initial_velocity = [float(v) for v in twist] if dynamic else [0.0] * 6
-        if config.carrier == "arm":
-            rows.append(_drake_arm_row(c, p, X, twist))
-        else:
-            rows.append(_drake_row(c))
+        rows.append(_drake_row(c) if arm is None else arm.row(c, X, twist))
     names = [k for k in ROW_FIELDS if k not in ("start", *_POSE, *_TWIST)]
     return {
         k: np.array([r[k] for r in rows], dtype=object if k == "status" else None) for k in names
@@ -229,23 +231,40 @@ def _stopped_row(status: str) -> dict:
     return row
 
 
-def _drake_arm_row(config: ScenarioConfig, p: LoopParameters, X: np.ndarray, twist) -> dict:
-    """:func:`_drake_row` on the arm: IK for the joints, the twist to joint velocities."""
-    from geovs_drake.analysis.sweep.starts import kinetic_energy
-    from geovs_drake.loop.arm import Unreachable, arm_model, joint_velocity_for, solve_joints
+@dataclass(frozen=True)
+class _ArmStarts:
+    """What carrying a part's starts to the arm needs, read once per part: the arm's
+    model, the free rig's twin of the scenario (whose kinetic energy the sampler drew)
+    and the ratio of the loops' k_p (resolve() scales the arm's)."""
 
-    model = arm_model(config)
-    try:
-        q = solve_joints(model, config.X_WB @ RigidTransform(X))
-    except Unreachable:
-        return _stopped_row("unreachable")
-    config.initial_velocity = [0.0] * 6
-    if config.plant == "dynamic" and np.any(np.asarray(twist) != 0):
+    model: ArmModel
+    free: ScenarioConfig
+    parameters: LoopParameters
+    gain_ratio: float
+
+    @classmethod
+    def of(cls, config: ScenarioConfig, p: LoopParameters) -> _ArmStarts:
+        from geovs_drake.loop.arm import arm_model
+
         k_p_arm = resolve(config).config.control.potential_gain
-        free = kinetic_energy(free_twin(config), p, X[None], np.asarray(twist)[None])[0]
-        v = joint_velocity_for(model, q, twist, free * k_p_arm / p.potential_gain)
-        config.arm.initial_joint_velocity = [float(x) for x in v]
-    return _drake_row(config)
+        return cls(arm_model(config), free_twin(config), p, k_p_arm / p.potential_gain)
+
+    def row(self, config: ScenarioConfig, X: np.ndarray, twist) -> dict:
+        """:func:`_drake_row` on the arm: IK for the joints, the twist to joint velocities."""
+        from geovs_drake.analysis.sweep.starts import kinetic_energy
+        from geovs_drake.loop.arm import Unreachable, joint_velocity_for, solve_joints
+
+        try:
+            q = solve_joints(self.model, config.X_WB @ RigidTransform(X))
+        except Unreachable:
+            return _stopped_row("unreachable")
+        config.initial_velocity = [0.0] * 6
+        if config.plant == "dynamic" and np.any(np.asarray(twist) != 0):
+            twist = np.asarray(twist, dtype=float)
+            free = kinetic_energy(self.free, self.parameters, X[None], twist[None])[0]
+            v = joint_velocity_for(self.model, q, twist, free * self.gain_ratio)
+            config.arm.initial_joint_velocity = [float(x) for x in v]
+        return _drake_row(config)
 
 
 def _drake_row(config: ScenarioConfig) -> dict:
