@@ -125,7 +125,7 @@ def reachable_goals(
 ) -> ReachableGoals:
     """Sample n goal poses X_BC in D, 0.2-0.8 m from the target, and count those the
     arm reaches with every joint ``w`` or more from its limits, for each width w."""
-    from geovs_drake.analysis.region import _in_domain
+    from geovs_drake.analysis.region import poses_in_domain
     from geovs_drake.loop.arm import Unreachable, joint_limit_margins
     from geovs_drake.sampling import random_visible_poses
 
@@ -135,7 +135,7 @@ def reachable_goals(
     while len(goals) < n:
         X_CB = random_visible_poses(rng, 4 * n, config.radius, (2.0, 8.0))
         X_BC = np.linalg.inv(X_CB)
-        goals.extend(X_BC[_in_domain(config, X_BC)][: n - len(goals)])
+        goals.extend(X_BC[poses_in_domain(config, X_BC)][: n - len(goals)])
     margins = []
     for X_BC in goals:
         try:

@@ -49,9 +49,9 @@ from pydrake.systems.primitives import SymbolicVectorSystem
 
 from geovs_drake.analysis.region import (
     LyapunovRegion,
-    _in_domain,
     _vdot,
     lyapunov_region,
+    poses_in_domain,
     states_of,
 )
 from geovs_drake.batch.engine import LoopParameters, loop_parameters
@@ -302,7 +302,7 @@ def certify_region(
     u = rng.normal(size=(_BOUNDARY_POINTS, n))
     x = (T @ (u / np.linalg.norm(u, axis=1, keepdims=True)).T).T * math.sqrt(rho / scale)
     X_BC, states = states_of(config, x)
-    inside = _in_domain(config, X_BC)
+    inside = poses_in_domain(config, X_BC)
     vdot = np.full(len(x), np.inf)
     if np.any(inside):
         vdot[inside] = _vdot(config, sampled.P, states[inside], p)

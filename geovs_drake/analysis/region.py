@@ -42,6 +42,7 @@ __all__ = [
     "LEVEL_MARGIN",
     "LyapunovRegion",
     "lyapunov_region",
+    "poses_in_domain",
     "sample_inside",
     "states_of",
 ]
@@ -90,7 +91,9 @@ def _minimal(config: ScenarioConfig, s: np.ndarray) -> np.ndarray:
     return out
 
 
-def _in_domain(config: ScenarioConfig, X_BC: np.ndarray) -> np.ndarray:
+def poses_in_domain(config: ScenarioConfig, X_BC: np.ndarray) -> np.ndarray:
+    """Which camera poses X_BC (N, 4, 4) lie in the scenario's safe domain D (the target
+    visible and every margin > 0), by the camera map and D's margins."""
     X_CB = np.linalg.inv(X_BC)
     inside = visibility(X_CB, config.radius) > 0
     if np.any(inside):
@@ -172,7 +175,7 @@ def lyapunov_region(config: ScenarioConfig, rays: int = 200, seed: int = 0) -> L
         u /= math.sqrt(u @ P @ u)  # V(s u) = s^2
         x = _SCALES[:, None] * u[None]
         X_BC, s = states_of(config, x)
-        inside = _in_domain(config, X_BC)
+        inside = poses_in_domain(config, X_BC)
         bad = ~inside
         if np.any(inside):
             vdot = np.full(len(x), np.inf)
