@@ -13,6 +13,7 @@ import copy
 import dataclasses
 import importlib.resources
 import math
+import typing
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -246,14 +247,21 @@ class RigConfig:
 class ArmConfig:
     """The arm that carries the camera with ``carrier: arm`` (eye-in-hand).
 
-    ``model``: "default", the 6-axis arm shipped in the package (a UR5's published
-    parameters, ``geovs_drake/models/ur5.urdf``), or the path of a URDF or SDFormat
-    file. Its first body is welded to the world at ``base_pose``; the camera frame
-    C sits at ``camera_offset`` (X_EC, the optical axis along z_C) on
-    ``end_effector_frame``. The start is ``initial_joints`` [rad] if given, else
+    ``model``: an arm known by name, "default" (the 6-axis arm shipped in the
+    package, a UR5's published parameters, ``geovs_drake/models/ur5.urdf``) or
+    "panda" (the 7-axis Franka Panda of example-robot-data, the ``panda`` extra), or
+    the path of a URDF or SDFormat file. Its first body is welded to the world at
+    ``base_pose``; the camera frame C sits at ``camera_offset`` (X_EC, the optical
+    axis along z_C) on ``end_effector_frame``. Left unset, these three are the named
+    arm's own (:data:`geovs_drake.loop.arm.ARMS`: a scene where the goal,
+    the default start and the comparison suite's starts are all reachable); a model
+    file needs ``end_effector_frame``, and its base and camera default to the world's
+    origin and the frame itself. The start is ``initial_joints`` [rad] if given, else
     ``initial`` (X_BC(0)) solved by Drake's InverseKinematics within the joint
     limits; ``initial_joint_velocity`` [rad/s] (dynamic plant; empty: at rest).
     ``joint_damping`` B_q [N m s/rad] adds ``-B_q qdot`` to the torque;
+    ``null_space_damping`` [N m s/rad] adds ``-d N qdot``, N the projector on J_C's
+    null space, which damps a redundant arm's self-motion (dynamic arm);
     ``joint_barrier_width`` [rad] > 0 puts the joint limits inside the NF's guarantee
     (the dynamic arm under the NF: :mod:`geovs_drake.geometry.joint_barrier`, 0: off); the
     kinematic arm's ``null_space_gain`` [1/s] centres a redundant arm's
@@ -261,19 +269,13 @@ class ArmConfig:
     """
 
     model: str = "default"
-    end_effector_frame: str = "tool0"
-    #: The default stands the arm's base on a pedestal beside the line of sight, 0.65 m
-    #: to the side of the target's axis, level with the target and 0.85 m back from
-    #: it, facing the axis: the goal, the default start and every start of the
-    #: comparison suite are reachable, the nearest joint limit at least 1.6 rad away
-    #: (chosen on a grid of base positions; a test holds it).
-    base_pose: PoseConfig = field(
-        default_factory=lambda: PoseConfig(xyz=[-0.85, 0.65, 1.0], rpy=[0.0, 0.0, -math.pi / 2])
-    )
-    camera_offset: PoseConfig = field(default_factory=lambda: PoseConfig(xyz=[0.0, 0.0, 0.03]))
+    end_effector_frame: str = ""
+    base_pose: PoseConfig | None = None
+    camera_offset: PoseConfig | None = None
     initial_joints: list[float] = field(default_factory=list)
     initial_joint_velocity: list[float] = field(default_factory=list)
     joint_damping: float = 0.5
+    null_space_damping: float = 2.0
     joint_barrier_width: float = 0.0
     null_space_gain: float = 1.0
     #: The arm's inertia at the camera is about ten times the default rig's (1 kg): the
@@ -614,9 +616,22 @@ class ScenarioConfig:
                 "initial_velocity (a free camera's twist) does not apply to carrier 'arm': "
                 f"give arm.initial_joint_velocity instead, got initial_velocity = {twist}"
             )
+        # Here, not at the top: the command line starts without the loop's modules.
+        from geovs_drake.systems._arm_model import ARMS
+
         arm = self.arm
-        if arm.model != "default" and not Path(arm.model).is_file():
-            raise ValueError(f"arm.model must be 'default' or a model file, got {arm.model!r}")
+        if arm.model in ARMS:
+            ARMS[arm.model].locate()  # its package installed (MissingExtra names the extra)
+        elif not Path(arm.model).is_file():
+            raise ValueError(
+                f"arm.model must be {', '.join(repr(name) for name in ARMS)} or a model "
+                f"file's path, got {arm.model!r}"
+            )
+        elif not arm.end_effector_frame:
+            raise ValueError(
+                f"arm.end_effector_frame must name the frame the camera rides on in "
+                f"{arm.model} (a model file has no default), got {arm.end_effector_frame!r}"
+            )
         for name in ("initial_joints", "initial_joint_velocity"):
             values = getattr(arm, name)
             if _finite_numbers(values, len(values)) is None:
@@ -683,6 +698,7 @@ _POSITIVE: dict[str, tuple[float, bool, str]] = {
     "control.kinematic_gain": (0.0, True, ""),
     "control.baseline_gain": (0.0, True, ""),
     "arm.joint_damping": (0.0, False, " [N m s/rad]"),
+    "arm.null_space_damping": (0.0, False, " [N m s/rad]"),
     "arm.joint_barrier_width": (0.0, False, " [rad]"),
     "arm.null_space_gain": (0.0, False, " [1/s]"),
     "arm.gain_scale": (0.0, True, ""),
@@ -843,7 +859,14 @@ def _is_number(value: Any) -> bool:
 def _schema_fields(default: Any) -> dict[str, Any] | None:
     """Field name -> default value of a dataclass or a Drake-bound struct, else None."""
     if dataclasses.is_dataclass(default):
-        return {f.name: getattr(default, f.name) for f in dataclasses.fields(default)}
+        hints = typing.get_type_hints(type(default))
+        out = {}
+        for f in dataclasses.fields(default):
+            value = getattr(default, f.name)
+            # An optional struct left unset (None): its shape is the struct's own.
+            shape = [t for t in typing.get_args(hints[f.name]) if dataclasses.is_dataclass(t)]
+            out[f.name] = shape[0]() if value is None and shape else value
+        return out
     fields = getattr(type(default), "__fields__", None)
     if fields is not None:
         return {f.name: getattr(default, f.name) for f in fields}
@@ -944,7 +967,14 @@ def _check_node(value: Any, default: Any, where: str) -> None:
 
 
 #: The PoseConfig fields of a ScenarioConfig, as paths.
-_POSE_FIELDS = (("target",), ("goal",), ("initial",), ("rig", "camera_offset"))
+_POSE_FIELDS = (
+    ("target",),
+    ("goal",),
+    ("initial",),
+    ("rig", "camera_offset"),
+    ("arm", "base_pose"),
+    ("arm", "camera_offset"),
+)
 
 
 def _complete_pose(tree: dict, path: tuple[str, ...]) -> None:

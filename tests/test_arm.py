@@ -177,7 +177,7 @@ def _with_limit(config: ScenarioConfig, joint: int, q0: np.ndarray) -> ScenarioC
     import tempfile
     from pathlib import Path
 
-    from geovs_drake.systems._arm_model import DEFAULT_ARM
+    from geovs_drake.systems._arm_model import ARMS, DEFAULT_ARM
 
     text = Path(DEFAULT_ARM).read_text()
     names = re.findall(r'<joint name="(\w+)" type="revolute">', text)
@@ -188,6 +188,15 @@ def _with_limit(config: ScenarioConfig, joint: int, q0: np.ndarray) -> ScenarioC
     path.write_text(text.replace(block, new))
     c = copy.deepcopy(config)
     c.arm.model = str(path)
+    # A model file takes the frame, base and camera from the scenario: the shipped arm's.
+    shipped = ARMS["default"]
+    c.arm.end_effector_frame = shipped.end_effector_frame
+    c.arm.base_pose = PoseConfig(
+        xyz=list(shipped.base_xyz_rpy[:3]), rpy=list(shipped.base_xyz_rpy[3:])
+    )
+    c.arm.camera_offset = PoseConfig(
+        xyz=list(shipped.camera_xyz_rpy[:3]), rpy=list(shipped.camera_xyz_rpy[3:])
+    )
     c.duration = 3.0
     return c
 
@@ -206,7 +215,7 @@ def test_cli_runs_the_arm_and_its_json_reports_the_arm(run_cli):
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (["--arm", "/no/such/arm.urdf"], "arm.model must be 'default' or a model file"),
+        (["--arm", "/no/such/arm.urdf"], "arm.model must be 'default', 'panda' or a model file"),
         (["--mount", "fixed"], "carrier 'arm' carries the camera in its hand"),
         (["--initial-velocity", "0,0,0,0.1,0,0"], "give arm.initial_joint_velocity instead"),
         (["--plant", "kinematic", "--initial-joint-velocity", "0,0,0,0,0,1"], "dynamic arm only"),
@@ -224,6 +233,12 @@ def test_a_model_drake_cannot_load_or_without_the_frame_is_one_line(tmp_path, ru
     broken = tmp_path / "broken.urdf"
     broken.write_text("<robot name='x'><link name='a'></robot>")
     run = run_cli("simulate", "--carrier", "arm", "--arm", str(broken))
+    assert run.code == 2 and run.err.count("\n") == 1, run.err
+    assert "arm.end_effector_frame must name the frame the camera rides on" in run.err
+    run = run_cli(
+        "simulate", "--carrier", "arm", "--arm", str(broken),
+        "--scenario-text", "{arm: {end_effector_frame: a}}",
+    )  # fmt: skip
     assert run.code == 2 and "Drake cannot load it" in run.err and run.err.count("\n") == 1
     run = run_cli(
         "simulate", "--carrier", "arm", "--scenario-text", "{arm: {end_effector_frame: hand}}"

@@ -7,9 +7,12 @@ survive to first order. With the camera's displacement ``eps = J_C dq``
 (right-trivialised, in C, rotation first, as in :mod:`.linearization`) and the free
 body's stiffness ``K = k_p C_chart^T H C_chart``, the arm's model is::
 
-    M(q*) ddq = -J_C^T K J_C dq - (J_C^T B J_C + B_q I) dq_dot,
+    M(q*) ddq = -J_C^T K J_C dq - (J_C^T B J_C + B_q I + D_model + d N) dq_dot,
 
-i.e. ``A = [[0, I], [-M^-1 K_q, -M^-1 D_q]]`` on (dq, dq_dot): the free body's
+with D_model the model file's own joint damping (the Panda's 0.003 N m s/rad) and,
+for a redundant arm (nv > 6), d N the self-motion's damping (N the damped projector
+on J_C's null space, :class:`~geovs_drake.systems.ArmCamera`). That is,
+``A = [[0, I], [-M^-1 K_q, -M^-1 D_q]]`` on (dq, dq_dot): the free body's
 closed form with the rig's M replaced by the arm's M(q*) and K, B mapped through
 J_C. Where J_C loses rank K_q does too: the goal is then not isolated in joint
 space (the argument that E decreases needs no rank; the one that the arm stops at
@@ -32,6 +35,7 @@ from geovs_drake.loop.arm import arm_model, solve_joints
 from geovs_drake.scenario import ScenarioConfig, resolve
 from geovs_drake.simulation.step_limit import chart_jacobian, navigation_hessian
 from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
+from geovs_drake.systems.arm_camera import null_space_projector
 
 __all__ = ["ArmLinearization", "ReachableGoals", "linearize_arm_at_goal", "reachable_goals"]
 
@@ -91,6 +95,9 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
     nv = len(q_goal)
     K_q = J.T @ K @ J
     D_q = J.T @ np.diag(resolved.damping) @ J + c.arm.joint_damping * np.eye(nv)
+    D_q = D_q + np.diag(_model_joint_damping(plant))
+    if nv > 6:  # a redundant arm's self-motion damping (ArmCamera)
+        D_q = D_q + c.arm.null_space_damping * null_space_projector(J)
     A_closed = np.zeros((2 * nv, 2 * nv))
     A_closed[:nv, nv:] = np.eye(nv)
     A_closed[nv:, :nv] = -np.linalg.solve(M, K_q)
@@ -102,6 +109,18 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
         jacobian_singular_value=float(np.linalg.svd(J, compute_uv=False)[-1]),
         eigenvalues=np.sort_complex(np.linalg.eigvals(A_drake)),
     )
+
+
+def _model_joint_damping(plant) -> np.ndarray:
+    """The model file's own joint damping [N m s/rad] per velocity (a URDF's
+    ``<dynamics damping>``: 0.003 on each of the Panda's joints), which the plant adds."""
+    damping = np.zeros(plant.num_velocities())
+    for index in plant.GetJointIndices():
+        joint = plant.get_joint(index)
+        if joint.num_velocities() > 0:
+            start = joint.velocity_start()
+            damping[start : start + joint.num_velocities()] = joint.default_damping_vector()
+    return damping
 
 
 @dataclass

@@ -98,9 +98,10 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         p,
         "--arm",
         ("arm", "model"),
-        "with --carrier arm: default (the UR5-like arm shipped in the package) or the path "
-        "of a URDF or SDFormat file (with arm.end_effector_frame in the scenario)",
-        metavar="default|PATH",
+        "with --carrier arm: default (the UR5-like arm shipped in the package), panda (the "
+        '7-axis Franka Panda of example-robot-data: pip install "geovs-drake[panda]") or '
+        "the path of a URDF or SDFormat file (with arm.end_effector_frame in the scenario)",
+        metavar="default|panda|PATH",
     )
     add_field(
         p,

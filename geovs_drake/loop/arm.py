@@ -22,14 +22,16 @@ from pydrake.solvers import Solve
 from geovs_drake.geometry.joint_barrier import joint_barrier
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems._arm_model import (
+    ARMS,
     CAMERA_FRAME,
-    DEFAULT_ARM,
     ArmModel,
     arm_plant,
     camera_jacobian,
 )
+from geovs_drake.systems.arm_camera import null_space_projector
 
 __all__ = [
+    "ARMS",
     "IK_POSITION_TOLERANCE",
     "IK_ROTATION_TOLERANCE",
     "IK_SEEDS",
@@ -41,6 +43,7 @@ __all__ = [
     "joint_count",
     "joint_limit_margins",
     "joint_velocity_for",
+    "self_motion_speeds",
     "smallest_singular_values",
     "solve_joints",
 ]
@@ -67,13 +70,19 @@ def _xyz_rpy(pose) -> tuple[float, ...]:
 
 
 def arm_model(config: ScenarioConfig) -> ArmModel:
-    """The scenario's arm as the systems load it."""
+    """The scenario's arm as the systems load it: a named arm (:data:`ARMS`) with its own
+    frame, base and camera where the scenario leaves them unset, or a model file, its
+    base and camera at the origin unless given."""
     arm = config.arm
+    base = None if arm.base_pose is None else _xyz_rpy(arm.base_pose)
+    camera = None if arm.camera_offset is None else _xyz_rpy(arm.camera_offset)
+    if arm.model in ARMS:
+        return ARMS[arm.model].model(arm.end_effector_frame, base, camera)
     return ArmModel(
-        path=DEFAULT_ARM if arm.model == "default" else arm.model,
+        path=arm.model,
         end_effector_frame=arm.end_effector_frame,
-        base_xyz_rpy=_xyz_rpy(arm.base_pose),
-        camera_xyz_rpy=_xyz_rpy(arm.camera_offset),
+        base_xyz_rpy=base or (0.0,) * 6,
+        camera_xyz_rpy=camera or (0.0,) * 6,
     )
 
 
@@ -130,6 +139,22 @@ def smallest_singular_values(model: ArmModel, q: np.ndarray) -> np.ndarray:
         plant.SetPositions(context, row)
         J = camera_jacobian(plant, context, camera)
         out[i] = np.linalg.svd(J, compute_uv=False)[-1] if J.shape[1] >= 6 else 0.0
+    return out
+
+
+def self_motion_speeds(model: ArmModel, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The norm of N(q) v [rad/s] at each (q, v), (N, nv) each: the speed of a redundant
+    arm's self-motion, the part of its joint velocity that does not move the camera (N
+    the damped projector on J_C's null space,
+    :func:`~geovs_drake.systems.arm_camera.null_space_projector`)."""
+    plant = arm_plant(model)
+    context = plant.CreateDefaultContext()
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+    out = np.empty(len(q))
+    for i, (row, rate) in enumerate(zip(np.atleast_2d(q), np.atleast_2d(v), strict=True)):
+        plant.SetPositions(context, row)
+        N = null_space_projector(camera_jacobian(plant, context, camera))
+        out[i] = np.linalg.norm(N @ rate)
     return out
 
 

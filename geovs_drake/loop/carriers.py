@@ -15,10 +15,16 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
-from pydrake.geometry import Meshcat, MeshcatVisualizer, Role, SceneGraph
+from pydrake.geometry import (
+    CollisionFilterDeclaration,
+    Meshcat,
+    MeshcatVisualizer,
+    Role,
+    SceneGraph,
+)
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
-from pydrake.multibody.tree import RigidBody, RotationalInertia, SpatialInertia
+from pydrake.multibody.tree import BodyIndex, RigidBody, RotationalInertia, SpatialInertia
 from pydrake.systems.framework import Context, DiagramBuilder, InputPort, LeafSystem, OutputPort
 from pydrake.systems.primitives import Demultiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
@@ -409,6 +415,13 @@ def _add_arm_scene(
     drawing = add_camera_geometry(plant, camera.body(), X_LinkC, resolved.domain.fov_half_angle)
     drawing += add_goal_ghost(plant, config)
     plant.Finalize()
+    # The loop models no contact: an arm's collision geometry (the Panda's spheres, whose
+    # links 1 and 3 overlap at home) would otherwise push the links apart with stiff
+    # penalty forces in the continuous plant. Every pair of the plant's bodies filtered.
+    bodies = [plant.get_body(BodyIndex(index)) for index in range(plant.num_bodies())]
+    scene_graph.collision_filter_manager().Apply(
+        CollisionFilterDeclaration().ExcludeWithin(plant.CollectRegisteredGeometries(bodies))
+    )
     if draws_marks:
         for geometry_id in drawing:
             scene_graph.RemoveRole(plant.get_source_id(), geometry_id, Role.kPerception)
@@ -455,6 +468,7 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
             joint_damping=config.arm.joint_damping,
             joint_barrier_width=barrier,
             potential_gain=config.control.potential_gain,
+            null_space_damping=config.arm.null_space_damping,
         ),
     )
     builder.Connect(plant.get_state_output_port(), arm.arm_state_input)

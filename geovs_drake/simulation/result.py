@@ -103,7 +103,9 @@ class ArmTrace:
     inside; ``jacobian_singular_value``: sigma_min of J_C; ``velocity_scale`` (the
     kinematic arm): the factor its joint velocities were scaled by to respect the
     velocity limits (1: not limited), else None; ``joint_barrier``: phi_q, the joints'
-    barrier (``arm.joint_barrier_width`` > 0), else None.
+    barrier (``arm.joint_barrier_width`` > 0), else None; ``self_motion_speed``: the
+    speed of a redundant arm's self-motion, the part of its joint velocity that leaves
+    the camera still [rad/s] (the dynamic arm with more than 6 joints), else None.
     """
 
     joint_positions: np.ndarray
@@ -111,6 +113,7 @@ class ArmTrace:
     jacobian_singular_value: np.ndarray
     velocity_scale: np.ndarray | None = None
     joint_barrier: np.ndarray | None = None
+    self_motion_speed: np.ndarray | None = None
 
     def summary(self) -> dict:
         """The JSON entries of the arm's run."""
@@ -122,6 +125,8 @@ class ArmTrace:
             out["joint_velocity_clipped"] = float(np.mean(self.velocity_scale < 1.0))
         if self.joint_barrier is not None:
             out["max_joint_barrier"] = float(np.max(self.joint_barrier))
+        if self.self_motion_speed is not None:
+            out["final_self_motion_speed"] = float(self.self_motion_speed[-1])
         return out
 
 

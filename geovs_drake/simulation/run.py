@@ -14,6 +14,7 @@ from geovs_drake.loop.arm import (
     joint_barrier_values,
     joint_count,
     joint_limit_margins,
+    self_motion_speeds,
     smallest_singular_values,
 )
 from geovs_drake.loop.build import Loop, build_loop
@@ -78,12 +79,15 @@ def arm_trace(loop: Loop, root, states: np.ndarray) -> ArmTrace:
             context.SetContinuousState(x)
             scale[k] = arm.velocity_scale_output.Eval(arm.GetMyContextFromRoot(context))[0]
     barrier = loop.resolved.config.arm.joint_barrier_width
+    # A redundant torque-driven arm: its state carries v, whose self-motion is shown.
+    redundant = nq > 6 and states.shape[1] == 2 * nq
     return ArmTrace(
         joint_positions=q,
         joint_limit_margin=np.min(joint_limit_margins(model, q), axis=1),
         jacobian_singular_value=smallest_singular_values(model, q),
         velocity_scale=scale,
         joint_barrier=joint_barrier_values(model, q, barrier) if barrier > 0 else None,
+        self_motion_speed=self_motion_speeds(model, q, states[:, nq:]) if redundant else None,
     )
 
 

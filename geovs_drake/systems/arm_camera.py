@@ -18,7 +18,20 @@ from geovs_drake.systems._arm_model import (
 )
 from geovs_drake.systems._parameters import STATE_SIZE, param_vector
 
-__all__ = ["ArmCamera", "ArmCamera_", "actuation_permutation"]
+__all__ = [
+    "NULL_SPACE_MU",
+    "ArmCamera",
+    "ArmCamera_",
+    "actuation_permutation",
+    "null_space_projector",
+]
+
+#: The damped least squares' mu in the null-space projector of a redundant arm,
+#: N = I - J_C^T (J_C J_C^T + mu^2 I)^-1 J_C: symmetric with eigenvalues in (0, 1] at
+#: any q (singular ones included), so the damping torque -d N v only dissipates.
+NULL_SPACE_MU = 1e-3
+#: The twist's dimension: an arm with more velocities than this is redundant.
+_TWIST = 6
 
 
 def actuation_permutation(plant) -> np.ndarray:
@@ -82,11 +95,17 @@ def ArmCamera_(T):
         not increase: the arm stays off its limits as it stays in D. With w = 0 the
         ``phi`` port is not read and need not be connected.
 
+        A redundant arm (nv > 6: the camera's pose fixes 6 of its joints) adds
+        ``-d N v``, N = I - J_C^T (J_C J_C^T + mu^2 I)^-1 J_C (:data:`NULL_SPACE_MU`),
+        the self-motion's damping: the potential does not act on the self-motion, so
+        without it only B_q slows it. Its power ``-d v^T N v`` is never positive (N
+        is symmetric, its eigenvalues in (0, 1]): E still does not increase.
+
         The arm's kinematics and dynamics come from this system's own model of
         the arm (a MultibodyPlant of its scalar type, as Drake's
         InverseDynamicsController keeps its own). ``camera_state`` depends on
         ``arm_state`` only: no algebraic loop through the laws. One numeric
-        parameter vector: B_q per joint [N m s/rad].
+        parameter vector: B_q per joint [N m s/rad], then d [N m s/rad].
         """
 
         def _construct(
@@ -95,6 +114,7 @@ def ArmCamera_(T):
             joint_damping=None,
             joint_barrier_width: float = 0.0,
             potential_gain: float = 1.0,
+            null_space_damping: float = 0.0,
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
@@ -107,7 +127,10 @@ def ArmCamera_(T):
             self._B = actuation_permutation(float_plant)
             nq, nv = self._plant.num_positions(), self._plant.num_velocities()
             damping = np.zeros(nv) if joint_damping is None else np.asarray(joint_damping)
-            self._defaults = (model, damping, joint_barrier_width, potential_gain)
+            self._defaults = (
+                model, damping, joint_barrier_width, potential_gain, null_space_damping
+            )  # fmt: skip
+            self._redundant = nv > _TWIST
             # The barrier's limits and gain are the model's and the law's: fixed, like the
             # model itself (a parameter would let them drift from the plant's).
             self._barrier = (
@@ -121,7 +144,9 @@ def ArmCamera_(T):
                 else None
             )
             self._params_index = self.DeclareNumericParameter(
-                BasicVector_[T](np.broadcast_to(damping, (nv,)).astype(float))
+                BasicVector_[T](
+                    np.append(np.broadcast_to(damping, (nv,)).astype(float), null_space_damping)
+                )
             )
             self.arm_state_input = self.DeclareVectorInputPort(name="arm_state", size=nq + nv)
             self.wrench_C_input = self.DeclareVectorInputPort(name="wrench_C", size=6)
@@ -173,8 +198,11 @@ def ArmCamera_(T):
             J_C = camera_jacobian(self._plant, self._context, self._camera)
             F_C = self.wrench_C_input.Eval(context)
             v = self._plant.GetVelocities(self._context)
-            damping = param_vector(context, self._params_index, T)
+            p = param_vector(context, self._params_index, T)
+            damping, null_damping = p[:-1], p[-1]
             tau = -self._plant.CalcGravityGeneralizedForces(self._context) - damping * v
+            if self._redundant:
+                tau = tau - null_damping * (null_space_projector(J_C) @ v)
             if self._barrier is None:
                 tau = tau + J_C.T @ F_C
             else:
@@ -189,3 +217,10 @@ def ArmCamera_(T):
 
 
 ArmCamera = ArmCamera_[None]
+
+
+def null_space_projector(J: np.ndarray, mu: float = NULL_SPACE_MU) -> np.ndarray:
+    """N = I - J^T (J J^T + mu^2 I)^-1 J (nv x nv) for J (6 x nv), of any scalar type
+    (pydrake.math's inverse): the damped projector on J's null space."""
+    n = J.shape[1]
+    return np.eye(n) - J.T @ pm.inv(J @ J.T + mu**2 * np.eye(J.shape[0])) @ J
