@@ -5,7 +5,8 @@ timed in this process alternately with the arm's, so the ratio holds when the
 machine's speed drifts. Reported: the median real-time factor of each loop over
 ``--repeat`` runs of ``simulate()`` (its monitor and step recorder included), the
 steps per simulated second, and arm / free; on the dynamic plant also the arm with
-the joint-limit barrier (width :data:`BARRIER_WIDTH`).
+the joint-limit barrier (width :data:`BARRIER_WIDTH`); on both plants the 7-axis
+Panda (``--arm panda``, when example-robot-data is installed).
 
     .venv/bin/python benchmarks/bench_arm.py [--repeat 5] [--duration 30]
 """
@@ -13,6 +14,7 @@ the joint-limit barrier (width :data:`BARRIER_WIDTH`).
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
 import statistics
 
 from _record import Figure, record
@@ -28,11 +30,13 @@ BARRIER_WIDTH = 1.0
 
 
 def run(carrier: str, plant: str, duration: float) -> tuple[float, float, str]:
-    barrier = carrier == "arm+barrier"
+    """One run of ``carrier``: free, arm (the UR5), arm+barrier or panda."""
     config = ScenarioConfig(
-        carrier="arm" if barrier else carrier, plant=plant, duration=duration, initial=SMALL_MOVE
-    )
-    config.arm.joint_barrier_width = BARRIER_WIDTH if barrier else 0.0
+        carrier="free" if carrier == "free" else "arm", plant=plant, duration=duration,
+        initial=SMALL_MOVE,
+    )  # fmt: skip
+    config.arm.joint_barrier_width = BARRIER_WIDTH if carrier == "arm+barrier" else 0.0
+    config.arm.model = "panda" if carrier == "panda" else "default"
     r = simulate(config)
     return r.sim_time_s / r.wall_time_s, r.steps / r.sim_time_s, r.status
 
@@ -43,8 +47,15 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=30.0)
     args = parser.parse_args()
     figures = []
+    try:
+        importlib.metadata.distribution("example-robot-data")
+        panda = ("panda",)
+    except importlib.metadata.PackageNotFoundError:
+        print('skipping the Panda: pip install "geovs-drake[panda]"')
+        panda = ()
     for plant in ("dynamic", "kinematic"):
-        carriers = ("free", "arm", "arm+barrier") if plant == "dynamic" else ("free", "arm")
+        barrier = ("arm+barrier",) if plant == "dynamic" else ()
+        carriers = ("free", "arm", *barrier, *panda)
         for carrier in carriers:
             run(carrier, plant, 1.0)  # load the compiled kernels, build the caches
         rtf = {c: [] for c in carriers}
@@ -81,6 +92,19 @@ def main() -> None:
                     "the free body, same law and start, alternately",
                     free,
                     target=">= 30x",
+                )
+            )
+        if "panda" in rtf:
+            factor = statistics.median(rtf["panda"])
+            print(f"{plant}: Panda {factor:.0f}x ({steps['panda']:.0f} steps/s, {status['panda']})")
+            figures.append(
+                Figure(
+                    f"{plant} arm (7-axis Panda), real-time factor, small move, "
+                    f"{args.duration:g} s",
+                    factor,
+                    "x real time",
+                    "the free body, same law and start, alternately",
+                    free,
                 )
             )
     record("bench_arm", "The arm loops against the free body", figures)
