@@ -148,7 +148,7 @@ def test_the_barrier_torque_differentiates_by_autodiff_as_by_central_differences
 
     config = ScenarioConfig(carrier="arm", plant="dynamic")
     model = arm_model(config)
-    system = ArmCamera(model=model, joint_barrier_width=2.5, potential_gain=4.0)
+    system = ArmCamera(model=model, joint_barrier_width=2.5)
     ad = system.ToAutoDiffXd()
     q = np.array([-0.3, -0.25, 2.2, 1.87, 0.49, -1.08])  # the elbow 0.94 rad from its limit
     v = np.array([0.1, -0.2, 0.3, 0.0, 0.1, -0.1])
@@ -159,6 +159,7 @@ def test_the_barrier_torque_differentiates_by_autodiff_as_by_central_differences
         sys.arm_state_input.FixValue(context, x)
         sys.wrench_C_input.FixValue(context, wrench)
         sys.phi_input.FixValue(context, phi)
+        sys.potential_gain_input.FixValue(context, [4.0])
         return sys.actuation_output.Eval(context)
 
     x = np.concatenate([q, v])
@@ -169,6 +170,48 @@ def test_the_barrier_torque_differentiates_by_autodiff_as_by_central_differences
     )
     assert np.allclose(gradient, fd, rtol=1e-6, atol=1e-5)
     assert joint_barrier_values(model, q, 2.5)[0] > 0.1  # the barrier term is in play
+
+
+def test_the_barrier_reads_the_nf_wrench_s_own_k_p():
+    """One k_p: the barrier's is the ImageJacobianForce's parameter, through a port, so a
+    gain set in a context (set_potential_gain) moves the wrench and the barrier alike. At
+    rest, doubling k_p doubles the NF wrench F_C, so the torque changes by
+    (1 - phi_q) J_C^T F_C - k_p (1 - phi) dphi_q/dq (ArmCamera's law, written here)."""
+    from geovs_drake.geometry.joint_barrier import joint_barrier
+    from geovs_drake.loop import build_loop
+    from geovs_drake.scenario import resolve
+    from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
+
+    config = ScenarioConfig(carrier="arm", plant="dynamic")
+    config.arm.joint_barrier_width = 2.5
+    loop = build_loop(resolve(config), log=False)
+    diagram = loop.diagram
+    arm, force = (diagram.GetSubsystemByName(n) for n in ("arm_camera", "image_jacobian_force"))
+    root = diagram.CreateDefaultContext()
+    q = np.array([-0.3, -0.25, 2.2, 1.87, 0.49, -1.08])  # inside the barrier, at rest
+    loop.carrier.plant.SetPositions(loop.carrier.plant.GetMyMutableContextFromRoot(root), q)
+    arm_context = arm.GetMyContextFromRoot(root)
+    force_context = force.GetMyMutableContextFromRoot(root)
+    k_p = arm.potential_gain_input.Eval(arm_context)[0]
+    assert k_p == resolve(config).config.control.potential_gain
+    tau = arm.actuation_output.Eval(arm_context).copy()
+    F_C = force.wrench_C_output.Eval(force_context).copy()
+    phi = arm.phi_input.Eval(arm_context)[0]
+    force.set_potential_gain(force_context, 2 * k_p)
+    assert arm.potential_gain_input.Eval(arm_context)[0] == 2 * k_p
+    change = arm.actuation_output.Eval(arm_context) - tau
+
+    plant = arm_plant(arm_model(config))
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, q)
+    J = camera_jacobian(plant, context, plant.GetFrameByName(CAMERA_FRAME))
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    phi_q, dphi_q = joint_barrier(q, lower, upper, 2.5, min)
+    assert phi_q > 0.1 and np.linalg.norm(F_C) > 0  # both terms in play
+    expected = plant.MakeActuationMatrix().T @ (
+        (1 - phi_q) * J.T @ F_C - k_p * (1 - phi) * np.asarray(dphi_q)
+    )
+    assert np.allclose(change, expected, rtol=1e-9, atol=1e-9 * np.max(np.abs(expected)))
 
 
 def test_the_barrier_width_shrinks_the_goals_the_arm_can_reach():

@@ -467,7 +467,6 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
             model=model,
             joint_damping=config.arm.joint_damping,
             joint_barrier_width=barrier,
-            potential_gain=config.control.potential_gain,
             null_space_damping=config.arm.null_space_damping,
         ),
     )
@@ -478,6 +477,8 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
     def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
         builder.Connect(arm.camera_state_output, force.body_state_input)
         builder.Connect(force.wrench_C_output, arm.wrench_C_input)
+        if barrier > 0:  # the barrier's k_p is the NF wrench's own (ImageJacobianForce)
+            builder.Connect(force.potential_gain_output, arm.potential_gain_input)
 
     def set_initial_state(root: Context) -> None:
         plant.SetPositionsAndVelocities(

@@ -64,6 +64,7 @@ def ArmCamera_(T):
             - arm_state
             - wrench_C
             - phi
+            - potential_gain
             output_ports:
             - camera_state
             - actuation
@@ -90,10 +91,12 @@ def ArmCamera_(T):
 
             tau = (1 - phi_q) J_C^T F_C - k_p (1 - phi) dphi_q/dq - tau_g - B_q v,
 
-        reading the NF's value ``phi`` (the port is read only then), so that
-        E = 1/2 v^T M v + k_p phi_total, phi_total = 1 - (1 - phi)(1 - phi_q), does
-        not increase: the arm stays off its limits as it stays in D. With w = 0 the
-        ``phi`` port is not read and need not be connected.
+        reading the NF's value ``phi`` and k_p at ``potential_gain`` (the
+        ImageJacobianForce's own, so one k_p rules the wrench and the barrier; both
+        ports are read only then), so that E = 1/2 v^T M v + k_p phi_total,
+        phi_total = 1 - (1 - phi)(1 - phi_q), does not increase: the arm stays off its
+        limits as it stays in D. With w = 0 neither port is read nor need be
+        connected.
 
         A redundant arm (nv > 6: the camera's pose fixes 6 of its joints) adds
         ``-d N v``, N = I - J_C^T (J_C J_C^T + mu^2 I)^-1 J_C (:data:`NULL_SPACE_MU`),
@@ -113,7 +116,6 @@ def ArmCamera_(T):
             model: ArmModel | None = None,
             joint_damping=None,
             joint_barrier_width: float = 0.0,
-            potential_gain: float = 1.0,
             null_space_damping: float = 0.0,
             converter=None,
         ):
@@ -127,18 +129,15 @@ def ArmCamera_(T):
             self._B = actuation_permutation(float_plant)
             nq, nv = self._plant.num_positions(), self._plant.num_velocities()
             damping = np.zeros(nv) if joint_damping is None else np.asarray(joint_damping)
-            self._defaults = (
-                model, damping, joint_barrier_width, potential_gain, null_space_damping
-            )  # fmt: skip
+            self._defaults = (model, damping, joint_barrier_width, null_space_damping)
             self._redundant = nv > _TWIST
-            # The barrier's limits and gain are the model's and the law's: fixed, like the
-            # model itself (a parameter would let them drift from the plant's).
+            # The barrier's limits are the model's: fixed, like the model itself (a
+            # parameter would let them drift from the plant's).
             self._barrier = (
                 (
                     float_plant.GetPositionLowerLimits(),
                     float_plant.GetPositionUpperLimits(),
                     float(joint_barrier_width),
-                    float(potential_gain),
                 )
                 if joint_barrier_width > 0
                 else None
@@ -151,6 +150,7 @@ def ArmCamera_(T):
             self.arm_state_input = self.DeclareVectorInputPort(name="arm_state", size=nq + nv)
             self.wrench_C_input = self.DeclareVectorInputPort(name="wrench_C", size=6)
             self.phi_input = self.DeclareVectorInputPort(name="phi", size=1)
+            self.potential_gain_input = self.DeclareVectorInputPort(name="potential_gain", size=1)
             state = self.input_port_ticket(self.arm_state_input.get_index())
             self.camera_state_output = self.DeclareVectorOutputPort(
                 name="camera_state",
@@ -166,6 +166,7 @@ def ArmCamera_(T):
                     state,
                     self.input_port_ticket(self.wrench_C_input.get_index()),
                     self.input_port_ticket(self.phi_input.get_index()),
+                    self.input_port_ticket(self.potential_gain_input.get_index()),
                     self.all_parameters_ticket(),
                 },
             )
@@ -206,7 +207,8 @@ def ArmCamera_(T):
             if self._barrier is None:
                 tau = tau + J_C.T @ F_C
             else:
-                lower, upper, width, k_p = self._barrier
+                lower, upper, width = self._barrier
+                k_p = self.potential_gain_input.Eval(context)[0]
                 q = self._plant.GetPositions(self._context)
                 phi_q, dphi_q = joint_barrier(q, lower, upper, width, min if T is float else pm.min)
                 phi = self.phi_input.Eval(context)[0]

@@ -47,6 +47,7 @@ def ImageJacobianForce_(T):
             output_ports:
             - generalized_force
             - wrench_C
+            - potential_gain
 
         ``body_state`` is the rig's 13-vector free-body state (see
         :mod:`geovs_drake.systems._parameters`), from which the camera's body
@@ -60,7 +61,10 @@ def ImageJacobianForce_(T):
         the same wrench in the plant's convention for a quaternion floating
         body: ``[tau_Ro_W, f_W]``, the torque about the rig origin Ro and the
         force, both in W, i.e. the shift of Appendix C.0.6 (``Ad*``), ready for
-        MultibodyPlant's ``applied_generalized_force`` input.
+        MultibodyPlant's ``applied_generalized_force`` input. ``potential_gain`` is
+        k_p, the parameter itself (no input is read): a part whose energy term
+        shares the potential, the arm's joint barrier, reads it there, so that one
+        k_p rules both (:class:`ArmCamera`).
 
         One numeric parameter vector: ``[rho, k_p, B (6, rotational first),
         X_RC (12)]`` (the potential is ``k_p phi``); use
@@ -98,6 +102,12 @@ def ImageJacobianForce_(T):
                 size=6,
                 calc=self.CalcWrenchC,
                 prerequisites_of_calc=inputs_and_parameters(self),
+            )
+            self.potential_gain_output = self.DeclareVectorOutputPort(
+                name="potential_gain",
+                size=1,
+                calc=self.CalcPotentialGain,
+                prerequisites_of_calc={self.all_parameters_ticket()},
             )
 
         def _construct_copy(self, other, converter=None):
@@ -137,6 +147,9 @@ def ImageJacobianForce_(T):
 
         def CalcGeneralizedForce(self, context, output) -> None:
             output.SetFromVector(self._force(context)[6:12])
+
+        def CalcPotentialGain(self, context, output) -> None:
+            output.SetFromVector([param_vector(context, self._params_index, T)[_GAIN]])
 
     return Impl
 
