@@ -277,3 +277,22 @@ def test_the_kinematic_arm_moves_the_camera_with_the_commanded_twist():
     Omega = np.array([Omega_hat[2, 1], Omega_hat[0, 2], Omega_hat[1, 0]])
     V = X0.rotation().matrix().T @ (X2.translation() - X1.translation()) / (2 * h)
     assert np.allclose(np.concatenate([Omega, V]), nu, atol=1e-7)
+
+
+def test_the_arm_s_scene_fields_default_to_the_named_arm_s_and_a_file_s_pose_is_whole():
+    """Unset, the frame, base and camera are the named arm's (ARMS); a file giving only
+    the base's xyz gets rpy zero (not the UR5's -pi/2 yaw), and the named arm's camera."""
+    from geovs_drake.scenario import load_scenario
+    from geovs_drake.systems._arm_model import ARMS
+
+    shipped = ARMS["default"]
+    model = arm_model(_arm())
+    assert model.end_effector_frame == shipped.end_effector_frame == "tool0"
+    assert model.base_xyz_rpy == shipped.base_xyz_rpy
+    assert model.camera_xyz_rpy == shipped.camera_xyz_rpy
+    config = load_scenario(data="carrier: arm\narm: {base_pose: {xyz: [-0.8, 0.6, 1.0]}}")
+    model = arm_model(config)
+    assert model.base_xyz_rpy == (-0.8, 0.6, 1.0, 0.0, 0.0, 0.0)
+    assert model.camera_xyz_rpy == shipped.camera_xyz_rpy
+    with pytest.raises(ValueError, match=r"arm.base_pose.xyz: expected a list of 3 numbers"):
+        load_scenario(data="carrier: arm\narm: {base_pose: {xyz: [1, 2]}}")
