@@ -265,7 +265,8 @@ class ArmConfig:
     ``joint_barrier_width`` [rad] > 0 puts the joint limits inside the NF's guarantee
     (the dynamic arm under the NF: :mod:`geovs_drake.geometry.joint_barrier`, 0: off); the
     kinematic arm's ``null_space_gain`` [1/s] centres a redundant arm's
-    self-motion.
+    self-motion, and its ``singularity_damping`` m damps its pseudo-inverse where
+    sigma_min(J_C) < m (:class:`~geovs_drake.systems.KinematicArm`; 0: off).
     """
 
     model: str = "default"
@@ -278,6 +279,7 @@ class ArmConfig:
     null_space_damping: float = 2.0
     joint_barrier_width: float = 0.0
     null_space_gain: float = 1.0
+    singularity_damping: float = 0.05
     #: The arm's inertia at the camera is about ten times the default rig's (1 kg): the
     #: dynamic arm runs the NF with k_p and B, and the twist laws' velocity tracking
     #: with its gains, multiplied by this factor, which keeps the free rig's time
@@ -701,6 +703,7 @@ _POSITIVE: dict[str, tuple[float, bool, str]] = {
     "arm.null_space_damping": (0.0, False, " [N m s/rad]"),
     "arm.joint_barrier_width": (0.0, False, " [rad]"),
     "arm.null_space_gain": (0.0, False, " [1/s]"),
+    "arm.singularity_damping": (0.0, False, ""),
     "arm.gain_scale": (0.0, True, ""),
 }
 

@@ -27,7 +27,7 @@ from geovs_drake.loop.arm import (
 )
 from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_suite
 from geovs_drake.simulation import simulate
-from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant
+from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 
 #: The UR5's published DH parameters [m, rad] (Universal Robots).
 DH_A = (0.0, -0.425, -0.39225, 0.0, 0.0, 0.0)
@@ -277,6 +277,50 @@ def test_the_kinematic_arm_moves_the_camera_with_the_commanded_twist():
     Omega = np.array([Omega_hat[2, 1], Omega_hat[0, 2], Omega_hat[1, 0]])
     V = X0.rotation().matrix().T @ (X2.translation() - X1.translation()) / (2 * h)
     assert np.allclose(np.concatenate([Omega, V]), nu, atol=1e-7)
+
+
+def test_the_singular_zone_s_damping_is_the_singularity_robust_inverse():
+    """At a configuration near the wrist singularity (wrist 2 at 0.01 rad) qdot is
+    J^T (J J^T + lambda^2 I)^-1 nu with lambda^2 = mu^2 + m^2 - sigma_min^2, written here
+    with numpy's SVD; at the goal (sigma_min > m) lambda^2 = mu^2."""
+    from geovs_drake.systems import KinematicArm
+
+    config = _arm("kinematic")
+    model = arm_model(config)
+    plant = arm_plant(model)
+    pc = plant.CreateDefaultContext()
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+    nu = np.array([0.05, -0.02, 0.03, 0.01, 0.02, -0.015])
+    q_goal = solve_joints(model, config.X_WB @ config.X_BC_goal)
+    near = q_goal.copy()
+    near[4] = 0.01  # wrist 2 through 0: wrists 1 and 3 align
+    m, mu = 0.05, 1e-4
+    for q in (near, q_goal):
+        arm = KinematicArm(model=model, q0=q, singularity_damping=m, null_space_gain=0.0)
+        context = arm.CreateDefaultContext()
+        arm.camera_velocity_input.FixValue(context, 1e-3 * nu)  # below the velocity limits
+        qdot = arm.EvalTimeDerivatives(context).CopyToVector()
+        plant.SetPositions(pc, q)
+        J = camera_jacobian(plant, pc, camera)
+        sigma = np.linalg.svd(J, compute_uv=False)[-1]
+        lam2 = mu**2 + max(m**2 - sigma**2, 0.0)
+        expected = J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(6), 1e-3 * nu)
+        assert np.allclose(qdot, expected, rtol=1e-9, atol=1e-12)
+        assert (sigma < m) == (q is near)
+
+
+def test_the_kinematic_arm_crosses_the_wrist_singularity_from_the_default_start():
+    """From the default start the path passes sigma_min(J_C) < 0.01: with the singular
+    zone damped (the default, m = 0.05) the arm converges; with the plain pseudo-inverse
+    (m = 0) it spins its wrist over there and stops at wrist 3's limit."""
+    damped = simulate(_arm("kinematic"))
+    assert damped.status == "converged", damped.message
+    assert damped.summary()["min_jacobian_singular_value"] < 0.01
+    assert damped.summary()["min_joint_limit_margin"] > 1.0
+    plain = _arm("kinematic")
+    plain.arm.singularity_damping = 0.0
+    result = simulate(plain)
+    assert result.status == "joint_limit" and "wrist_3_joint" in result.message
 
 
 def test_the_arm_s_scene_fields_default_to_the_named_arm_s_and_a_file_s_pose_is_whole():

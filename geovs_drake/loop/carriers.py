@@ -508,7 +508,12 @@ def _arm_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_ma
     q0 = initial_joints(config)
     arm = builder.AddNamedSystem(
         "kinematic_arm",
-        KinematicArm(model=model, q0=q0, null_space_gain=config.arm.null_space_gain),
+        KinematicArm(
+            model=model,
+            q0=q0,
+            null_space_gain=config.arm.null_space_gain,
+            singularity_damping=config.arm.singularity_damping,
+        ),
     )
     # The drawing follows q: the plant's positions from the arm's state, as Drake's
     # MultibodyPositionToGeometryPose does for a plant with no dynamics of its own.

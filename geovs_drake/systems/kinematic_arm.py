@@ -19,9 +19,10 @@ from geovs_drake.systems._parameters import POSE_SIZE, param_vector
 
 __all__ = ["KinematicArm", "KinematicArm_"]
 
-# Layout of the one numeric parameter: the damped least squares' mu [-] and the
-# null-space gain [1/s], then the joints' velocity limits (nv) [rad/s].
-_MU, _NULL_GAIN, _LIMITS = 0, 1, slice(2, None)
+# Layout of the one numeric parameter: the damped least squares' mu [-], the singular
+# zone's damping m [-], the null-space gain [1/s], then the joints' velocity limits (nv)
+# [rad/s].
+_MU, _SINGULAR, _NULL_GAIN, _LIMITS = 0, 1, 2, slice(3, None)
 
 
 # float and AutoDiffXd (Linearize) only: the pseudo-inverse and the velocity scaling do
@@ -46,12 +47,21 @@ def KinematicArm_(T):
         body twist of Eq. 17)::
 
             qdot = s (J_C^+ nu + k_n (I - J_C^+ J_C)(q_mid - q)),
-            J_C^+ = J_C^T (J_C J_C^T + mu^2 I)^-1,
+            J_C^+ = J_C^T (J_C J_C^T + lambda^2 I)^-1,
+            lambda^2 = mu^2 + m^2 (1 - (sigma_min / m)^2)  where sigma_min < m, else mu^2,
 
         ``nu`` the law's twist at ``camera_velocity``. mu (damped least
-        squares) keeps qdot bounded near a singularity; away from one it changes
+        squares, 1e-4) keeps qdot bounded at a singularity; away from one it changes
         the executed twist by a factor 1 - O(mu^2 / sigma_min^2), a positive
-        definite map, so the law's twist stays a descent direction of phi. The
+        definite map, so the law's twist stays a descent direction of phi. In the
+        singular zone sigma_min(J_C) < m (``singularity_damping``, the
+        damping of Nakamura and Hanafusa's singularity-robust inverse, as
+        Chiaverini varies it) the damping grows to m^2 at the singularity: the arm
+        no longer follows the twist in the singular direction (phi may rise there),
+        and in exchange does not spin its wrist over through the singularity, which
+        the plain pseudo-inverse does (and which can leave a wrist at its limit once
+        the camera is home). sigma_min is read as a value (a constant for
+        AutoDiffXd). The
         null-space term pulls a redundant arm's self-motion towards the middle of
         its joint range (zero for a 6-joint arm off its singularities). ``s`` <= 1
         scales the whole of qdot, never one joint, so that the fastest joint
@@ -69,6 +79,7 @@ def KinematicArm_(T):
             q0=None,
             mu: float = 1e-4,
             null_space_gain: float = 1.0,
+            singularity_damping: float = 0.0,
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
@@ -82,10 +93,12 @@ def KinematicArm_(T):
             self._q_mid = np.where(np.isfinite(lower + upper), 0.5 * (lower + upper), 0.0)
             nq = float_plant.num_positions()
             q0 = np.zeros(nq) if q0 is None else np.asarray(q0, dtype=float)
-            self._defaults = (model, q0, mu, null_space_gain)
+            self._defaults = (model, q0, mu, null_space_gain, singularity_damping)
             limits = float_plant.GetVelocityUpperLimits()
             self._params_index = self.DeclareNumericParameter(
-                BasicVector_[T](np.concatenate([[mu, null_space_gain], limits]))
+                BasicVector_[T](
+                    np.concatenate([[mu, singularity_damping, null_space_gain], limits])
+                )
             )
             self.DeclareContinuousState(BasicVector_[T](q0))
             self.camera_velocity_input = self.DeclareVectorInputPort(name="camera_velocity", size=6)
@@ -129,9 +142,19 @@ def KinematicArm_(T):
             p = param_vector(context, self._params_index, T)
             J = camera_jacobian(self._plant, self._context, self._camera)
             nu = self.camera_velocity_input.Eval(context)
-            J_pinv = J.T @ inv(J @ J.T + p[_MU] ** 2 * np.eye(6))
+            J_pinv = J.T @ inv(J @ J.T + self._damping(J, p) * np.eye(6))
             null = np.eye(len(q)) - J_pinv @ J
             return J_pinv @ nu + p[_NULL_GAIN] * (null @ (self._q_mid - q)), p[_LIMITS]
+
+        def _damping(self, J: np.ndarray, p: np.ndarray):
+            """lambda^2: mu^2, plus the singular zone's share where sigma_min < m."""
+            m = p[_SINGULAR] if T is float else p[_SINGULAR].value()
+            lam2 = p[_MU] ** 2
+            if m <= 0:
+                return lam2
+            values = np.array([[x if T is float else x.value() for x in row] for row in J])
+            sigma = np.linalg.svd(values, compute_uv=False)[min(values.shape) - 1]
+            return lam2 + (m**2 - sigma**2 if sigma < m else 0.0)
 
         def _scale(self, qdot: np.ndarray, limits: np.ndarray) -> float:
             """s: 1, or what brings the fastest joint to its limit (a constant factor
