@@ -38,6 +38,7 @@ __all__ = [
     "SINGULARITY_WEIGHT",
     "Unreachable",
     "arm_model",
+    "camera_jacobians",
     "initial_joints",
     "joint_barrier_values",
     "joint_count",
@@ -127,19 +128,27 @@ def joint_velocity_for(
     return v * np.sqrt(kinetic_energy / unit) if unit > 0 else np.zeros_like(v)
 
 
+def camera_jacobians(model: ArmModel, q: np.ndarray) -> np.ndarray:
+    """J_C (6 x nv) at each q (N, nq), stacked (N, 6, nv): the camera frame's
+    spatial-velocity Jacobian expressed in C, so that ``J_C v = (Omega, V)``."""
+    plant = arm_plant(model)
+    context = plant.CreateDefaultContext()
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+    out = []
+    for row in np.atleast_2d(q):
+        plant.SetPositions(context, row)
+        out.append(camera_jacobian(plant, context, camera))
+    return np.array(out)
+
+
 def smallest_singular_values(model: ArmModel, q: np.ndarray) -> np.ndarray:
     """sigma_min of the camera frame's spatial-velocity Jacobian J_C (6 x nv) at each q
     (N, nq): where it nears 0 the arm is near a singularity, and the law's wrench
     (dynamic) or twist (kinematic) loses a direction."""
-    plant = arm_plant(model)
-    context = plant.CreateDefaultContext()
-    camera = plant.GetFrameByName(CAMERA_FRAME)
-    out = np.empty(len(q))
-    for i, row in enumerate(np.atleast_2d(q)):
-        plant.SetPositions(context, row)
-        J = camera_jacobian(plant, context, camera)
-        out[i] = np.linalg.svd(J, compute_uv=False)[-1] if J.shape[1] >= 6 else 0.0
-    return out
+    J = camera_jacobians(model, q)
+    if J.shape[2] < 6:
+        return np.zeros(len(J))
+    return np.linalg.svd(J, compute_uv=False)[:, -1]
 
 
 def self_motion_speeds(model: ArmModel, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -147,15 +156,12 @@ def self_motion_speeds(model: ArmModel, q: np.ndarray, v: np.ndarray) -> np.ndar
     arm's self-motion, the part of its joint velocity that does not move the camera (N
     the damped projector on J_C's null space,
     :func:`~geovs_drake.systems.arm_camera.null_space_projector`)."""
-    plant = arm_plant(model)
-    context = plant.CreateDefaultContext()
-    camera = plant.GetFrameByName(CAMERA_FRAME)
-    out = np.empty(len(q))
-    for i, (row, rate) in enumerate(zip(np.atleast_2d(q), np.atleast_2d(v), strict=True)):
-        plant.SetPositions(context, row)
-        N = null_space_projector(camera_jacobian(plant, context, camera))
-        out[i] = np.linalg.norm(N @ rate)
-    return out
+    return np.array(
+        [
+            np.linalg.norm(null_space_projector(J) @ rate)
+            for J, rate in zip(camera_jacobians(model, q), np.atleast_2d(v), strict=True)
+        ]
+    )
 
 
 def solve_joints(model: ArmModel, X_WC: RigidTransform) -> np.ndarray:

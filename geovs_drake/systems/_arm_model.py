@@ -104,8 +104,6 @@ class NamedArm:
     the loop, and the scene that suits it (the scenario's ``arm`` fields left unset take
     these)."""
 
-    #: One line for the documentation and the command line's help.
-    description: str
     #: The model file and its ``package://`` folders; :class:`MissingExtra` when the
     #: package that brings it is not installed.
     locate: Callable[[], tuple[str, tuple[tuple[str, str], ...]]]
@@ -166,7 +164,6 @@ def _robot_data_panda() -> tuple[str, tuple[tuple[str, str], ...]]:
 #: The arms known by name: ``arm.model`` is one of these or a model file's path.
 ARMS: dict[str, NamedArm] = {
     "default": NamedArm(
-        description="the 6-axis arm shipped in the package (a UR5's published parameters)",
         locate=_shipped_ur5,
         end_effector_frame="tool0",
         # The base on a pedestal beside the line of sight, 0.65 m to the side of the
@@ -178,8 +175,6 @@ ARMS: dict[str, NamedArm] = {
         camera_xyz_rpy=(0.0, 0.0, 0.03, 0.0, 0.0, 0.0),
     ),
     "panda": NamedArm(
-        description="the 7-axis Franka Panda of example-robot-data (pip install "
-        '"geovs-drake[panda]")',
         locate=_robot_data_panda,
         # The camera at the tool centre point, looking out of the hand (z), turned a
         # quarter turn about it; the base on a table 0.25 m below the target, 1.0 m back
