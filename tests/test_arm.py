@@ -340,3 +340,24 @@ def test_the_arm_s_scene_fields_default_to_the_named_arm_s_and_a_file_s_pose_is_
     assert model.camera_xyz_rpy == shipped.camera_xyz_rpy
     with pytest.raises(ValueError, match=r"arm.base_pose.xyz: expected a list of 3 numbers"):
         load_scenario(data="carrier: arm\narm: {base_pose: {xyz: [1, 2]}}")
+
+
+def test_the_arm_enters_its_own_camera_s_view_and_the_rendered_camera_draws_it(run_cli):
+    """From translation_and_roll the camera starts beside the arm's base, looking past
+    it: the label image of the rendered camera shows the arm's links there (more than 5
+    % of the frame), and none of them at the goal. The feature extractor takes the arm's
+    blob, cut by the image border, for the sphere: the rendered loop stops at t = 0."""
+    from geovs_drake.analysis.arm_study import arm_pixels
+
+    config = _arm()
+    (start,) = [s for s in load_suite().scenarios if s.name == "translation_and_roll"]
+    X_BC = RigidTransform(RollPitchYaw([math.radians(v) for v in start.rpy_deg]), start.xyz)
+    model = arm_model(config)
+    q = [solve_joints(model, config.X_WB @ X) for X in (X_BC, config.X_BC_goal)]
+    pixels = arm_pixels(config, np.array(q))
+    assert pixels[0] > 0.05 * 320 * 240 and pixels[1] == 0
+    run = run_cli(
+        "simulate", "--carrier", "arm", "--sensor", "rendered", "--camera-rate", "240",
+        "--duration", "1", "--initial=0.25,-0.2,-1.3,0.0873,-0.0873,2.7925",
+    )  # fmt: skip
+    assert run.code == 3 and "feature_lost" in run.out and "cut by the image border" in run.out

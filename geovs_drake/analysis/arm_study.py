@@ -37,7 +37,13 @@ from geovs_drake.simulation.step_limit import chart_jacobian, navigation_hessian
 from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 from geovs_drake.systems.arm_camera import null_space_projector
 
-__all__ = ["ArmLinearization", "ReachableGoals", "linearize_arm_at_goal", "reachable_goals"]
+__all__ = [
+    "ArmLinearization",
+    "ReachableGoals",
+    "arm_pixels",
+    "linearize_arm_at_goal",
+    "reachable_goals",
+]
 
 
 @dataclass
@@ -168,3 +174,32 @@ def reachable_goals(
         solvable=len(margins),
         reachable={float(w): int(np.sum(margins_arr >= w)) for w in widths},
     )
+
+
+def arm_pixels(config: ScenarioConfig, joint_positions: np.ndarray) -> np.ndarray:
+    """How many pixels of the arm's own camera frame show the arm, at each joint
+    configuration (N, nq): the rendered camera of ``config`` (its intrinsics, its clipping
+    range, RenderEngineVtk), its label image, the pixels whose label is one of the arm's
+    bodies. Zero where the arm stays out of its camera's view; the feature extractor
+    would see the arm wherever it is not (a part of the arm in front of the sphere
+    occludes it)."""
+    config = copy.deepcopy(config)
+    config.camera.sensor = "rendered"
+    config.plant = "dynamic"  # the rendered camera's loop; the drawing is the same arm
+    config.arm.initial_joint_velocity = []
+    loop = build_loop(resolve(config), log=False)
+    rgbd = loop.diagram.GetSubsystemByName("rgbd_sensor")
+    plant = loop.carrier.plant
+    instance = plant.GetModelInstanceByName(
+        plant.GetModelInstanceName(loop.carrier.body.model_instance())
+    )
+    labels = [int(index) for index in plant.GetBodyIndices(instance)]
+    root = loop.diagram.CreateDefaultContext()
+    plant_context = plant.GetMyMutableContextFromRoot(root)
+    sensor_context = rgbd.GetMyContextFromRoot(root)
+    out = np.empty(len(joint_positions), dtype=int)
+    for k, q in enumerate(np.atleast_2d(joint_positions)):
+        plant.SetPositions(plant_context, q)
+        image = rgbd.label_image_output_port().Eval(sensor_context).data[:, :, 0]
+        out[k] = int(np.count_nonzero(np.isin(image, labels)))
+    return out
