@@ -273,6 +273,9 @@ class ArmConfig:
     end_effector_frame: str = ""
     base_pose: PoseConfig | None = None
     camera_offset: PoseConfig | None = None
+    #: The ``package://`` names a model file's meshes use, and their folders (Drake's
+    #: package map), e.g. ``{my_robot_description: /path/to/my_robot_description}``.
+    packages: dict[str, str] = field(default_factory=dict)
     initial_joints: list[float] = field(default_factory=list)
     initial_joint_velocity: list[float] = field(default_factory=list)
     joint_damping: float = 0.5
@@ -629,7 +632,10 @@ class ScenarioConfig:
                 f"arm.model must be {', '.join(repr(name) for name in ARMS)} or a model "
                 f"file's path, got {arm.model!r}"
             )
-        elif not arm.end_effector_frame:
+        for name, folder in arm.packages.items():
+            if not Path(folder).is_dir():
+                raise ValueError(f"arm.packages.{name} must be a folder, got {folder!r}")
+        if arm.model not in ARMS and not arm.end_effector_frame:
             raise ValueError(
                 f"arm.end_effector_frame must name the frame the camera rides on in "
                 f"{arm.model} (a model file has no default), got {arm.end_effector_frame!r}"

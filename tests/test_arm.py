@@ -361,3 +361,51 @@ def test_the_arm_enters_its_own_camera_s_view_and_the_rendered_camera_draws_it(r
         "--duration", "1", "--initial=0.25,-0.2,-1.3,0.0873,-0.0873,2.7925",
     )  # fmt: skip
     assert run.code == 3 and "feature_lost" in run.out and "cut by the image border" in run.out
+
+
+def test_a_model_file_s_package_uris_resolve_through_arm_packages(tmp_path, run_cli):
+    """A URDF whose mesh is a package:// URI: without its folder the loop's plant (with a
+    SceneGraph, which reads the mesh) fails in one line naming arm.packages; with it
+    the loop builds and draws the mesh; a folder that is not there is one line, exit 2."""
+    from pydrake.geometry import Mesh
+
+    from geovs_drake.loop import build_loop
+    from geovs_drake.scenario import resolve
+
+    package = tmp_path / "my_arm_description"
+    package.mkdir()
+    (package / "tri.obj").write_text("v 0 0 0\nv 0.05 0 0\nv 0 0.05 0\nf 1 2 3\n")
+    inertial = (
+        '<inertial><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" '
+        'iyz="0" izz="0.01"/></inertial>'
+    )
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(
+        f"""<robot name="one_joint">
+  <link name="base">{inertial}</link>
+  <link name="tip">{inertial}<visual><geometry>
+    <mesh filename="package://my_arm_description/tri.obj"/></geometry></visual></link>
+  <joint name="j" type="revolute"><parent link="base"/><child link="tip"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="10" velocity="2"/></joint>
+  <transmission name="t"><type>transmission_interface/SimpleTransmission</type>
+    <joint name="j"/><actuator name="m"/></transmission>
+</robot>"""
+    )
+    config = _arm()
+    config.arm.model = str(urdf)
+    config.arm.end_effector_frame = "tip"
+    config.arm.initial_joints = [0.0]
+    with pytest.raises(ValueError, match=r"unknown package 'my_arm_description' \(name its folder"):
+        build_loop(resolve(config), log=False)
+    config.arm.packages = {"my_arm_description": str(package)}
+    loop = build_loop(resolve(config), log=False)
+    inspector = loop.carrier.scene_graph.model_inspector()
+    shapes = [inspector.GetShape(g) for g in inspector.GetAllGeometryIds()]
+    ours = [s for s in shapes if isinstance(s, Mesh) and str(s.source().path()).endswith("tri.obj")]
+    assert len(ours) == 1 and loop.carrier.plant.num_actuators() == 1
+    run = run_cli(
+        "simulate", "--carrier", "arm", "--arm", str(urdf), "--scenario-text",
+        "{arm: {end_effector_frame: tip, packages: {my_arm_description: /no/such/folder}}}",
+    )  # fmt: skip
+    assert run.code == 2 and run.err.count("\n") == 1
+    assert "arm.packages.my_arm_description must be a folder, got '/no/such/folder'" in run.err

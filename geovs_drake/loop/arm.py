@@ -12,6 +12,7 @@ reach found.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import numpy as np
@@ -77,13 +78,16 @@ def arm_model(config: ScenarioConfig) -> ArmModel:
     arm = config.arm
     base = None if arm.base_pose is None else _xyz_rpy(arm.base_pose)
     camera = None if arm.camera_offset is None else _xyz_rpy(arm.camera_offset)
+    packages = tuple(sorted(arm.packages.items()))
     if arm.model in ARMS:
-        return ARMS[arm.model].model(arm.end_effector_frame, base, camera)
+        model = ARMS[arm.model].model(arm.end_effector_frame, base, camera)
+        return dataclasses.replace(model, packages=model.packages + packages)
     return ArmModel(
         path=arm.model,
         end_effector_frame=arm.end_effector_frame,
         base_xyz_rpy=base or (0.0,) * 6,
         camera_xyz_rpy=camera or (0.0,) * 6,
+        packages=packages,
     )
 
 

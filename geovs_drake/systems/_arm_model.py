@@ -215,6 +215,8 @@ def add_arm(plant: MultibodyPlant, model: ArmModel) -> tuple[ModelInstanceIndex,
             (instance,) = parser.AddModels(model.path)
     except (RuntimeError, ValueError, ET.ParseError) as e:
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        if "unknown package" in first:  # a package:// URI: the user can name its folder
+            first += " (name its folder in arm.packages)"
         raise ArmError(f"arm.model {model.path}: Drake cannot load it: {first}") from e
     names = [plant.get_frame(i).name() for i in plant.GetFrameIndices(instance)]
     if model.end_effector_frame not in names:
