@@ -186,14 +186,10 @@ def arm_pixels(config: ScenarioConfig, joint_positions: np.ndarray) -> np.ndarra
     config = copy.deepcopy(config)
     config.camera.sensor = "rendered"
     config.plant = "dynamic"  # the rendered camera's loop; the drawing is the same arm
-    config.arm.initial_joint_velocity = []
     loop = build_loop(resolve(config), log=False)
     rgbd = loop.diagram.GetSubsystemByName("rgbd_sensor")
     plant = loop.carrier.plant
-    instance = plant.GetModelInstanceByName(
-        plant.GetModelInstanceName(loop.carrier.body.model_instance())
-    )
-    labels = [int(index) for index in plant.GetBodyIndices(instance)]
+    labels = [int(index) for index in plant.GetBodyIndices(loop.carrier.body.model_instance())]
     root = loop.diagram.CreateDefaultContext()
     plant_context = plant.GetMyMutableContextFromRoot(root)
     sensor_context = rgbd.GetMyContextFromRoot(root)
