@@ -180,9 +180,9 @@ def arm_pixels(config: ScenarioConfig, joint_positions: np.ndarray) -> np.ndarra
     """How many pixels of the arm's own camera frame show the arm, at each joint
     configuration (N, nq): the rendered camera of ``config`` (its intrinsics, its clipping
     range, RenderEngineVtk), its label image, the pixels whose label is one of the arm's
-    bodies. Zero where the arm stays out of its camera's view; the feature extractor
-    would see the arm wherever it is not (a part of the arm in front of the sphere
-    occludes it)."""
+    bodies. Zero where the arm stays out of its camera's view; wherever it is not zero
+    the feature extractor sees the arm too (and a part of the arm in front of the
+    sphere would hide it)."""
     config = copy.deepcopy(config)
     config.camera.sensor = "rendered"
     config.plant = "dynamic"  # the rendered camera's loop; the drawing is the same arm
