@@ -33,8 +33,9 @@ def _imports() -> dict[str, set[str]]:
     return graph
 
 
-#: Below every layer: modules that import nothing of ours (the optional-import helper).
-BASE = ("geovs_drake._optional", "geovs_drake._lazy")
+#: Below every layer: modules that import nothing of ours (the optional-import helper,
+#: the canonical order of spectra).
+BASE = ("geovs_drake._optional", "geovs_drake._lazy", "geovs_drake.spectrum")
 
 
 def test_geometry_and_systems_import_only_the_layers_below():

@@ -41,6 +41,7 @@ from geovs_drake.loop import build_loop
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 from geovs_drake.simulation import StartOutsideDomain, check_start, simulate
 from geovs_drake.simulation.step_limit import chart_jacobian, navigation_hessian
+from geovs_drake.spectrum import assert_spectra_close, canonical_eigenvalues
 
 #: Random states per plant, and the spread of their poses about the goal and twists.
 N_STATES = 4
@@ -173,6 +174,8 @@ def test_linearize_along_a_run_ends_at_the_goals_model(plant):
     assert along.eigenvalues.shape == (3, 12 if plant == "dynamic" else 6)
     goal = linearize_at_goal(config)
     # At 20 s the state is at the goal to rounding: the same spectrum.
+    assert_spectra_close(along.eigenvalues[-1], goal.eigenvalues, rtol=0, atol=1e-6)
+    # In the canonical order, entry by entry (the goal's repeated pair included).
     assert np.allclose(along.eigenvalues[-1], goal.eigenvalues, atol=1e-6)
     assert along.max_real_part[-1] == pytest.approx(goal.max_real_part, abs=1e-6)
     # At t = 0 it is linearize at the logged start.
@@ -352,9 +355,10 @@ def test_cli_json_at_the_goal_is_the_closed_forms_spectrum(run_cli, tmp_path):
     assert run.code == 0, run.err
     out = json.loads(run.out)
     assert out["plant"] == "kinematic" and out["stable"] and out["at_equilibrium"]
-    closed = np.sort_complex(np.linalg.eigvals(closed_form_A(ScenarioConfig(), "kinematic")))
+    closed = canonical_eigenvalues(closed_form_A(ScenarioConfig(), "kinematic"))
     lam = np.array([complex(re, im) for re, im in out["eigenvalues"]])
-    assert np.allclose(lam, closed, rtol=1e-9)
+    assert_spectra_close(lam, closed, rtol=1e-9)
+    assert np.allclose(lam, closed, rtol=1e-9)  # the JSON's order is the canonical one
     assert out["max_real_part"] == pytest.approx(closed.real.max(), rel=1e-9)
     assert np.allclose(out["damping_ratios"], -closed.real / np.abs(closed))
     assert np.allclose(out["time_constants"], -1 / closed.real)

@@ -34,6 +34,7 @@ from geovs_drake.loop import build_loop
 from geovs_drake.loop.arm import arm_model, solve_joints
 from geovs_drake.scenario import ScenarioConfig, resolve
 from geovs_drake.simulation.step_limit import chart_jacobian, navigation_hessian
+from geovs_drake.spectrum import canonical_eigenvalues
 from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 from geovs_drake.systems.arm_camera import null_space_projector
 
@@ -49,7 +50,8 @@ __all__ = [
 @dataclass
 class ArmLinearization:
     """The arm loop's linearisation at the goal: Drake's A on (q, v), the closed form,
-    the goal's joints, sigma_min of J_C there, and the eigenvalues."""
+    the goal's joints, sigma_min of J_C there, and the eigenvalues of A_drake in the
+    canonical order (:mod:`geovs_drake.spectrum`)."""
 
     q_goal: np.ndarray
     A_drake: np.ndarray
@@ -113,7 +115,7 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
         A_drake=A_drake,
         A_closed=A_closed,
         jacobian_singular_value=float(np.linalg.svd(J, compute_uv=False)[-1]),
-        eigenvalues=np.sort_complex(np.linalg.eigvals(A_drake)),
+        eigenvalues=canonical_eigenvalues(A_drake),
     )
 
 

@@ -47,6 +47,7 @@ from geovs_drake.simulation.step_limit import (
     rig_spatial_inertia,
     second_order_A,
 )
+from geovs_drake.spectrum import canonical_eigenvalues
 
 __all__ = [
     "SETTLING_FRACTION",
@@ -96,7 +97,7 @@ class GainDesign:
     Attributes:
         config: the scenario with the designed gains.
         settling_time: requested [s]; damping_ratio: requested (None, kinematic).
-        eigenvalues: the designed loop's closed form at the goal, sorted by real part.
+        eigenvalues: the designed loop's closed form at the goal, in the canonical order (:mod:`geovs_drake.spectrum`).
         stiffness: ``K = k_p K_1`` (dynamic, N m per rad and N per m) or the kinematic
             loop's ``k C_chart^-1 H C_chart`` [1/s].
         peak_torque, peak_force: the largest norms of F_C's torque and force along the
@@ -163,7 +164,7 @@ class GainDesign:
 
 def _dynamic_eigenvalues(M, K1, d0, k_p: float, beta: float) -> np.ndarray:
     A = second_order_A(M, k_p * K1, beta * np.diag(d0))
-    return np.sort_complex(np.linalg.eigvals(A))
+    return canonical_eigenvalues(A)
 
 
 def _min_ratio(lam: np.ndarray) -> float:
@@ -219,7 +220,7 @@ def design_gains(
         config=designed,
         settling_time=settling_time,
         damping_ratio=damping_ratio,
-        eigenvalues=np.sort_complex(np.linalg.eigvals(closed_form_A(designed, plant))),
+        eigenvalues=canonical_eigenvalues(closed_form_A(designed, plant)),
         stiffness=stiffness,
     )
     if run_start:
@@ -287,7 +288,7 @@ def root_locus(
 ) -> np.ndarray:
     """The goal's eigenvalues (closed form) as one gain of ``control`` runs over ``gains``:
     ``potential_gain`` (k_p), ``damping_scale`` (B times each value) or
-    ``kinematic_gain``. Shape (len(gains), n), each row sorted by real part."""
+    ``kinematic_gain``. Shape (len(gains), n), each row in the canonical order (:mod:`geovs_drake.spectrum`)."""
     names = ("potential_gain", "damping_scale", "kinematic_gain")
     if gain not in names:
         raise ValueError(f"gain must be one of {', '.join(names)}: gain = {gain!r}")
@@ -304,7 +305,7 @@ def root_locus(
             k_p = g if gain == "potential_gain" else control.potential_gain
             beta = g if gain == "damping_scale" else 1.0
             A = second_order_A(M, k_p * K1, beta * np.diag(d0))
-        rows.append(np.sort_complex(np.linalg.eigvals(A)))
+        rows.append(canonical_eigenvalues(A))
     return np.array(rows)
 
 

@@ -60,6 +60,7 @@ from geovs_drake.simulation.step_limit import (
     rig_spatial_inertia,
     velocity_adjoint,
 )
+from geovs_drake.spectrum import canonical_eigenvalues
 
 __all__ = [
     "EQUILIBRIUM_TOLERANCE",
@@ -99,7 +100,7 @@ class LinearizationResult:
         T: minimal coordinates -> Drake state perturbation.
         A: the minimal model ``T^+ A_drake T`` (12 dynamic, 6 kinematic).
         A_closed: the closed form (:func:`closed_form_A`) in the same coordinates.
-        eigenvalues: of ``A``, sorted by real part.
+        eigenvalues: of ``A``, in the canonical order (:mod:`geovs_drake.spectrum`).
         quaternion_eigenvalue: of ``A_drake`` along the quaternion's norm.
         invariance_residual: ``|A_drake T - T A| / |A_drake|``: T's span is invariant.
     """
@@ -108,7 +109,7 @@ class LinearizationResult:
     T: np.ndarray  # minimal coordinates -> Drake state perturbation
     A: np.ndarray  # minimal model T^+ A_drake T (12 or 6)
     A_closed: np.ndarray  # closed form in the same coordinates
-    eigenvalues: np.ndarray  # of A, sorted by real part
+    eigenvalues: np.ndarray  # of A, in the canonical order
     quaternion_eigenvalue: complex  # of A_drake along the quaternion norm
     invariance_residual: float  # |A_drake T - T A| / |A_drake|: T's span is invariant
 
@@ -158,7 +159,7 @@ def linearize_at_goal(
         T=T,
         A=A,
         A_closed=closed_form_A(config, plant),
-        eigenvalues=np.sort_complex(np.linalg.eigvals(A)),
+        eigenvalues=canonical_eigenvalues(A),
         quaternion_eigenvalue=complex(e_q @ A_drake @ e_q),
         invariance_residual=float(
             np.linalg.norm(A_drake @ T - T @ A) / max(1e-300, np.linalg.norm(A_drake))
@@ -205,7 +206,7 @@ class LoopLinearization:
         T: minimal coordinates -> Drake state perturbation at x0 (the chart's Jacobian).
         A: the minimal model ``T^+ A_drake T`` (12 dynamic, 6 kinematic).
         f0: the drift in minimal coordinates, ``T^+ xdot(x0)`` (0 at an equilibrium).
-        eigenvalues: of ``A``, sorted by real part.
+        eigenvalues: of ``A``, in the canonical order (:mod:`geovs_drake.spectrum`).
     """
 
     plant: str
@@ -448,7 +449,7 @@ def linearize(
         T=T,
         A=A,
         f0=f0,
-        eigenvalues=np.sort_complex(np.linalg.eigvals(A)),
+        eigenvalues=canonical_eigenvalues(A),
     )
 
 
@@ -459,7 +460,7 @@ class LinearizationAlong:
     Attributes:
         times: the sample times [s].
         models: the :class:`LoopLinearization` at each.
-        eigenvalues: (len(times), n), each row sorted by real part.
+        eigenvalues: (len(times), n), each row in the canonical order (:mod:`geovs_drake.spectrum`).
         max_real_part: (len(times),), the largest real part at each time.
     """
 

@@ -86,7 +86,7 @@ class StepLimit:
     ``simulator.max_step_size`` was left at :data:`~geovs_drake.scenario.AUTOMATIC_STEP`
     (then it is ``min(DEFAULT_MAX_STEP, STABILITY_MARGIN * stable_step)``), False where
     it is the user's value as given; ``fastest_mode``: the goal's eigenvalue of largest
-    modulus [1/s] and ``stable_step``: the largest h with every ``h lambda`` in the
+    modulus [1/s] (of a conjugate pair, the member with Im >= 0) and ``stable_step``: the largest h with every ``h lambda`` in the
     method's region [s], both None where the bound does not apply (see the module).
     """
 
@@ -232,7 +232,10 @@ def stable_step(resolved: ResolvedScenario) -> tuple[complex, float] | None:
     eigenvalues = eigenvalues[np.abs(eigenvalues) > 0]
     if len(eigenvalues) == 0:
         return None
+    # Of a conjugate pair (equal moduli: argmax's tie), the member with Im >= 0, whichever
+    # of the two rounding made the larger.
     fastest = complex(eigenvalues[np.argmax(np.abs(eigenvalues))])
+    fastest = complex(fastest.real, abs(fastest.imag))
     # Bisection on h: the region is star-shaped from 0 along each ray for these
     # polynomials, so stability is monotone in h along the eigenvalues' rays.
     lo, hi = 0.0, 10.0 / abs(fastest)
