@@ -23,9 +23,16 @@ _HTML = re.compile(r"<(?:a|img)\b[^>]*?\b(?:href|src)=\"([^\"]+)\"", re.I)
 _WEB = re.compile(r"^(?:https?|mailto):", re.I)
 
 
-def link_problems(text: str, where: Path) -> list[str]:
+#: Where the docs build puts each notebook it runs (``docs/notebooks/NAME.ipynb``, ignored by
+#: git) and renders as a page: a page's link there names ``notebooks/NAME.ipynb`` of the
+#: repository, and is checked against that file, never against the build's output (which
+#: exists only once a build has run, and only for the notebooks that ran).
+BUILT_NOTEBOOKS = Path("docs", "notebooks")
+
+
+def link_problems(text: str, where: Path, root: Path = ROOT) -> list[str]:
     """Each link of a markdown text that is not a web address or an existing file of the
-    repository, with the reason."""
+    repository at ``root``, with the reason."""
     problems = []
     targets = _INLINE.findall(text) + _REFERENCE.findall(text) + _HTML.findall(text)
     for target in targets:
@@ -36,7 +43,9 @@ def link_problems(text: str, where: Path) -> list[str]:
             problems.append(f"{target}: an absolute address outside the repository")
             continue
         resolved = (where.parent / path).resolve()
-        if not resolved.is_relative_to(ROOT):
+        if resolved.parent == (root / BUILT_NOTEBOOKS).resolve() and resolved.suffix == ".ipynb":
+            resolved = root / "notebooks" / resolved.name
+        if not resolved.is_relative_to(root):
             problems.append(f"{target}: outside the repository")
         elif not resolved.exists():
             problems.append(f"{target}: no such file")
@@ -57,6 +66,21 @@ def test_the_link_check_can_fail():
         "../../outside.md: outside the repository",
         "file:///etc: an absolute address outside the repository",
     ]
+
+
+def test_a_docs_link_to_a_notebook_is_checked_against_the_repositorys_notebook(tmp_path):
+    """In a checkout whose docs were never built (no docs/notebooks/): a page's link to
+    notebooks/NAME.ipynb holds when notebooks/NAME.ipynb exists at the root, and names
+    the missing notebook otherwise; a built copy without its source does not count."""
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "notebooks").mkdir()
+    (tmp_path / "notebooks" / "02_study.ipynb").write_text("{}")
+    page = tmp_path / "docs" / "page.md"
+    text = "[nb](notebooks/02_study.ipynb#section) [gone](notebooks/03_gone.ipynb)"
+    assert link_problems(text, page, tmp_path) == ["notebooks/03_gone.ipynb: no such file"]
+    (tmp_path / "docs" / "notebooks").mkdir()
+    (tmp_path / "docs" / "notebooks" / "03_gone.ipynb").write_text("{}")  # a stale build
+    assert link_problems(text, page, tmp_path) == ["notebooks/03_gone.ipynb: no such file"]
 
 
 @pytest.mark.parametrize("doc", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
