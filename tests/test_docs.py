@@ -126,3 +126,27 @@ def test_each_benchmark_record_holds_its_baselines_and_is_on_the_performance_pag
     if not (HTML / "performance.html").is_file():
         pytest.skip("the docs are not built here: `make docs` builds them (make test does)")
     assert data["title"] in (HTML / "performance.html").read_text()
+
+
+def test_a_failing_notebook_is_reported_with_its_cell_and_line(tmp_path):
+    """The docs build's one line for a notebook whose cell raises: the cell's place, the
+    failing line of that cell (not of a function an earlier cell defined) and the error.
+    The notebook runs in a real kernel, as in the build."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    import nbformat
+    from notebook_pages import _execute
+
+    notebook = nbformat.v4.new_notebook()
+    notebook.cells = [
+        nbformat.v4.new_markdown_cell("# a title"),
+        nbformat.v4.new_code_cell("def check(x):\n    assert x > 1, f'x = {x}'"),
+        nbformat.v4.new_code_cell("y = 1\n\ncheck(y)\nprint('never')"),
+    ]
+    source = tmp_path / "broken.ipynb"
+    nbformat.write(notebook, source)
+    # In a process of its own, as the build runs it (_execute silences that process's stderr).
+    with ProcessPoolExecutor(1) as pool:
+        _, _, error = pool.submit(_execute, str(source), str(tmp_path / "out.ipynb")).result()
+    assert error == "cell 3 (code cell 2), line 3: check(y): AssertionError: x = 1"
+    assert not (tmp_path / "out.ipynb").exists()  # no half-run copy for the pages

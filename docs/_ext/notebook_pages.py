@@ -9,14 +9,16 @@ copies go to ``docs/notebooks/`` (ignored by git), where myst-nb renders them
 with ``nb_execution_mode = "off"``: the docs show the outputs of this very run.
 
 This is the one place the notebooks run in ``make test`` (pytest no longer
-runs them): a cell that raises fails the build, naming the notebook and the
-error. The fast settings (``GEOVS_FAST=1``: shorter runs, the same code paths)
-apply unless the environment sets ``GEOVS_FAST`` itself.
+runs them): a cell that raises fails the build, naming the notebook, the cell, its
+failing line and the error (:func:`failing_cell`). The fast settings (``GEOVS_FAST=1``:
+shorter runs, the same code paths) apply unless the environment sets ``GEOVS_FAST``
+itself.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -58,10 +60,46 @@ def _execute(source: str, target: str) -> tuple[str, float, str | None]:
     try:
         client.execute()
     except CellExecutionError as e:
-        lines = [line for line in str(e).splitlines() if line.strip()]
-        return source, time.perf_counter() - start, lines[-1] if lines else repr(e)
+        return source, time.perf_counter() - start, failing_cell(notebook) or _last_line(str(e))
     nbformat.write(notebook, target)
     return source, time.perf_counter() - start, None
+
+
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+#: IPython's frame header for code run from a cell: "Cell In[12], line 20".
+_CELL_FRAME = re.compile(r"Cell In\[\d*\], line (\d+)")
+
+
+def _last_line(text: str) -> str:
+    lines = [line for line in _ANSI.sub("", text).splitlines() if line.strip()]
+    return lines[-1] if lines else text
+
+
+def failing_cell(notebook) -> str | None:
+    """Where an executed notebook failed, in one line: the cell (its place among all the
+    cells and among the code cells, as JupyterLab counts them from 1), the line of that
+    cell being run and its text, then the error. None where no cell holds an error."""
+    code = 0
+    for index, cell in enumerate(notebook.cells, start=1):
+        if cell.cell_type != "code":
+            continue
+        code += 1
+        for output in cell.get("outputs", []):
+            if output.get("output_type") != "error":
+                continue
+            where = f"cell {index} (code cell {code})"
+            # The traceback's first cell frame is this cell's line (later ones may be
+            # functions that earlier cells defined).
+            frame = _CELL_FRAME.search(_ANSI.sub("", "\n".join(output.get("traceback", []))))
+            if frame:
+                number = int(frame.group(1))
+                lines = cell.source.splitlines()
+                text = lines[number - 1].strip() if 0 < number <= len(lines) else ""
+                where += f", line {number}" + (f": {text}" if text else "")
+            error = output.get("ename", "Error")
+            value = _last_line(output.get("evalue", "")) if output.get("evalue") else ""
+            return f"{where}: {error}" + (f": {value}" if value else "")
+    return None
 
 
 def run_notebooks(app: Sphinx) -> None:
