@@ -97,7 +97,8 @@ class GainDesign:
     Attributes:
         config: the scenario with the designed gains.
         settling_time: requested [s]; damping_ratio: requested (None, kinematic).
-        eigenvalues: the designed loop's closed form at the goal, in the canonical order (:mod:`geovs_drake.spectrum`).
+        eigenvalues: the designed loop's closed form at the goal, in the canonical order
+            (:mod:`geovs_drake.spectrum`).
         stiffness: ``K = k_p K_1`` (dynamic, N m per rad and N per m) or the kinematic
             loop's ``k C_chart^-1 H C_chart`` [1/s].
         peak_torque, peak_force: the largest norms of F_C's torque and force along the
@@ -288,7 +289,8 @@ def root_locus(
 ) -> np.ndarray:
     """The goal's eigenvalues (closed form) as one gain of ``control`` runs over ``gains``:
     ``potential_gain`` (k_p), ``damping_scale`` (B times each value) or
-    ``kinematic_gain``. Shape (len(gains), n), each row in the canonical order (:mod:`geovs_drake.spectrum`)."""
+    ``kinematic_gain``. Shape (len(gains), n), each row in the canonical order
+    (:mod:`geovs_drake.spectrum`)."""
     names = ("potential_gain", "damping_scale", "kinematic_gain")
     if gain not in names:
         raise ValueError(f"gain must be one of {', '.join(names)}: gain = {gain!r}")

@@ -86,8 +86,9 @@ class StepLimit:
     ``simulator.max_step_size`` was left at :data:`~geovs_drake.scenario.AUTOMATIC_STEP`
     (then it is ``min(DEFAULT_MAX_STEP, STABILITY_MARGIN * stable_step)``), False where
     it is the user's value as given; ``fastest_mode``: the goal's eigenvalue of largest
-    modulus [1/s] (of a conjugate pair, the member with Im >= 0) and ``stable_step``: the largest h with every ``h lambda`` in the
-    method's region [s], both None where the bound does not apply (see the module).
+    modulus [1/s] (of a conjugate pair, the member with Im >= 0) and ``stable_step``:
+    the largest h with every ``h lambda`` in the method's region [s], both None where
+    the bound does not apply (see the module).
     """
 
     max_step_size: float
