@@ -20,6 +20,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from geovs_drake.analysis.arm_study import linearize_arm_at_goal
 from geovs_drake.loop.arm import (
     Unreachable,
+    _better_solution,
     arm_model,
     joint_limit_margins,
     smallest_singular_values,
@@ -100,6 +101,34 @@ def test_ik_reaches_the_pose_within_the_limits_and_the_scene_reaches_every_start
         assert np.allclose(X.GetAsMatrix4(), X_WC.GetAsMatrix4(), atol=1e-9)
         assert np.min(joint_limit_margins(model, q)) > 1.0
         assert smallest_singular_values(model, q[None])[0] > 0.1
+
+
+def test_ik_breaks_a_tie_by_the_solution_nearer_zero_whatever_the_order():
+    """Two IK solutions 2 pi apart in a joint away from its limits have the same J_C and
+    margin: their scores differ by rounding only (the UR5's goal, wrist 1 at -2.54 or
+    +3.74 rad, swapped with the BLAS kernel). The pick must not follow rounding."""
+    config = _arm()
+    model = arm_model(config)
+    q = solve_joints(model, config.X_WB @ config.X_BC_goal)
+    shifted = q.copy()
+    shifted[3] += 2 * math.pi
+    plant = arm_plant(model)
+    context = plant.CreateDefaultContext()
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+    poses = []
+    for joints in (q, shifted):
+        plant.SetPositions(context, joints)
+        poses.append(camera.CalcPoseInWorld(context).GetAsMatrix4())
+    assert np.allclose(poses[0], poses[1], atol=1e-12)  # the same camera pose
+    score = float(np.min(joint_limit_margins(model, q[None])))
+    assert score == pytest.approx(float(np.min(joint_limit_margins(model, shifted[None]))))
+    for eps in (-1e-15, 0.0, 1e-15):  # rounding's sign either way
+        assert not _better_solution(shifted, score + eps, q, score)
+        assert _better_solution(q, score + eps, shifted, score)
+    # A real difference in score still wins, nearer zero or not.
+    assert _better_solution(shifted, score + 1e-3, q, score)
+    # And the goal's own joints are the branch nearer zero (|wrist 1| < pi).
+    assert abs(q[3]) < math.pi
 
 
 def test_a_pose_out_of_reach_names_the_closest_reach(run_cli):

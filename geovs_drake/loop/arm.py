@@ -62,6 +62,12 @@ IK_SEEDS = 12
 #: joint limit [rad] when it picks among its solutions.
 SINGULARITY_WEIGHT = 10.0
 
+#: Scores closer than this [rad] tie. Two solutions that differ by 2 pi in a joint away
+#: from its limits have the same J_C and the same margin: their scores differ by rounding
+#: alone, which the BLAS kernel decides (the UR5's goal: wrist 1 at -2.54 or +3.74 rad).
+#: A tie goes to the solution nearer q = 0 (the smaller |q|), whatever the seeds' order.
+IK_SCORE_TIE = 1e-9
+
 
 class Unreachable(ValueError):
     """The arm cannot put the camera at the requested pose within its joint limits."""
@@ -206,10 +212,11 @@ def _solve_joints(model: ArmModel, X_key: tuple[float, ...]) -> np.ndarray:
         if result.is_success():
             q = _refine(plant, camera, q, X_WC)
             # Keep the solution farthest from both the joint limits and the
-            # singularities: the smaller of the joint margin [rad] and 10 sigma_min(J_C).
+            # singularities: the smaller of the joint margin [rad] and 10 sigma_min(J_C);
+            # a tie (IK_SCORE_TIE) to the one nearer q = 0.
             margin = float(np.min(np.minimum(q - lower, upper - q)))
             score = min(margin, SINGULARITY_WEIGHT * smallest_singular_values(model, q[None])[0])
-            if score > best_score:
+            if _better_solution(q, score, best, best_score):
                 best, best_score = q, score
         else:
             closest = min(closest, _reach_error(plant, camera, q, X_WC))
@@ -219,6 +226,18 @@ def _solve_joints(model: ArmModel, X_key: tuple[float, ...]) -> np.ndarray:
             f"closest reach found is {closest[0]:.3g} m and {closest[1]:.3g} rad away"
         )
     return best
+
+
+def _better_solution(
+    q: np.ndarray, score: float, best: np.ndarray | None, best_score: float
+) -> bool:
+    """Whether IK's solution q (its score) replaces the best so far: a higher score, or a
+    tied one (:data:`IK_SCORE_TIE`) nearer q = 0."""
+    if best is None:
+        return True
+    if abs(score - best_score) <= IK_SCORE_TIE:
+        return bool(np.linalg.norm(q) < np.linalg.norm(best) - IK_SCORE_TIE)
+    return score > best_score
 
 
 def _refine(plant, camera, q: np.ndarray, X_WC: RigidTransform, steps: int = 4) -> np.ndarray:
