@@ -159,6 +159,7 @@ def _self_motion_run(null_space_damping: float):
     q = solve_joints(model, config.X_WB @ config.X_BC_goal)
     (J,) = camera_jacobians(model, q)
     n = np.linalg.svd(J)[2][-1]  # J n = 0
+    n *= np.sign(n[np.argmax(np.abs(n))])  # SVD's sign is rounding's: fix it, largest entry > 0
     assert np.max(np.abs(J @ n)) < 1e-12
     config.initial = copy.deepcopy(config.goal)
     config.arm.initial_joints = q.tolist()

@@ -44,7 +44,8 @@ def test_the_designed_kinematic_loop_settles_as_asked_and_costs_a_twist():
     design = design_gains(ScenarioConfig(plant="kinematic"), settling_time=1.0)
     lam = linearize(design.config).eigenvalues
     assert -lam.real.max() == pytest.approx(-np.log(SETTLING_FRACTION), rel=REQUEST_TOL)
-    assert np.all(lam.imag == 0)
+    # Real modes (a double one may split off the axis by rounding, not by more).
+    assert np.max(np.abs(lam.imag)) <= 1e-9 * np.max(np.abs(lam))
     assert design.run_status == "converged"
     assert np.isfinite(design.peak_rate) and np.isfinite(design.peak_speed)
 

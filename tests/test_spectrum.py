@@ -48,7 +48,8 @@ def spectra(draw) -> np.ndarray:
 
 def _jiggle(values: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """``values`` permuted and moved at the 1e-13 level (relative to the spectral radius),
-    each conjugate pair moved as a pair, as LAPACK's rounding moves it."""
+    each value on its own (stricter than LAPACK, which keeps a pair exactly conjugate);
+    real values stay real."""
     scale = NOISE * float(np.max(np.abs(values)))
     out = values.astype(complex)
     for k in range(len(out)):
@@ -66,10 +67,10 @@ def test_the_canonical_order_is_unchanged_by_permutation_and_rounding(values, se
         other = canonical_spectrum(_jiggle(values, rng))
         # Element-wise: the same mode at each index, to within the perturbation.
         np.testing.assert_allclose(other, reference, rtol=0, atol=10 * NOISE * scale)
-        # And the signs of the imaginary parts in the same places: no pair reordered.
-        np.testing.assert_array_equal(
-            np.sign(np.round(other.imag / scale, 9)), np.sign(np.round(reference.imag / scale, 9))
-        )
+        # And the signs of the imaginary parts in the same places (wherever |Im| is
+        # above the perturbation): no pair reordered.
+        clear = np.abs(reference.imag) > 10 * NOISE * scale
+        assert np.array_equal(np.sign(other.imag[clear]), np.sign(reference.imag[clear]))
 
 
 @settings(max_examples=200, deadline=None)
