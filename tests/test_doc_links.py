@@ -180,3 +180,18 @@ def test_docs_list_each_property_test_with_its_examples():
     readme = (ROOT / "docs" / "testing.md").read_text()
     table = dict(re.findall(r"^\|[^|]*\| `(test_\w+)` \| (\d+) \|$", readme, re.M))
     assert {k: int(v) for k, v in table.items()} == examples
+
+
+def test_the_performance_page_defines_every_baseline_its_records_use():
+    """Each baseline named in benchmarks/results/*.json has its row in the performance
+    page's table of baselines (what is timed: the integrator's accuracy, the loggers)."""
+    import json
+
+    page = (ROOT / "docs" / "performance.md").read_text()
+    section = page.split("## The baselines\n")[1].split("\n## ")[0]
+    defined = set(re.findall(r"^\| (.+?) \| .+ \|$", section, re.M)) - {"baseline", "---"}
+    used = set()
+    for record in (ROOT / "benchmarks" / "results").glob("*.json"):
+        used |= {f["baseline"] for f in json.loads(record.read_text())["figures"]}
+    assert used, "no benchmark records"
+    assert used - defined == set(), "baselines the performance page does not define"
