@@ -155,3 +155,22 @@ def test_scenario_files_are_package_data():
     data = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
     assert "*.yaml" in data["package-data"]["geovs_drake.scenarios"]
     assert (PACKAGE / "scenarios" / "__init__.py").is_file()  # a package: resources work
+
+
+def test_no_build_or_test_file_pins_the_blas_kernel():
+    """OPENBLAS_CORETYPE (and OPENBLAS_L2_SIZE) are the machine's: some machines set them
+    for their processor, and the suite's verdict must hold whatever they say. A file that
+    set them would hide a test that depends on the kernel (see geovs_drake.spectrum)."""
+    files = [ROOT / "Makefile", ROOT / "pyproject.toml", *sorted((ROOT / ".ci").glob("*"))]
+    files += sorted((ROOT / "tests").glob("*.py")) + sorted((ROOT / "notebooks").glob("*.ipynb"))
+    files += sorted((ROOT / "docs" / "_ext").glob("*.py")) + [ROOT / "docs" / "conf.py"]
+    setting = re.compile(
+        r"OPENBLAS_(?:CORETYPE|L2_SIZE)['\"]?\]?\s*[=:]|(?:setenv|setdefault)\(\s*['\"]OPENBLAS"
+    )
+    assert setting.search('env["OPENBLAS_CORETYPE"] = "Haswell"')  # the check can fail
+    assert setting.search("OPENBLAS_CORETYPE=Zen pytest") and setting.search(
+        'monkeypatch.setenv("OPENBLAS_CORETYPE", "Zen")'
+    )
+    for path in files:
+        if path.resolve() != Path(__file__).resolve():  # this test's own examples
+            assert not setting.search(path.read_text()), path.relative_to(ROOT)
