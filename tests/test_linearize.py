@@ -37,10 +37,10 @@ from geovs_drake.batch.engine import _rhs, loop_parameters
 from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
 from geovs_drake.geometry.camera import ImageFeatures, camera_map
 from geovs_drake.geometry.navigation import NavigationFunction, image_chart
+from geovs_drake.linear_model import chart_jacobian, navigation_hessian
 from geovs_drake.loop import build_loop
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 from geovs_drake.simulation import StartOutsideDomain, check_start, simulate
-from geovs_drake.simulation.step_limit import chart_jacobian, navigation_hessian
 from geovs_drake.spectrum import assert_spectra_close, canonical_eigenvalues
 
 #: Random states per plant, and the spread of their poses about the goal and twists.

@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import SimulatorConfig
 
+from geovs_drake.linear_model import closed_form_A
 from geovs_drake.scenario import DEFAULT_MAX_STEP, PoseConfig, ScenarioConfig, resolve
 from geovs_drake.simulation import simulate
-from geovs_drake.simulation.step_limit import STABILITY_MARGIN, closed_form_A, step_limit
+from geovs_drake.simulation.step_limit import STABILITY_MARGIN, step_limit
 
 #: The issue's small start, from which the kinematic loop stalled at 1e-7 m.
 NEAR = PoseConfig(xyz=[0.02, -0.01, -0.52], rpy=[0.02, -0.01, 0.1])

@@ -30,10 +30,10 @@ from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
 from geovs_drake.geometry.navigation import NavigationFunction
+from geovs_drake.linear_model import chart_jacobian, navigation_hessian
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.arm import arm_model, solve_joints
 from geovs_drake.scenario import ScenarioConfig, resolve
-from geovs_drake.simulation.step_limit import chart_jacobian, navigation_hessian
 from geovs_drake.spectrum import canonical_eigenvalues
 from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 from geovs_drake.systems.arm_camera import null_space_projector

@@ -1,7 +1,7 @@
 """Gains from the linearisation at the goal: a requested local response, what it costs,
 and how well the linear prediction holds in the nonlinear loop.
 
-The closed form (:func:`~geovs_drake.simulation.step_limit.closed_form_A`) is
+The closed form (:func:`~geovs_drake.linear_model.closed_form_A`) is
 ``M eps'' + B eps' + k_p K_1 eps = 0`` on the dynamic rig (``K_1 = C_chart^T H
 C_chart``, Appendix C) and ``eps' = -k C_chart^-1 H C_chart eps`` on the kinematic
 body (Eqs. 17-19), whose eigenvalues are ``-k eig(H)``.
@@ -37,16 +37,16 @@ import numpy as np
 
 from geovs_drake.batch.engine import run_batch
 from geovs_drake.geometry.so3 import so3_exp
-from geovs_drake.loop import build_loop
-from geovs_drake.scenario import ScenarioConfig
-from geovs_drake.simulation import simulate
-from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
-from geovs_drake.simulation.step_limit import (
+from geovs_drake.linear_model import (
     closed_form_A,
     goal_stiffness,
     rig_spatial_inertia,
     second_order_A,
 )
+from geovs_drake.loop import build_loop
+from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.simulation import simulate
+from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
 from geovs_drake.spectrum import canonical_eigenvalues
 
 __all__ = [

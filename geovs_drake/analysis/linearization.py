@@ -50,16 +50,16 @@ from geovs_drake.geometry.camera import ImageFeatures
 from geovs_drake.geometry.navigation import image_chart
 from geovs_drake.geometry.rigid import quaternion_multiply, quaternion_to_rotation
 from geovs_drake.geometry.so3 import hat
-from geovs_drake.loop import build_loop
-from geovs_drake.loop.build import FEATURE_SIZE
-from geovs_drake.loop.state import initial_body_states
-from geovs_drake.scenario import PoseConfig, ScenarioConfig
-from geovs_drake.simulation.step_limit import (
+from geovs_drake.linear_model import (
     closed_form_A,
     navigation_hessian,
     rig_spatial_inertia,
     velocity_adjoint,
 )
+from geovs_drake.loop import build_loop
+from geovs_drake.loop.build import FEATURE_SIZE
+from geovs_drake.loop.state import initial_body_states
+from geovs_drake.scenario import PoseConfig, ScenarioConfig
 from geovs_drake.spectrum import canonical_eigenvalues
 
 __all__ = [

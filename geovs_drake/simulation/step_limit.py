@@ -10,7 +10,7 @@ after 40 s with RK3's 0.05 s limit, where its fastest mode is -70.9 1/s; ``h abs
 3.5 against RK3's real-axis bound 2.51).
 
 :func:`step_limit` finds the largest h whose ``h lambda`` stay in the region, for every
-eigenvalue of the closed form (:func:`closed_form_A`), and takes
+eigenvalue of the closed form (:func:`~geovs_drake.linear_model.closed_form_A`), and takes
 :data:`STABILITY_MARGIN` of it (RK3: ``h abs(lambda)`` <= 0.8 x 2.51 = 2.0 on a real mode).
 It is the one place that decides the step limit: the simulator
 (:func:`~geovs_drake.simulation.monitor.make_simulator`) and the batch engine both read
@@ -33,38 +33,21 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.autodiffutils import InitializeAutoDiff
-from pydrake.math import RigidTransform
 
-from geovs_drake.geometry.camera import ImageFeatures, image_jacobian
-from geovs_drake.geometry.navigation import (
-    NavigationFunction,
-    chart_basis,
-    image_chart,
-    navigation_differential,
-)
-from geovs_drake.geometry.so3 import hat
+from geovs_drake.linear_model import closed_form_A
 from geovs_drake.scenario import (
     AUTOMATIC_STEP,
     DEFAULT_MAX_STEP,
     Nf,
     ResolvedScenario,
-    ScenarioConfig,
 )
 
 __all__ = [
     "STABILITY_MARGIN",
     "STABILITY_POLYNOMIALS",
     "StepLimit",
-    "chart_jacobian",
-    "closed_form_A",
-    "goal_stiffness",
-    "navigation_hessian",
-    "rig_spatial_inertia",
-    "second_order_A",
     "stable_step",
     "step_limit",
-    "velocity_adjoint",
 ]
 
 #: The fraction of the stability bound the step may use: the error control wants room
@@ -115,87 +98,6 @@ class StepLimit:
         )
 
 
-def navigation_hessian(nf: NavigationFunction, y: ImageFeatures) -> np.ndarray:
-    """The chart Hessian of phi at y by AutoDiffXd of dphi (exact to rounding)."""
-    B = chart_basis(y.s)
-    ya = image_chart(y, InitializeAutoDiff(np.zeros(6)).ravel())
-    _, dphi = navigation_differential(ya, nf.goal, nf.domain, nf.gains)
-    F = np.concatenate([dphi[0:4], B.T @ dphi[4:7]])
-    H = np.stack([f.derivatives() for f in F])
-    return 0.5 * (H + H.T)
-
-
-def chart_jacobian(y: ImageFeatures, radius: float) -> np.ndarray:
-    """C(y) in the NF's chart, ``diag(I_4, B^T) C(y)`` (6 x 6, invertible)."""
-    C = image_jacobian(y, radius)
-    B = chart_basis(y.s)
-    return np.vstack([C[0:4], B.T @ C[4:7]])
-
-
-def velocity_adjoint(X: RigidTransform) -> np.ndarray:
-    """Ad_X on (omega, v): velocities in the child frame to the parent frame."""
-    R, p = X.rotation().matrix(), X.translation()
-    out = np.zeros((6, 6))
-    out[:3, :3] = R
-    out[3:, :3] = hat(p) @ R
-    out[3:, 3:] = R
-    return out
-
-
-def rig_spatial_inertia(config: ScenarioConfig) -> np.ndarray:
-    """M, the rig's spatial inertia about the camera origin in C (Appendix C.0.6:
-    ``Ad^T M_R Ad``), on (Omega, V)."""
-    Ad = velocity_adjoint(config.X_RC)
-    M_R = np.zeros((6, 6))
-    M_R[:3, :3] = np.diag(config.rig.inertia_diagonal)
-    M_R[3:, 3:] = config.rig.mass * np.eye(3)
-    return Ad.T @ M_R @ Ad
-
-
-def goal_stiffness(config: ScenarioConfig) -> tuple[np.ndarray, np.ndarray]:
-    """The NF's stiffness at the goal per unit gain, in minimal coordinates:
-    ``K_1 = C_chart^T H C_chart`` (the dynamic loop's, times k_p) and
-    ``C_chart^-1 H C_chart`` (the kinematic loop's, times k), H the chart Hessian of phi
-    at y* (:func:`navigation_hessian`, one AutoDiffXd pass)."""
-    y = config.goal_features()
-    nf = NavigationFunction(config.domain.to_domain(), y, config.navigation.to_gains())
-    H = navigation_hessian(nf, y)
-    Cc = chart_jacobian(y, config.radius)
-    return Cc.T @ H @ Cc, np.linalg.solve(Cc, H @ Cc)
-
-
-def second_order_A(M: np.ndarray, K: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``[[0, I], [-M^-1 K, -M^-1 B]]``: ``M eps'' + B eps' + K eps = 0`` in first order."""
-    n = len(M)
-    A = np.zeros((2 * n, 2 * n))
-    A[:n, n:] = np.eye(n)
-    A[n:, :n] = -np.linalg.solve(M, K)
-    A[n:, n:] = -np.linalg.solve(M, B)
-    return A
-
-
-def closed_form_A(
-    config: ScenarioConfig, plant: str | None = None, damping: tuple[float, ...] | None = None
-) -> np.ndarray:
-    """The closed-form linearisation at the goal, in minimal coordinates (the camera's
-    right-trivialised displacement eps, then its twist, for the dynamic loop):
-
-    * dynamic (Eq. 45 on Eq. 46): ``A = [[0, I], [-M^-1 K, -M^-1 B]]``,
-      ``K = k_p C_chart^T H C_chart``, M the rig's spatial inertia about the camera;
-    * kinematic (Eqs. 17-19): ``A = -k C_chart^-1 H C_chart``.
-
-    ``damping``: the B the loop runs with (:attr:`ResolvedScenario.damping`), by default
-    ``control.damping``. :mod:`geovs_drake.analysis.linearization` checks it against
-    Drake's ``Linearize``.
-    """
-    plant = plant or config.plant
-    K1, KC = goal_stiffness(config)
-    if plant == "kinematic":
-        return -config.control.kinematic_gain * KC
-    Bd = np.diag(config.control.damping if damping is None else damping)
-    return second_order_A(rig_spatial_inertia(config), config.control.potential_gain * K1, Bd)
-
-
 def _stable(coefficients: tuple[float, ...], z: np.ndarray) -> bool:
     R = np.polyval(coefficients[::-1], z)
     return bool(np.all(np.abs(R) <= 1.0 + 1e-12))
@@ -221,7 +123,8 @@ def step_limit(resolved: ResolvedScenario) -> StepLimit:
 def stable_step(resolved: ResolvedScenario) -> tuple[complex, float] | None:
     """The goal's fastest mode and the largest stable step h for the configured scheme,
     or None where they do not apply (a scheme without a stability polynomial here, a law
-    other than the NF, a carrier other than the free rig in the hand: :func:`closed_form_A`
+    other than the NF, a carrier other than the free rig in the hand:
+    :func:`~geovs_drake.linear_model.closed_form_A`
     is theirs only)."""
     config = resolved.config
     coefficients = STABILITY_POLYNOMIALS.get(config.simulator.integration_scheme)
