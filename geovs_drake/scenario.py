@@ -644,7 +644,9 @@ class ScenarioConfig:
             values = getattr(arm, name)
             if _finite_numbers(values, len(values)) is None:
                 raise ValueError(f"arm.{name} must be finite numbers [rad, rad/s], got {values!r}")
-        if arm.joint_barrier_width > 0 and (self.plant != "dynamic" or self.controller != "nf"):
+        if arm.joint_barrier_width > 0 and (
+            self.plant != "dynamic" or not isinstance(law_of(self), Nf)
+        ):
             raise ValueError(
                 "arm.joint_barrier_width applies to the dynamic arm under the NF (it is a "
                 f"term of the NF's energy), got plant {self.plant!r}, controller "

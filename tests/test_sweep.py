@@ -304,6 +304,20 @@ def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, monkeypatc
     assert not (tmp_path / "out").exists()  # nothing written for bad input
 
 
+def test_the_nf_given_as_its_variant_sweeps_as_the_nf(tmp_path, run_cli):
+    """``controller: !Nf {}`` is the NF: the batch engine asks what the law is, not how it
+    was spelled (it refused "controller = Nf()"), and gives the rows of the default."""
+    common = ("--starts", "3", "--duration", "1", "--workers", "1", "--json")
+    tagged = run_cli(
+        "sweep", *common, "--out", str(tmp_path / "a"), "--scenario-text", "controller: !Nf {}"
+    )
+    assert tagged.code == 0, tagged.err
+    plain = run_cli("sweep", *common, "--out", str(tmp_path / "b"))
+    assert plain.code == 0, plain.err
+    rows = [pq.read_table(tmp_path / d / "results").to_pandas() for d in ("a", "b")]
+    assert len(rows[0]) == 3 and rows[0].equals(rows[1])
+
+
 def test_the_csv_limit_the_help_names_is_the_one_enforced(run_cli):
     """The help says 10^5 without importing the sweep (the command line starts light)."""
     run = run_cli("sweep", "--help")
