@@ -434,3 +434,21 @@ def test_autodiff_values_are_checked():
     X = RigidTransform(RollPitchYaw(np.pi, 0, 0), [0, 0, 0.5]).cast[AutoDiffXd]()
     with pytest.raises(ValueError, match="pose not visible"):
         camera_map(X, RHO)
+
+
+def test_image_features_are_a_13_vector_to_numpy_and_to_a_port():
+    """A user's ``np.round(config.goal_features(), 3)`` and a port's FixValue take y as
+    the systems' 13-vector ``[q1, q2, q3, lambda, s]`` (it raised a TypeError)."""
+    from geovs_drake.scenario import ScenarioConfig
+    from geovs_drake.systems import NavigationController
+
+    config = ScenarioConfig()
+    y = config.goal_features()
+    np.testing.assert_array_equal(np.round(y, 3), np.round(y.to_vector(), 3))
+    assert np.asarray(y, dtype=np.float32).dtype == np.float32
+    batch = camera_map(np.stack([config.X_BC_goal.inverse().GetAsMatrix4()] * 2), config.radius)
+    assert np.asarray(batch).shape == (2, 13)
+    nav = NavigationController(goal=y, domain=config.domain.to_domain())
+    context = nav.CreateDefaultContext()
+    nav.image_features_input.FixValue(context, y)
+    assert nav.phi_output.Eval(context)[0] == pytest.approx(0.0, abs=1e-12)

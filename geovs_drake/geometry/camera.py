@@ -417,6 +417,13 @@ class ImageFeatures:
         lam = np.asarray(self.lam)[..., None]
         return np.concatenate([self.q1, self.q2, self.q3, lam, self.s], axis=-1)
 
+    def __array__(self, dtype: object = None, copy: bool | None = None) -> np.ndarray:
+        """numpy's view of y: :meth:`to_vector`, the layout of the systems' 13-vector
+        ports, so that ``np.asarray(y)``, ``np.round(y, 3)`` and a port's ``FixValue``
+        take an ImageFeatures as it is."""
+        v = self.to_vector()
+        return v if dtype is None else v.astype(dtype, copy=False)
+
     def components(self) -> tuple:
         """The 13 named components the formulas take."""
         return components(self.to_vector(), 13, "y")
