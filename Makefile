@@ -10,6 +10,12 @@ PYTHON ?= python3
 ifeq ($(MAKELEVEL),0)
 MAKEFLAGS += -j2
 endif
+# uv trusts the system's certificate store, as pip does (Debian's ca-certificates and any
+# CA an administrator added there): with its own bundled roots uv fails where PyPI is
+# reached through a proxy whose CA only the system knows (measured: a non-root user's
+# make test stopped at the install, "invalid peer certificate: UnknownIssuer"). Exported:
+# the wheel check (tools/check_wheel.py) installs through uv too.
+export UV_SYSTEM_CERTS := 1
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
@@ -21,7 +27,7 @@ STAMP := $(VENV)/.installed
 # against 48 s for pip with a warm one, measured here), which `make test`'s budget needs.
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet uv
+	$(BIN)/python -m pip install --quiet "uv>=0.13"
 	$(BIN)/python -m uv pip install --quiet --python $(BIN)/python -e ".[all,test,docs]"
 	touch $(STAMP)
 
