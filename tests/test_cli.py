@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -385,13 +386,20 @@ def test_readme_synopsis_names_real_options_and_their_choices(capsys):
     assert checked >= 2  # sweep's --velocity and --engine at least
 
 
-def test_a_closed_pipe_ends_quietly_with_its_own_exit_code():
-    """`geovs-drake ... | head` closes stdout early: no traceback, exit code 141."""
+@pytest.mark.parametrize("buffered", [True, False], ids=["buffered", "unbuffered"])
+def test_a_closed_pipe_ends_quietly_with_its_own_exit_code(buffered):
+    """`geovs-drake ... | head` closes stdout early: no traceback, exit code 141, whether
+    stdout is block-buffered (a pipe's default: the write fails at the last flush) or
+    not (PYTHONUNBUFFERED, set on some machines: it fails at the print)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    if not buffered:
+        env["PYTHONUNBUFFERED"] = "1"
     proc = subprocess.Popen(
         [sys.executable, "-m", "geovs_drake.cli", "simulate", "--json", "--duration", "0.2"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        env=env,
     )
     proc.stdout.close()  # the reader is gone before the result is written
     err = proc.stderr.read()

@@ -105,7 +105,11 @@ def main(argv: list[str] | None = None) -> int:
     """
     args = build_parser().parse_args(argv)
     try:
-        return args.func(args)
+        code = args.func(args)
+        # A pipe's stdout is block-buffered: a reader gone shows at this flush, inside
+        # the try, not at the interpreter's own flush on exit (exit code 120 there).
+        sys.stdout.flush()
+        return code
     except ValueError as e:  # bad configuration: one clear line, no traceback
         print(f"geovs-drake: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
