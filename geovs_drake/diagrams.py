@@ -15,7 +15,6 @@ from pydrake.systems.framework import Diagram
 
 from geovs_drake.loop.build import build_loop
 from geovs_drake.loop.carriers import RIG_BODY_NAME, TARGET_BODY_NAME
-from geovs_drake.loop.laws import TWIST_CONTROLLERS
 from geovs_drake.loop.sensors import (
     RENDERER_NAME,
     VTK_PRINCIPAL_POINT_SHIFT,
@@ -34,7 +33,6 @@ __all__ = [
     "RENDERER_NAME",
     "RIG_BODY_NAME",
     "TARGET_BODY_NAME",
-    "TWIST_CONTROLLERS",
     "VTK_PRINCIPAL_POINT_SHIFT",
     "fixed_camera_pose",
     "initial_body_states",

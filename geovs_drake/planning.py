@@ -54,7 +54,7 @@ from geovs_drake.geometry.camera import ImageFeatures, silhouette_margin, valida
 from geovs_drake.geometry.domain import DomainMargins, SafeDomain, domain_margins
 from geovs_drake.geometry.image_path import QUINTIC_TIME_LAW, exp_image, image_distance
 from geovs_drake.geometry.navigation import NavigationFunction
-from geovs_drake.scenario import PathFollowing, ScenarioConfig, law_of
+from geovs_drake.scenario import PathFollowing, ScenarioConfig
 
 __all__ = [
     "PathExit",
@@ -388,14 +388,14 @@ def _plan_cached(key: tuple) -> PathPlan:
 
 def plan_for_scenario(config: ScenarioConfig, law: PathFollowing | None = None) -> PathPlan:
     """The plan of ``config``: from y(0) = c(X_BC(0)^-1) to y* in the path law's
-    ``duration`` (``law``, default the scenario's path law, :func:`~geovs_drake.scenario.law_of`,
-    or its ``path`` settings under another law),
+    ``duration`` (``law``, default the scenario's law where it is a
+    :class:`~geovs_drake.scenario.PathFollowing`, else the path law's defaults),
     falling back on the NF's gradient flow if its ``fallback``. Cached per
     (start, goal, domain, gains, duration, fallback): the diagram builder and
     ``simulate`` ask for the same plan."""
-    law = law_of(config) if law is None else law
-    if not isinstance(law, PathFollowing):  # another law: the scenario's path settings
-        law = config.path
+    law = config.controller if law is None else law
+    if not isinstance(law, PathFollowing):  # another law: the path law's defaults
+        law = PathFollowing()
     key = (
         tuple(config.initial_features().to_vector().tolist()),
         tuple(config.goal_features().to_vector().tolist()),

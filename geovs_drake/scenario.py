@@ -49,13 +49,11 @@ __all__ = [
     "Nf",
     "PathFollowing",
     "Pbvs",
-    "RegisteredLaw",
     "ResolvedScenario",
     "Spherical",
     "ControlConfig",
     "DomainConfig",
     "NavigationGainsConfig",
-    "PathConfig",
     "PoseConfig",
     "RigConfig",
     "ScenarioConfig",
@@ -65,7 +63,6 @@ __all__ = [
     "load_scenario",
     "damping_of",
     "law_name",
-    "law_of",
     "load_suite",
     "resolve",
 ]
@@ -90,10 +87,9 @@ CARRIERS = ("free", "arm")
 # The control laws, one variant each (``ScenarioConfig.controller``)
 # --------------------------------------------------------------------------
 # Each law holds its own fields; in YAML a law is tagged with its class name, as
-# in Drake's hardware_sim scenarios: ``controller: !Ibvs {depth: mean}``. The bare
-# name (``controller: ibvs``) is the law with its defaults, and keeps the fields
-# of the earlier, global form (``control.ibvs_depth``, ``path``): see
-# :func:`law_of`.
+# in Drake's hardware_sim scenarios: ``controller: !Ibvs {depth: mean}``. A scenario
+# file's bare name (``controller: ibvs``) reads as that variant with its defaults
+# (:func:`load_scenario`); in Python the law is always its variant.
 @dataclass
 class Nf:
     """The navigation function: Eq. (45)'s wrench on a force-driven carrier, the
@@ -138,14 +134,6 @@ class PathFollowing:
     radius_scale: float = 1.0
 
 
-@dataclass
-class RegisteredLaw:
-    """A law registered by name at run time (``geovs_drake.loop.TWIST_CONTROLLERS``),
-    with no fields of its own; not a YAML variant."""
-
-    name: str = ""
-
-
 #: A law's configuration: one of the variants above.
 LawConfig = Nf | Ibvs | Pbvs | Spherical | PathFollowing
 #: The law of each name in :data:`CONTROLLERS` (``path`` is :class:`PathFollowing`).
@@ -159,15 +147,13 @@ LAW_VARIANTS: dict[str, type] = {
 
 
 def law_name(law: object) -> str:
-    """The name in :data:`CONTROLLERS` of a law given by name or as a variant."""
-    if isinstance(law, str):
-        return law
-    if isinstance(law, RegisteredLaw):
-        return law.name
+    """A law variant's name: its :data:`CONTROLLERS` name (the command line's
+    ``--controller``), or its class's name for a law a user registered
+    (:data:`geovs_drake.loop.laws.LAWS`)."""
     for name, variant in LAW_VARIANTS.items():
         if type(law) is variant:
             return name
-    raise ValueError(f"controller: {law!r} is not a law ({', '.join(CONTROLLERS)})")
+    return type(law).__name__
 
 
 @dataclass
@@ -309,17 +295,6 @@ class ControlConfig:
     #: lambda [1/s] of the baselines' ``e_dot = -lambda e`` (controller ibvs, pbvs,
     #: spherical): Chaumette & Hutchinson's gain, the same for the three.
     baseline_gain: float = 1.0
-    #: The depth estimate of point IBVS: "true" (the current interaction matrix
-    #: with the true depths, from c^-1(y)), "desired" (the matrix at the goal,
-    #: L_e*) or "mean" ((L_e + L_e*) / 2).
-    ibvs_depth: str = "true"
-
-
-@dataclass
-class PathConfig(PathFollowing):
-    """The path follower's settings in the earlier, global form (``path:``), which
-    apply when ``controller`` is the name ``path``; ``controller: !PathFollowing
-    {...}`` holds them in the law itself (:class:`PathFollowing`)."""
 
 
 @dataclass
@@ -497,12 +472,12 @@ class ScenarioConfig:
     #: The plant: "dynamic" (the MultibodyPlant free body of Appendix C, driven by a
     #: wrench) or "kinematic" (the camera's body twist is commanded, Eqs. 17-19).
     plant: str = "dynamic"
-    #: The control law: a name in :data:`CONTROLLERS` (the law with its defaults) or
-    #: a variant holding its own fields (:data:`LawConfig`), in YAML e.g.
-    #: ``controller: !Ibvs {depth: mean}``. "nf" is the navigation function of this
-    #: project; "ibvs" (four points), "pbvs" and "spherical" are baselines that
-    #: command the camera's twist; "path" follows a planned image path (Eq. 18).
-    controller: str | Nf | Ibvs | Pbvs | Spherical | PathFollowing = "nf"
+    #: The control law, a variant holding its own fields (:data:`LawConfig`), in YAML
+    #: e.g. ``controller: !Ibvs {depth: mean}``: :class:`Nf`, the navigation function
+    #: of this project; :class:`Ibvs` (four points), :class:`Pbvs` and
+    #: :class:`Spherical`, baselines that command the camera's twist;
+    #: :class:`PathFollowing`, a planned image path followed (Eq. 18).
+    controller: Nf | Ibvs | Pbvs | Spherical | PathFollowing = field(default_factory=Nf)
     #: What carries the camera (:data:`CARRIERS`): "free", the rigid body of
     #: Appendix C, or "arm", the robot arm of ``arm``.
     carrier: str = "free"
@@ -512,9 +487,6 @@ class ScenarioConfig:
     #: camera is fixed in the world and the target sphere is the driven body
     #: (eye-to-hand, G = H^-1 of Eq. 16).
     mount: str = "hand"
-    #: The path follower's settings when ``controller`` is the name "path" (the
-    #: earlier form; :class:`PathFollowing` holds them in the law).
-    path: PathConfig = field(default_factory=PathConfig)
     duration: float = 30.0
     #: Samples per second of the logged signals.
     log_rate: float = 50.0
@@ -535,18 +507,14 @@ class ScenarioConfig:
             value = getattr(self, name)
             if value not in choices:
                 raise ValueError(f"{name} must be one of {', '.join(choices)}, got {value!r}")
-        if isinstance(self.controller, str):
-            if self.controller in PLANTS:
-                raise ValueError(
-                    f"controller {self.controller!r} names a plant: write plant: "
-                    f"{self.controller} (the controller is the law, one of "
-                    f"{', '.join(CONTROLLERS)})"
-                )
-            if self.controller not in CONTROLLERS:
-                raise ValueError(
-                    f"controller must be one of {', '.join(CONTROLLERS)}, got {self.controller!r}"
-                )
-        law = law_of(self)
+        law = self.controller
+        if isinstance(law, str):
+            raise ValueError(_law_by_name(law))
+        if not dataclasses.is_dataclass(law) or isinstance(law, type):
+            raise ValueError(
+                f"controller must be a law variant ({', '.join(_LAW_SPELLING.values())}), "
+                f"got {law!r}"
+            )
         for path, (low, strict, unit) in _POSITIVE.items():
             value = _field(self, path)
             ok = isinstance(value, int | float) and not isinstance(value, bool)
@@ -556,7 +524,7 @@ class ScenarioConfig:
                     f"{path} must be finite and {'>' if strict else '>='} {low:g}{unit}: "
                     f"{where} = {value!r}"
                 )
-        _check_law(law, self)
+        _check_law(law)
         inertia = _finite_numbers(self.rig.inertia_diagonal, 3)
         if inertia is None or not all(v > 0 for v in inertia):
             raise ValueError(
@@ -645,12 +613,12 @@ class ScenarioConfig:
             if _finite_numbers(values, len(values)) is None:
                 raise ValueError(f"arm.{name} must be finite numbers [rad, rad/s], got {values!r}")
         if arm.joint_barrier_width > 0 and (
-            self.plant != "dynamic" or not isinstance(law_of(self), Nf)
+            self.plant != "dynamic" or not isinstance(self.controller, Nf)
         ):
             raise ValueError(
                 "arm.joint_barrier_width applies to the dynamic arm under the NF (it is a "
                 f"term of the NF's energy), got plant {self.plant!r}, controller "
-                f"{self.controller!r}"
+                f"{law_name(self.controller)!r}"
             )
         if arm.initial_joint_velocity and self.plant != "dynamic":
             raise ValueError(
@@ -722,30 +690,45 @@ def _field(config: object, path: str) -> object:
     return config
 
 
-def _check_law(law: LawConfig, config: ScenarioConfig) -> None:
-    """The law's own fields, and the earlier global ones (checked whatever the law,
-    as they always were), each named where the scenario gives it."""
-    laws = [("control.ibvs_depth", Ibvs(config.control.ibvs_depth)), ("path", config.path)]
-    if not isinstance(config.controller, str):
-        laws.append(("controller", law))
-    for where, values in laws:
-        if isinstance(values, Ibvs) and values.depth not in IBVS_DEPTHS:
-            name = where if where == "control.ibvs_depth" else f"{where}.depth"
-            raise ValueError(
-                f"{name} must be one of {', '.join(IBVS_DEPTHS)}, got {values.depth!r}"
-            )
-        if isinstance(values, PathFollowing):
-            for name, strict, unit in (
-                ("duration", True, " [s]"),
-                ("feedback_gain", False, " [1/s]"),
-                ("radius_scale", True, ""),
-            ):
-                value = getattr(values, name)
-                if not (math.isfinite(value) and (value > 0 if strict else value >= 0)):
-                    raise ValueError(
-                        f"{where}.{name} must be finite and {'>' if strict else '>='} 0{unit}: "
-                        f"{where}.{name} = {value}"
-                    )
+def _check_law(law: object) -> None:
+    """The law variant's own fields, each named ``controller.<field>``."""
+    if isinstance(law, Ibvs) and law.depth not in IBVS_DEPTHS:
+        raise ValueError(
+            f"controller.depth must be one of {', '.join(IBVS_DEPTHS)}, got {law.depth!r}"
+        )
+    if isinstance(law, PathFollowing):
+        for name, strict, unit in (
+            ("duration", True, " [s]"),
+            ("feedback_gain", False, " [1/s]"),
+            ("radius_scale", True, ""),
+        ):
+            value = getattr(law, name)
+            if not (math.isfinite(value) and (value > 0 if strict else value >= 0)):
+                raise ValueError(
+                    f"controller.{name} must be finite and {'>' if strict else '>='} 0{unit}: "
+                    f"{name} = {value}"
+                )
+
+
+#: How each law is written, in Python and as its YAML tag.
+_LAW_SPELLING = {name: f"{variant.__name__}()" for name, variant in LAW_VARIANTS.items()}
+
+
+def _law_by_name(name: str) -> str:
+    """The one line for a law given by a name that is none (or, in Python, by its name):
+    the spelling to write."""
+    if name in PLANTS:
+        return (
+            f"controller {name!r} names a plant: write plant: {name} (the controller is "
+            f"the law, one of {', '.join(CONTROLLERS)})"
+        )
+    if name in LAW_VARIANTS:
+        variant = LAW_VARIANTS[name].__name__
+        return (
+            f"controller {name!r}: give the law as its variant, controller={variant}() "
+            f"(in YAML, controller: !{variant} {{}} or controller: {name})"
+        )
+    return f"controller must be one of {', '.join(CONTROLLERS)}, got {name!r}"
 
 
 def free_twin(config: ScenarioConfig) -> ScenarioConfig:
@@ -753,37 +736,6 @@ def free_twin(config: ScenarioConfig) -> ScenarioConfig:
     law the batch engine's kernels and the sweep's start sampler read, for a loop whose
     own carrier (the arm) they do not integrate."""
     return dataclasses.replace(config, carrier="free")
-
-
-def law_of(config: ScenarioConfig) -> LawConfig:
-    """The scenario's law as its variant: ``controller`` itself when it is one;
-    for a name, that law with the earlier global fields folded in
-    (``control.ibvs_depth`` for "ibvs", ``path`` for "path").
-
-    A variant beside a non-default global field is ambiguous and refused in one
-    line that names the law's own field.
-    """
-    law = config.controller
-    if isinstance(law, str):
-        if law == "ibvs":
-            return Ibvs(depth=config.control.ibvs_depth)
-        if law == "path":
-            return PathFollowing(**dataclasses.asdict(config.path))
-        variant = LAW_VARIANTS.get(law)
-        return variant() if variant is not None else RegisteredLaw(law)
-    if config.control.ibvs_depth != ControlConfig.ibvs_depth:
-        raise ValueError(
-            f"control.ibvs_depth = {config.control.ibvs_depth!r} applies to controller: ibvs "
-            "given by name; with a law variant write controller: !Ibvs {depth: ...}"
-        )
-    if config.path != PathConfig():
-        raise ValueError(
-            "path: applies to controller: path given by name; with a law variant write "
-            "controller: !PathFollowing {duration: ..., feedback_gain: ...}"
-        )
-    if type(law) not in LAW_VARIANTS.values():
-        raise ValueError(f"controller: {law!r} is not a law ({', '.join(CONTROLLERS)})")
-    return law
 
 
 def damping_of(config: ScenarioConfig) -> list[float]:
@@ -798,13 +750,13 @@ class ResolvedScenario:
     """A validated scenario with its derived quantities, resolved once (:func:`resolve`).
 
     The loop builders, the simulator and the batch engine read these, never the
-    rules that make them: ``law`` (the variant, :func:`law_of`), ``believed_radius``
+    rules that make them: ``law`` (the variant, ``config.controller``), ``believed_radius``
     (what every law and C(y) believe), ``damping`` (:func:`damping_of`), the goal
     image ``y_goal`` = c(X_CB*) for the believed radius, and the safe domain ``domain``.
     """
 
     config: ScenarioConfig
-    law: LawConfig | RegisteredLaw
+    law: LawConfig
     believed_radius: float
     damping: tuple[float, ...]
     y_goal: ImageFeatures
@@ -813,12 +765,8 @@ class ResolvedScenario:
 
     @property
     def controller(self) -> str:
-        """The law's name (:data:`CONTROLLERS`, or a registered extension's)."""
-        return (
-            self.config.controller
-            if isinstance(self.config.controller, str)
-            else (law_name(self.law))
-        )
+        """The law's name (:func:`law_name`)."""
+        return law_name(self.law)
 
 
 def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> ResolvedScenario:
@@ -839,7 +787,7 @@ def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> Resolved
         config.arm.gain_scale = 1.0
     return ResolvedScenario(
         config=config,
-        law=law_of(config),
+        law=config.controller,
         believed_radius=config.believed_radius,
         damping=tuple(float(v) for v in damping_of(config)),
         y_goal=config.goal_features(),
@@ -886,6 +834,8 @@ def _schema_fields(default: Any) -> dict[str, Any] | None:
 
 #: The YAML tag of each law variant (``controller: !Ibvs {depth: mean}``).
 _LAW_TAGS = {f"!{variant.__name__}": variant for variant in LAW_VARIANTS.values()}
+#: The tag of the union's first variant, which Drake's YAML leaves out.
+_FIRST_LAW_TAG = f"!{typing.get_args(LawConfig)[0].__name__}"
 #: The key under which a tagged mapping keeps its tag once read (as pydrake's loader does).
 _TAG = "_tag"
 
@@ -930,33 +880,40 @@ def _dump_yaml(tree: Any) -> str:
     return yaml.dump(tree, Dumper=_TaggedDumper)
 
 
+def _check_fields(value: Any, default: Any, where: str) -> None:
+    """``value`` as the mapping of a struct whose default is ``default``: known fields,
+    each of its field's shape."""
+    fields = _schema_fields(default)
+    if not isinstance(value, dict):
+        raise ValueError(f"{where}: expected a mapping of fields, got {_describe(value)}")
+    unknown = [k for k in value if k not in fields]
+    if unknown:
+        # repr() for a key that is no identifier: it may hold a newline or be empty.
+        key = unknown[0] if str(unknown[0]).isidentifier() else repr(unknown[0])
+        raise ValueError(
+            f"{where + '.' if where else ''}{key}: unknown field (known here: {', '.join(fields)})"
+        )
+    for key, item in value.items():
+        _check_node(item, fields[key], f"{where}.{key}" if where else str(key))
+
+
 def _check_node(value: Any, default: Any, where: str) -> None:
     """Raise ValueError ``where: expected ..., got ...`` if ``value`` cannot fill a field
     whose default is ``default`` (the defaults have the shapes the fields need)."""
-    if where == "controller" and isinstance(value, dict) and isinstance(default, str):
-        # A law variant, by its tag; its fields are checked against the variant.
-        tag = value.get(_TAG)
+    if where == "controller":
+        # A law variant, by its tag; its fields are checked against the variant. An
+        # untagged mapping is the union's first variant, the NF, as Drake reads and
+        # writes it (yaml_dump_typed leaves the default variant's tag out).
+        tag = value.get(_TAG, _FIRST_LAW_TAG) if isinstance(value, dict) else None
         if tag not in _LAW_TAGS:
             raise ValueError(
                 f"controller: expected a law's name ({', '.join(CONTROLLERS)}) or a tagged "
                 f"variant ({', '.join(_LAW_TAGS)}), got {_describe(value)}"
             )
-        _check_node({k: v for k, v in value.items() if k != _TAG}, _LAW_TAGS[tag](), where)
+        _check_fields({k: v for k, v in value.items() if k != _TAG}, _LAW_TAGS[tag](), where)
         return
-    fields = _schema_fields(default)
-    if fields is not None:
-        if not isinstance(value, dict):
-            raise ValueError(f"{where}: expected a mapping of fields, got {_describe(value)}")
-        unknown = [k for k in value if k not in fields]
-        if unknown:
-            # repr() for a key that is no identifier: it may hold a newline or be empty.
-            key = unknown[0] if str(unknown[0]).isidentifier() else repr(unknown[0])
-            raise ValueError(
-                f"{where + '.' if where else ''}{key}: unknown field "
-                f"(known here: {', '.join(fields)})"
-            )
-        for key, item in value.items():
-            _check_node(item, fields[key], f"{where}.{key}" if where else str(key))
+    if _schema_fields(default) is not None:
+        _check_fields(value, default, where)
         return
     if isinstance(default, bool):
         ok, expected = isinstance(value, bool), "true or false"
@@ -1004,6 +961,38 @@ def _complete_pose(tree: dict, path: tuple[str, ...]) -> None:
         node.setdefault("rpy", [0.0, 0.0, 0.0])
 
 
+#: The earlier spellings of a law's fields, outside the law, and what to write now.
+_EARLIER_LAW_FIELDS = {
+    ("control", "ibvs_depth"): "controller: !Ibvs {{depth: {value}}}",
+    ("path",): "controller: !PathFollowing {value}",
+}
+
+
+def _read_law(tree: dict) -> None:
+    """A file's ``controller`` as a tagged variant: a bare name (``controller: ibvs``)
+    is that law with its defaults. The law's fields outside the law, the earlier
+    spelling, are refused in one line that gives the new one."""
+    for path, spelling in _EARLIER_LAW_FIELDS.items():
+        node = tree
+        for key in path[:-1]:
+            node = node.get(key) if isinstance(node, dict) else None
+        if isinstance(node, dict) and path[-1] in node:
+            value = node[path[-1]]
+            shown = yaml.safe_dump(value, default_flow_style=True, width=10**6)
+            shown = shown.strip().removesuffix("...").strip()
+            if "\n" in shown or len(shown) > 60:  # a value too odd to quote in the line
+                shown = "..." if isinstance(value, str) else "{duration: ..., ...}"
+            new = spelling.format(value=shown)
+            raise ValueError(
+                f"{'.'.join(path)}: the law's fields are the law's own now: write {new}"
+            )
+    law = tree.get("controller")
+    if isinstance(law, str):
+        if law not in LAW_VARIANTS:
+            raise ValueError(_law_by_name(law))
+        tree["controller"] = {_TAG: f"!{LAW_VARIANTS[law].__name__}"}
+
+
 def _layer_tree(name: str, fragment: str | Mapping[str, Any]) -> dict:
     """One layer as a checked tree of fields, its poses complete; errors start ``name: ``."""
     tree = fragment
@@ -1023,6 +1012,7 @@ def _layer_tree(name: str, fragment: str | Mapping[str, Any]) -> dict:
         )
     tree = _plain(tree)  # a copy: the poses are completed in place
     try:
+        _read_law(tree)
         _check_node(tree, ScenarioConfig(), "")
     except ValueError as e:
         raise ValueError(f"{name}: {e}") from None

@@ -15,7 +15,7 @@ from pydrake.common.yaml import yaml_dump_typed
 from geovs_drake import cli
 from geovs_drake.cli import EXIT_CODES, main
 from geovs_drake.geometry.navigation import NavigationFunction
-from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.scenario import LAW_VARIANTS, Ibvs, PoseConfig, ScenarioConfig
 from geovs_drake.simulation import SimulationResult, simulate
 
 
@@ -533,7 +533,7 @@ def test_layers_file_then_scenario_text_then_flags(tmp_path, run_cli, loaded):
     text = "{duration: 9, control: {kinematic_gain: 2}, initial: {xyz: [0, 0.05, -0.6]}}"
     run = run_cli(
         "simulate", "--config", str(path), "--scenario-text", text, "--duration", "11",
-        "--ibvs-depth", "mean",
+        "--ibvs-depth", "mean", "--controller", "ibvs",
     )  # fmt: skip
     assert run.code == cli.EXIT_INTERRUPTED, run.err
     (config,) = loaded
@@ -541,7 +541,7 @@ def test_layers_file_then_scenario_text_then_flags(tmp_path, run_cli, loaded):
     assert config.control.potential_gain == 5  # the file's: mappings merge key by key
     assert config.control.kinematic_gain == 2  # the text over the file
     assert config.duration == 11  # the flag over the text and the file
-    assert config.control.ibvs_depth == "mean"  # a flag as a nested fragment
+    assert config.controller == Ibvs(depth="mean")  # a law's flag on the law the flags chose
     # The text's pose is whole: its rpy is zero, not the file's nor the default's.
     assert config.initial == PoseConfig(xyz=[0.0, 0.05, -0.6], rpy=[0.0, 0.0, 0.0])
 
@@ -587,10 +587,19 @@ def test_every_scenario_flag_shows_the_dataclass_default(run_cli, loaded, capsys
     assert set(shown) == set(entries) - plain  # every other flag sets a scenario field
     for flag, value in shown.items():
         loaded.clear()
-        run = run_cli("simulate", f"{flag}={value}")
+        # A law's flag (``with --controller NAME: ...``) goes with its law, whose
+        # defaults it shows.
+        law = re.search(
+            r"with --controller (\w+):", entries[next(e for e in entries if e.split()[0] == flag)]
+        )
+        argv = ["--controller", law.group(1)] if law else []
+        run = run_cli("simulate", *argv, f"{flag}={value}")
         assert run.code == cli.EXIT_INTERRUPTED, (flag, run.err)
+        expected = (
+            ScenarioConfig(controller=LAW_VARIANTS[law.group(1)]()) if law else ScenarioConfig()
+        )
         # As YAML: Drake's SimulatorConfig compares by identity.
-        assert [yaml_dump_typed(c) for c in loaded] == [yaml_dump_typed(ScenarioConfig())], flag
+        assert [yaml_dump_typed(c) for c in loaded] == [yaml_dump_typed(expected)], flag
 
 
 # ------------------------------------------------- robustness and camera-accuracy

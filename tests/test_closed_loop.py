@@ -3,6 +3,7 @@ tests are in test_cli.py)."""
 
 import copy
 import json
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -24,7 +25,7 @@ from geovs_drake.diagrams import (
     make_kinematic_servo_diagram,
 )
 from geovs_drake.geometry.navigation import NavigationFunction
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
+from geovs_drake.scenario import Pbvs, PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import StartOutsideDomain, make_simulator, pose_error, simulate
 
 OFFSET = PoseConfig(xyz=[0.03, -0.02, 0.05], rpy=[0.1, 0.2, -0.3])
@@ -379,9 +380,18 @@ def test_kinematic_loop_rejects_an_initial_velocity_and_has_no_energy_fields():
     c.validate()
 
 
-def _constant_twist_law(twist):
-    """A registered test law: (Omega, V) = const, so the truth is analytic."""
+@dataclass
+class ConstantRoll:
+    """A user's law variant (not one of the package's): a constant roll rate [rad/s]."""
+
+    rate: float = 0.5
+
+
+def _constant_roll(builder, resolved):
+    """ConstantRoll's system: (Omega, V) = (0, 0, rate, 0, 0, 0), so the truth is analytic."""
     from pydrake.systems.framework import LeafSystem
+
+    twist = np.array([0, 0, resolved.law.rate, 0, 0, 0])
 
     class ConstantTwist(LeafSystem):
         def __init__(self):
@@ -391,29 +401,29 @@ def _constant_twist_law(twist):
                 "camera_velocity", 6, lambda context, out: out.SetFromVector(twist)
             )
 
-    return lambda builder, config, camera: builder.AddSystem(ConstantTwist())
+    return builder.AddSystem(ConstantTwist())
 
 
 @pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
-def test_twist_law_registry_drives_both_plants(plant, monkeypatch):
-    """A law from TWIST_CONTROLLERS runs the kinematic body directly and the rig
-    through VelocityTrackingForce: a roll rate w about the optical axis from the
-    goal gives X_BC(t) = X_BC* RotZ(w t) (kinematic) or RotZ(w (t - tau (1 -
-    e^{-t/tau}))), tau = I_z / B_z (dynamic, first-order lag from rest)."""
+def test_a_law_of_ones_own_is_a_variant_and_a_laws_entry(plant, monkeypatch):
+    """A law registered as its variant (LAWS[ConstantRoll] = twist_law(...)) runs the
+    kinematic body directly and the rig through VelocityTrackingForce: a roll rate w
+    about the optical axis from the goal gives X_BC(t) = X_BC* RotZ(w t) (kinematic) or
+    RotZ(w (t - tau (1 - e^{-t/tau}))), tau = I_z / B_z (dynamic, first-order lag from
+    rest). Unregistered, the variant is refused in one line that names LAWS."""
     from pydrake.math import RotationMatrix
 
-    import geovs_drake.diagrams as diagrams
-    import geovs_drake.scenario as scenario
+    from geovs_drake.loop.laws import LAWS, twist_law
 
     w = 0.5
-    monkeypatch.setattr(scenario, "CONTROLLERS", (*scenario.CONTROLLERS, "test_roll"))
-    monkeypatch.setitem(
-        diagrams.TWIST_CONTROLLERS, "test_roll", _constant_twist_law(np.array([0, 0, w, 0, 0, 0]))
-    )
-    config = ScenarioConfig(plant=plant, controller="test_roll", duration=1.0)
+    config = ScenarioConfig(plant=plant, controller=ConstantRoll(rate=w), duration=1.0)
     config.initial = PoseConfig(list(config.goal.xyz), list(config.goal.rpy))
+    with pytest.raises(ValueError, match=r"controller ConstantRoll has no law: register LAWS"):
+        simulate(config)
+    monkeypatch.setitem(LAWS, ConstantRoll, twist_law(_constant_roll))
     result = simulate(config)
     assert result.status == "not_converged" and result.energy is None
+    assert result.summary()["controller"] == "ConstantRoll"
     t = result.sim_time_s
     angle = w * t
     if plant == "dynamic":
@@ -429,7 +439,7 @@ def test_twist_law_registry_drives_both_plants(plant, monkeypatch):
 def test_a_baseline_runs_through_the_camera_model():
     """The laws that command a twist take y from the camera model too: PBVS through
     the pinhole sensor (30 Hz frames, fits of projected points) converges."""
-    config = ScenarioConfig(controller="pbvs", duration=10.0)
+    config = ScenarioConfig(controller=Pbvs(), duration=10.0)
     config.camera.sensor = "pinhole"
     result = simulate(config)
     assert result.status == "converged", result.message

@@ -16,7 +16,16 @@ import pytest
 
 from geovs_drake.analysis import compare
 from geovs_drake.cli import main
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, SuiteConfig, SuiteScenario, load_suite
+from geovs_drake.scenario import (
+    LAW_VARIANTS,
+    Ibvs,
+    Nf,
+    PoseConfig,
+    ScenarioConfig,
+    SuiteConfig,
+    SuiteScenario,
+    load_suite,
+)
 from geovs_drake.simulation import simulate
 
 SMALL_MOVE = PoseConfig([0.03, -0.02, -0.58], [math.radians(v) for v in (3.0, -2.0, 15.0)])
@@ -38,11 +47,10 @@ scenarios:
 @pytest.mark.parametrize("law", ["ibvs-true", "ibvs-desired", "ibvs-mean", "pbvs", "spherical"])
 def test_each_baseline_converges_from_a_small_move_on_the_dynamic_plant(law):
     """(The kinematic plant: the mini suite below.) Through the velocity-tracking wrench."""
-    controller, _, depth = law.partition("-")
+    name, _, depth = law.partition("-")
+    controller = Ibvs(depth) if depth else LAW_VARIANTS[name]()
     config = ScenarioConfig(plant="dynamic", controller=controller, initial=SMALL_MOVE)
     config.duration = 9.0
-    if depth:
-        config.control.ibvs_depth = depth
     result = simulate(config)
     assert result.status == "converged", result.message
     assert result.summary()["min_fov_margin"] > 0 and result.energy is None
@@ -53,7 +61,7 @@ def test_each_baseline_converges_from_a_small_move_on_the_dynamic_plant(law):
 def test_ibvs_true_depth_retreats_along_the_optical_axis_on_the_conundrum(plant):
     """The camera backs away along its optical axis without turning, and the run
     stops where it leaves D through lambda_min (2 m from the centre), not at 1e9 m."""
-    config = ScenarioConfig(plant=plant, controller="ibvs", initial=ROLL_180, duration=20.0)
+    config = ScenarioConfig(plant=plant, controller=Ibvs(), initial=ROLL_180, duration=20.0)
     result = simulate(config)
     assert result.status == "left_domain", result.message
     assert "lam_min margin" in result.message
@@ -77,12 +85,12 @@ def test_an_ibvs_point_out_of_view_stops_the_run_naming_it(monkeypatch, mount):
     import geovs_drake.systems.ibvs_controller as ibvs_module
 
     monkeypatch.setattr(ibvs_module, "DEFAULT_SQUARE_SIDE", 5.0)  # 0.5 m: corners at 51 deg
-    config = ScenarioConfig(plant="kinematic", controller="ibvs", initial=SMALL_MOVE, mount=mount)
+    config = ScenarioConfig(plant="kinematic", controller=Ibvs(), initial=SMALL_MOVE, mount=mount)
     result = simulate(config)
     assert result.status == "lost_visibility"
     assert "feature b + side (a + n) outside the field of view" in result.message
     assert result.sim_time_s == 0.0
-    config.controller = "nf"
+    config.controller = Nf()
     config.duration = 0.5
     assert simulate(config).status != "lost_visibility"
 
@@ -96,8 +104,8 @@ def test_compare_mini_suite_writes_the_table(tmp_path):
     result, files = compare.compare(suite_file, "kinematic", tmp_path / "out", workers=1)
     rows = {(r["scenario"], r["law"]): r for r in result.rows}
     assert len(rows) == 2 * len(compare.LAWS)
-    for controller, depth in compare.LAWS:
-        law = compare.law_label(controller, depth)
+    for variant in compare.LAWS:
+        law = compare.law_label(variant)
         row = rows["small_move", law]
         assert row["status"] == "converged", (law, row["message"])
         assert 0 < row["t_converged_s"] < 8 and row["features_in_view"]

@@ -21,7 +21,7 @@ from geovs_drake.diagrams import (
     make_fixed_camera_diagram,
 )
 from geovs_drake.geometry.rigid import camera_body_velocity
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import Nf, PathFollowing, ScenarioConfig
 from geovs_drake.simulation import simulate
 from geovs_drake.systems import FixedCameraKinematicMount, FixedCameraMount
 
@@ -128,7 +128,9 @@ def test_initial_target_state_gives_the_camera_the_configured_relative_twist():
     np.testing.assert_allclose(V_BC_C, config.initial_velocity, atol=1e-12)
 
 
-@pytest.mark.parametrize("controller,accuracy", [("nf", 1e-13), ("path", 1e-14)])
+@pytest.mark.parametrize(
+    "controller,accuracy", [(Nf(), 1e-13), (PathFollowing(duration=3.0), 1e-14)]
+)
 def test_kinematic_fixed_camera_sees_the_eye_in_hand_image_trajectory(controller, accuracy):
     """Eq. (16): for the same initial relative pose the fixed camera's image y(t) is the
     eye-in-hand camera's, to 1e-9 (runge_kutta5 at a tight accuracy: the two loops
@@ -138,7 +140,6 @@ def test_kinematic_fixed_camera_sees_the_eye_in_hand_image_trajectory(controller
     for mount in ("hand", "fixed"):
         config = ScenarioConfig(plant="kinematic", controller=controller, mount=mount)
         config.duration = 4.0
-        config.path.duration = 3.0
         config.simulator.integration_scheme = "runge_kutta5"
         config.simulator.accuracy = accuracy
         result = simulate(config)

@@ -12,7 +12,7 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import Simulator
 
 from geovs_drake.loop import CARRIERS, LAWS, SENSORS, build_loop, refusal
-from geovs_drake.scenario import CONTROLLERS, PoseConfig, ScenarioConfig, resolve
+from geovs_drake.scenario import CONTROLLERS, LAW_VARIANTS, PoseConfig, ScenarioConfig, resolve
 from geovs_drake.simulation import simulate
 
 SMALL_MOVE = PoseConfig(xyz=[0.05, -0.03, -0.55], rpy=[0.1, -0.05, 0.3])
@@ -43,15 +43,20 @@ def _suite_case(carrier: tuple[str, str, str], sensor: str, law: str):
 def _config(carrier: tuple[str, str, str], sensor: str, law: str, **changes) -> ScenarioConfig:
     name, mount, plant = carrier
     config = ScenarioConfig(
-        carrier=name, mount=mount, plant=plant, controller=law, initial=SMALL_MOVE, **changes
+        carrier=name,
+        mount=mount,
+        plant=plant,
+        controller=LAW_VARIANTS[law](),
+        initial=SMALL_MOVE,
+        **changes,
     )
     config.camera.sensor = sensor
     return config
 
 
 def test_the_registries_hold_every_part_the_scenario_names():
-    """One registry per part, and the config's names are exactly the registered ones."""
-    assert set(LAWS) == set(CONTROLLERS)
+    """One registry per part, and the config's variants are exactly the registered ones."""
+    assert set(LAWS) == set(LAW_VARIANTS.values()) and set(LAW_VARIANTS) == set(CONTROLLERS)
     assert set(SENSORS) == {"exact", "pinhole", "rendered"}
     assert len(COMBINATIONS) == len(CARRIERS) * 5 + len(CAMERA_CARRIERS) * 2 * 5
 
@@ -156,22 +161,28 @@ def test_the_damping_rule_is_resolved_in_one_place():
         np.testing.assert_array_equal(damping, want)
 
 
-def test_law_variants_load_from_yaml_and_the_earlier_form_keeps_loading():
-    from geovs_drake.scenario import Ibvs, PathFollowing, law_of, load_scenario
+def test_law_variants_load_from_yaml_and_the_earlier_form_names_the_new_one():
+    """A law is its variant; a file's bare name reads as the variant with its defaults;
+    the law's fields outside the law (the earlier global form) are one line that writes
+    the new spelling; in Python a name is one line naming the variant."""
+    from geovs_drake.scenario import Ibvs, PathFollowing, load_scenario
 
     tagged = load_scenario(data="controller: !Ibvs {depth: mean}\n")
-    assert tagged.controller == Ibvs(depth="mean") and law_of(tagged) == Ibvs("mean")
-    legacy = load_scenario(data="controller: ibvs\ncontrol: {ibvs_depth: mean}\n")
-    assert law_of(legacy) == Ibvs("mean")
+    assert tagged.controller == Ibvs(depth="mean")
+    assert load_scenario(data="controller: ibvs\n").controller == Ibvs()
     path = load_scenario(data="controller: !PathFollowing {duration: 3, feedback_gain: 0}\n")
-    assert law_of(path) == PathFollowing(duration=3.0, feedback_gain=0.0)
+    assert path.controller == PathFollowing(duration=3.0, feedback_gain=0.0)
     for text, needle in (
         ("controller: !Ibvs {depth: wrong}\n", "controller.depth must be one of"),
         ("controller: !Ibvs {dept: mean}\n", "controller.dept: unknown field"),
         ("controller: !Lqr {}\n", "controller: expected a law's name"),
         (
-            "controller: !Ibvs {depth: mean}\ncontrol: {ibvs_depth: desired}\n",
-            "write controller: !Ibvs",
+            "controller: ibvs\ncontrol: {ibvs_depth: mean}\n",
+            r"control.ibvs_depth: .* write controller: !Ibvs \{depth: mean\}",
+        ),
+        (
+            "controller: path\npath: {duration: 5}\n",
+            r"path: .* write controller: !PathFollowing \{duration: 5\}",
         ),
     ):
         with pytest.raises(ValueError, match=needle) as error:
@@ -222,3 +233,31 @@ def test_poses_in_target_is_camera_pose_in_target_row_by_row(plant, mount):
         one = camera_pose_in_target(config, x, plant == "dynamic").GetAsMatrix4()
         assert np.allclose(X, one, atol=1e-14)
     assert np.allclose(batched, X_BC, atol=1e-12)  # and both invert initial_body_states
+
+
+def test_the_law_example_of_adding_a_part_runs_as_the_page_says():
+    """docs/adding-a-part.rst's example, as written there: the variant, its system and its
+    LAWS entry give a loop whose camera rolls at the rate about the optical axis (from
+    the goal: X_BC(t) = X_BC* RotZ(rate t), the kinematic plant integrating exactly)."""
+    from pathlib import Path
+
+    from pydrake.math import RotationMatrix
+
+    from geovs_drake.loop.laws import LAWS
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "adding-a-part.rst").read_text()
+    example = page.split("Example: a law of one's own")[1].split(".. code-block:: python")[1]
+    code = "\n".join(
+        line[4:] for line in example.splitlines() if line.startswith("    ") or not line.strip()
+    )
+    namespace: dict = {}
+    before = dict(LAWS)
+    try:
+        exec(compile(code, "adding-a-part.rst", "exec"), namespace)
+    finally:
+        LAWS.clear()
+        LAWS.update(before)
+    result, config = namespace["result"], namespace["config"]
+    assert result.summary()["controller"] == "ConstantRoll" and result.status == "not_converged"
+    expected = config.X_BC_goal.rotation() @ RotationMatrix.MakeZRotation(0.5 * result.sim_time_s)
+    np.testing.assert_allclose(result.final_X_BC.rotation().matrix(), expected.matrix(), atol=1e-6)

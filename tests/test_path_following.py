@@ -25,7 +25,7 @@ from geovs_drake.geometry.image_path import (
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.geometry.servo import path_following_velocity
 from geovs_drake.planning import PathPlanningError, plan_for_scenario, plan_path
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
+from geovs_drake.scenario import PathFollowing, PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import simulate
 from geovs_drake.systems import PathFollowingController
 
@@ -168,7 +168,7 @@ def test_geodesic_plan_ends_at_rest_and_moves_each_factor_by_the_time_law():
     the quintic law), and the trajectory's derivative is its central difference."""
     config = ScenarioConfig()
     plan = plan_for_scenario(config)
-    T = config.path.duration
+    T = PathFollowing().duration  # the NF's scenario: the path law's defaults
     assert plan.kind == "geodesic" and plan.min_margin > 0 and plan.geodesic_exit is None
     y0, goal = config.initial_features(), config.goal_features()
     times = np.linspace(0, T, 9)
@@ -197,7 +197,7 @@ def test_a_geodesic_that_leaves_D_is_reported_and_the_gradient_flow_path_stays_i
         config.goal_features(),
     )
     assert bool(domain.contains(start))
-    T = config.path.duration
+    T = PathFollowing().duration
     with pytest.raises(PathPlanningError, match=r"leaves D at t = [\d.]+ s through its occlusion"):
         plan_path(start, goal, domain, T)
     # Independently: the geodesic does leave D (SafeDomain.contains on the same path).
@@ -219,7 +219,7 @@ def test_a_geodesic_that_leaves_D_is_reported_and_the_gradient_flow_path_stays_i
     assert np.all(np.diff(phi) <= 1e-12) and phi[-1] < 1e-20
     # And the loop that follows it (kinematic, feedback) stays in D: the monitor's margins.
     config.plant = "kinematic"
-    config.controller = "path"
+    config.controller = PathFollowing()
     config.duration = T + 2
     result = simulate(config)
     assert result.status == "converged" and np.min(result.margins) > 0
@@ -239,8 +239,9 @@ def test_a_start_that_is_the_goal_or_outside_D_is_refused():
 def test_open_loop_tracks_the_plan_to_integrator_accuracy_on_the_exact_model():
     """Eq. (18) as written (k = 0), kinematic plant, exact rho: the image follows y_d(t)
     within 1e-6 (every factor) along the whole path, at accuracy 1e-8."""
-    config = ScenarioConfig(plant="kinematic", controller="path", duration=9.0)
-    config.path.feedback_gain = 0.0
+    config = ScenarioConfig(
+        plant="kinematic", controller=PathFollowing(feedback_gain=0.0), duration=9.0
+    )
     config.simulator.accuracy = 1e-8
     result = simulate(config)
     errors = tracking_errors(result, plan_for_scenario(config))
@@ -254,8 +255,9 @@ def test_feedback_shrinks_each_geodesic_error_as_exp_minus_k_t():
     on the exact kinematic model each factor's distance to y_d is e^{-k t} times its
     initial value, while y_d moves (Drake's loggers against the plan)."""
     k = 1.5
-    config = ScenarioConfig(plant="kinematic", controller="path", duration=3.0)
-    config.path.feedback_gain = k
+    config = ScenarioConfig(
+        plant="kinematic", controller=PathFollowing(feedback_gain=k), duration=3.0
+    )
     config.simulator.accuracy = 1e-10
     plan = plan_for_scenario(config)
     diagram = make_kinematic_servo_diagram(config, log=True)
@@ -291,12 +293,12 @@ def test_model_error_open_loop_drifts_feedback_tracks():
 
 # ------------------------------------------------------------------ configuration and CLI
 def test_path_config_and_cli(capsys):
-    config = load_scenario(data="controller: path\npath: {duration: 5, feedback_gain: 0}\n")
-    assert config.path.duration == 5 and config.path.feedback_gain == 0
+    config = load_scenario(data="controller: !PathFollowing {duration: 5, feedback_gain: 0}\n")
+    assert config.controller == PathFollowing(duration=5, feedback_gain=0)
     for bad, needle in (
-        ("path: {duration: 0}\n", "path.duration"),
-        ("path: {feedback_gain: -1}\n", "path.feedback_gain"),
-        ("path: {radius_scale: 0}\n", "path.radius_scale"),
+        ("controller: !PathFollowing {duration: 0}\n", "controller.duration"),
+        ("controller: !PathFollowing {feedback_gain: -1}\n", "controller.feedback_gain"),
+        ("controller: !PathFollowing {radius_scale: 0}\n", "controller.radius_scale"),
         ("mount: ceiling\n", "mount must be one of hand, fixed"),
     ):
         with pytest.raises(ValueError, match=needle):
@@ -309,4 +311,10 @@ def test_path_config_and_cli(capsys):
     assert code == 0 and '"controller": "path"' in out and "geodesic path stays in D" in out
     code = main(["simulate", "--controller", "path", "--path-feedback=-1"])
     _, err = capsys.readouterr()
-    assert code == 2 and len(err.strip().splitlines()) == 1 and "path.feedback_gain" in err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "controller.feedback_gain" in err
+    # A law's flag with another law: one line naming the law it applies to.
+    code = main(["simulate", "--controller", "pbvs", "--path-duration", "4"])
+    _, err = capsys.readouterr()
+    assert code == 2 and err.strip().splitlines() == [
+        "geovs-drake: --path-duration applies to --controller path, the law here is pbvs"
+    ]

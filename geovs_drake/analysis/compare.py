@@ -43,7 +43,18 @@ from geovs_drake.geometry.baselines import (
     points_in_camera,
     target_points,
 )
-from geovs_drake.scenario import PLANTS, ScenarioConfig, SuiteConfig, load_suite
+from geovs_drake.scenario import (
+    PLANTS,
+    Ibvs,
+    LawConfig,
+    Nf,
+    Pbvs,
+    ScenarioConfig,
+    Spherical,
+    SuiteConfig,
+    law_name,
+    load_suite,
+)
 from geovs_drake.simulation import simulate
 
 __all__ = [
@@ -62,15 +73,15 @@ __all__ = [
     "write_tables",
 ]
 
-#: The laws compared, as (controller, ibvs depth): the NF, point IBVS with each
-#: depth estimate, PBVS and the sphere features.
-LAWS: tuple[tuple[str, str | None], ...] = (
-    ("nf", None),
-    ("ibvs", "true"),
-    ("ibvs", "desired"),
-    ("ibvs", "mean"),
-    ("pbvs", None),
-    ("spherical", None),
+#: The laws compared: the NF, point IBVS with each depth estimate, PBVS and the
+#: sphere features.
+LAWS: tuple[LawConfig, ...] = (
+    Nf(),
+    Ibvs("true"),
+    Ibvs("desired"),
+    Ibvs("mean"),
+    Pbvs(),
+    Spherical(),
 )
 
 ROW_FIELDS = (
@@ -95,9 +106,10 @@ ROW_FIELDS = (
 )
 
 
-def law_label(controller: str, depth: str | None) -> str:
+def law_label(law: LawConfig) -> str:
     """``nf``, ``ibvs-true``, ``ibvs-desired``, ``ibvs-mean``, ``pbvs``, ``spherical``."""
-    return controller if depth is None else f"{controller}-{depth}"
+    name = law_name(law)
+    return f"{name}-{law.depth}" if isinstance(law, Ibvs) else name
 
 
 @dataclass
@@ -143,16 +155,14 @@ def suite_cases(
         raise ValueError(f"duration must be finite and > 0 [s]: duration = {duration}")
     cases = []
     for scenario in suite.scenarios:
-        for controller, depth in LAWS:
+        for law in LAWS:
             config = copy.deepcopy(base) if base is not None else ScenarioConfig()
-            config.plant, config.controller = plant, controller
-            if depth is not None:
-                config.control.ibvs_depth = depth
+            config.plant, config.controller = plant, copy.deepcopy(law)
             config.initial = scenario.initial()
             config.initial_velocity = [0.0] * 6
             config.duration = suite.duration if duration is None else duration
             config.validate()
-            cases.append((scenario.name, law_label(controller, depth), config))
+            cases.append((scenario.name, law_label(law), config))
     return cases
 
 
@@ -175,7 +185,7 @@ def run_case(scenario: str, law: str, config: ScenarioConfig) -> Run:
     points = np.stack([points_in_camera(R, p, P_B) for R, p in zip(R_CB, p_CB, strict=True)])
     point_margin = float(np.min([point_fov_margins(P, cos_theta) for P in points]))
     b = points[:, 0, :]  # the first IBVS point is the marked point b
-    if config.controller == "ibvs":
+    if isinstance(config.controller, Ibvs):
         in_view = point_margin >= 0
     else:
         in_view = summary["min_fov_margin"] >= 0 and summary["min_visibility"] > 0
@@ -366,7 +376,7 @@ def plot_compare(result: CompareResult, out_dir: str | Path) -> list[Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    laws = [law_label(c, d) for c, d in LAWS]
+    laws = [law_label(law) for law in LAWS]
     colours = {law: plt.get_cmap("tab10")(i) for i, law in enumerate(laws)}
     theta = None
     conundrum = result.suite.conundrum or result.suite.scenarios[0].name
@@ -453,7 +463,7 @@ def summarize(result: CompareResult, files: Sequence[Path] = ()) -> dict:
     """The comparison as JSON-ready values: counts per status, per law the scenarios
     it converged on, the rows, the files written."""
     counts: dict[str, int] = {}
-    converged: dict[str, list[str]] = {law_label(c, d): [] for c, d in LAWS}
+    converged: dict[str, list[str]] = {law_label(law): [] for law in LAWS}
     for row in result.rows:
         counts[row["status"]] = counts.get(row["status"], 0) + 1
         if row["status"] == "converged":

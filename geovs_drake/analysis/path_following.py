@@ -10,6 +10,7 @@ camera saw, factor by factor, as the three geodesic distances of
 from __future__ import annotations
 
 import copy
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,7 +18,7 @@ import numpy as np
 from geovs_drake.geometry.camera import ImageFeatures
 from geovs_drake.geometry.image_path import image_distance
 from geovs_drake.planning import PathPlan, plan_for_scenario
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import PathFollowing, ScenarioConfig, law_name
 from geovs_drake.simulation import SimulationResult, simulate
 
 __all__ = ["ERROR_NAMES", "TrackingRun", "follow_path", "model_error_study", "tracking_errors"]
@@ -70,9 +71,12 @@ class TrackingRun:
 
 
 def follow_path(config: ScenarioConfig, label: str = "") -> TrackingRun:
-    """Simulate ``config`` (``controller: path``) and compare the image with its plan."""
-    if config.controller != "path":
-        raise ValueError(f"follow_path needs controller 'path', got {config.controller!r}")
+    """Simulate ``config`` (``controller: !PathFollowing``) and compare the image with its
+    plan."""
+    if not isinstance(config.controller, PathFollowing):
+        raise ValueError(
+            f"follow_path needs controller PathFollowing, got {law_name(config.controller)}"
+        )
     result = simulate(config)
     plan = plan_for_scenario(config)
     return TrackingRun(label or config.plant, result, plan, tracking_errors(result, plan))
@@ -94,7 +98,8 @@ def model_error_study(
       does not model.
     """
     base = copy.deepcopy(config or ScenarioConfig())
-    base.controller = "path"
+    if not isinstance(base.controller, PathFollowing):
+        base.controller = PathFollowing()
     runs: dict[str, TrackingRun] = {}
     cases = [
         ("kinematic", 1.0, 0.0, "kinematic, exact, open loop"),
@@ -106,7 +111,6 @@ def model_error_study(
     for plant, scale, k, label in cases:
         c = copy.deepcopy(base)
         c.plant = plant
-        c.path.radius_scale = scale
-        c.path.feedback_gain = k
+        c.controller = dataclasses.replace(c.controller, radius_scale=scale, feedback_gain=k)
         runs[label] = follow_path(c, label)
     return runs

@@ -52,7 +52,7 @@ from numba import njit, prange
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
 from geovs_drake.loop.state import initial_body_states
-from geovs_drake.scenario import Nf, ScenarioConfig, law_of, resolve
+from geovs_drake.scenario import Nf, ScenarioConfig, resolve
 from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
 from geovs_drake.simulation.step_limit import step_limit
 from geovs_drake.systems.spherical_camera import CAMERA_OFFSET
@@ -105,7 +105,7 @@ def loop_parameters(config: ScenarioConfig) -> LoopParameters:
 
     The engine runs the NF's loops only: another law raises ValueError.
     """
-    if not isinstance(law_of(config), Nf):
+    if not isinstance(config.controller, Nf):
         raise ValueError(
             f"the batch engine runs the NF's loops only: controller = {config.controller!r} "
             "(use simulate() or the Drake engine for other laws)"

@@ -5,11 +5,14 @@ A flag that sets a scenario field (:func:`add_field`) is a config layer: parsing
 appends ``(flag, {field: value})`` to ``args.layers``, and :func:`load_config` layers
 ``--config``, then ``--scenario-text``, then the flags in command-line order, with
 :func:`~geovs_drake.scenario.load_scenario`. Its help shows the dataclass default.
+A flag that sets a field of one law (:func:`add_law_field`, e.g. ``--ibvs-depth``)
+applies to the law the layers chose, last; with another law it is one line's error.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import textwrap
 from collections.abc import Sequence
@@ -17,9 +20,11 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from geovs_drake.scenario import (
+    LAW_VARIANTS,
     PLANTS,
     ResolvedScenario,
     ScenarioConfig,
+    law_name,
     load_scenario,
     resolve,
 )
@@ -158,7 +163,7 @@ def numbers(values: Sequence[float]) -> str:
 
 # ---- flags that set a scenario field: config layers
 def field_default(path: Sequence[str]) -> Any:
-    """The default of the scenario field at ``path`` (e.g. ``("control", "ibvs_depth")``)."""
+    """The default of the scenario field at ``path`` (e.g. ``("control", "potential_gain")``)."""
     node: Any = ScenarioConfig()
     for key in path:
         node = getattr(node, key)
@@ -171,6 +176,8 @@ def _shown(value: Any) -> str:
         return numbers(list(value.xyz) + list(value.rpy))
     if isinstance(value, list):
         return numbers(value)
+    if type(value) in LAW_VARIANTS.values():
+        return law_name(value)
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
@@ -216,6 +223,48 @@ def add_field(
     )
 
 
+class _LawField(argparse.Action):
+    """Appends ``(flag, law name, field, value)`` to ``args.law_fields``."""
+
+    def __init__(self, *args: Any, law: str, field: str, **kwargs: Any):
+        self.law, self.field = law, field
+        super().__init__(*args, **kwargs)
+
+    def __call__(self, parser, namespace, value, option_string=None) -> None:
+        entry = (option_string, self.law, self.field, value)
+        namespace.law_fields = [*(getattr(namespace, "law_fields", None) or []), entry]
+
+
+def add_law_field(
+    p: argparse.ArgumentParser, flag: str, law: str, field: str, help: str, **kwargs: Any
+) -> None:
+    """``flag`` sets the field ``field`` of the law named ``law`` (a
+    :data:`~geovs_drake.scenario.LAW_VARIANTS` name), whichever layer chose that law;
+    its help ends with the variant's default."""
+    default = _shown(getattr(LAW_VARIANTS[law](), field))
+    p.add_argument(
+        flag,
+        action=_LawField,
+        law=law,
+        field=field,
+        dest=flag,
+        default=argparse.SUPPRESS,
+        help=f"with --controller {law}: {help} (default: the config's, else {default})",
+        **kwargs,
+    )
+
+
+def _apply_law_fields(config: ScenarioConfig, fields: Sequence[tuple]) -> None:
+    """Each law flag on the law the layers chose (ValueError where it is another law)."""
+    for flag, law, field, value in fields:
+        if not isinstance(config.controller, LAW_VARIANTS[law]):
+            raise ValueError(
+                f"{flag} applies to --controller {law}, the law here is "
+                f"{law_name(config.controller)}"
+            )
+        config.controller = dataclasses.replace(config.controller, **{field: value})
+
+
 def add_config(p: argparse.ArgumentParser) -> None:
     """``--config FILE`` and ``--scenario-text YAML``, the two lowest layers."""
     p.add_argument(
@@ -231,7 +280,7 @@ def add_config(p: argparse.ArgumentParser) -> None:
         'options, e.g. --scenario-text "{plant: kinematic, control: {kinematic_gain: 2}}" '
         "(default: none)",
     )
-    p.set_defaults(layers=None)
+    p.set_defaults(layers=None, law_fields=None)
 
 
 def load_resolved(args: argparse.Namespace) -> ResolvedScenario:
@@ -242,7 +291,9 @@ def load_resolved(args: argparse.Namespace) -> ResolvedScenario:
     if args.scenario_text is not None:
         layers.append(("--scenario-text", args.scenario_text))
     layers += args.layers or []
-    return resolve(load_scenario(args.config, overrides=layers))
+    config = load_scenario(args.config, overrides=layers)
+    _apply_law_fields(config, args.law_fields or [])
+    return resolve(config)
 
 
 def load_config(args: argparse.Namespace) -> ScenarioConfig:

@@ -12,6 +12,7 @@ from geovs_drake.cli._options import (
     add_config,
     add_field,
     add_json,
+    add_law_field,
     add_plant,
     exit_code_of,
     field_default,
@@ -48,12 +49,13 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         "features)",
         choices=CONTROLLERS,
     )
-    add_field(
+    add_law_field(
         p,
         "--ibvs-depth",
-        ("control", "ibvs_depth"),
-        "depth estimate of --controller ibvs: true (the current interaction matrix with "
-        "the true depths, from c^-1(y)), desired (the matrix at the goal) or mean (their mean)",
+        "ibvs",
+        "depth",
+        "the depth estimate: true (the current interaction matrix with the true depths, "
+        "from c^-1(y)), desired (the matrix at the goal) or mean (their mean)",
         choices=IBVS_DEPTHS,
     )
     add_field(
@@ -142,20 +144,22 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         "fixed in the world and the target sphere is driven (eye-to-hand, G = H^-1 of Eq. 16)",
         choices=MOUNTS,
     )
-    add_field(
+    add_law_field(
         p,
         "--path-duration",
-        ("path", "duration"),
-        "with --controller path: the planned image path's duration [s]",
+        "path",
+        "duration",
+        "the planned image path's duration [s]",
         type=float,
         metavar="T",
     )
-    add_field(
+    add_law_field(
         p,
         "--path-feedback",
-        ("path", "feedback_gain"),
-        "with --controller path: the gain k [1/s] of the log-map feedback added to the "
-        "feed-forward of Eq. (18); 0 is Eq. (18) as written, open loop",
+        "path",
+        "feedback_gain",
+        "the gain k [1/s] of the log-map feedback added to the feed-forward of Eq. (18); "
+        "0 is Eq. (18) as written, open loop",
         type=float,
         metavar="GAIN",
     )

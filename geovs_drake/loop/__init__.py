@@ -11,7 +11,7 @@ __getattr__, __dir__, __all__ = attach(
     {
         "build": ("Loop", "build_loop", "loop_of", "refusal"),
         "carriers": ("CARRIERS", "CarrierParts"),
-        "laws": ("LAWS", "TWIST_CONTROLLERS"),
+        "laws": ("LAWS", "Law", "twist_law"),
         "sensors": ("SENSORS",),
     },
 )

@@ -9,7 +9,7 @@ The builder is a straight line::
     camera   = SphericalCamera(...)            # the truth: exact y of the true pose
     y        = SENSORS[camera.sensor].add(...)  # the y the law acts on
     nav      = NavigationController(...)       # phi on D, reported for every law
-    command  = LAWS[controller].add(...)       # a twist, or a force system
+    command  = LAWS[type(law)].add(...)        # a twist, or a force system
     drive the carrier with it                  # velocity-tracking force if it needs one
     loggers and Meshcat on the parts' ports
 
@@ -96,9 +96,10 @@ def refusal(config: ScenarioConfig) -> str | None:
         )
     if config.camera.sensor not in SENSORS:
         return f"no sensor {config.camera.sensor!r} (registered: {', '.join(SENSORS)})"
-    name = config.controller if isinstance(config.controller, str) else None
-    if name is not None and name not in LAWS:
-        return f"controller {name!r} has no law (registered: {', '.join(LAWS)})"
+    law = type(config.controller)
+    if law not in LAWS:
+        known = ", ".join(variant.__name__ for variant in LAWS)
+        return f"controller {law.__name__} has no law: register LAWS[{law.__name__}] ({known})"
     return None
 
 
@@ -160,7 +161,7 @@ def build_loop(
     builder.Connect(features, nav.image_features_input)
     if carrier.phi_input is not None:
         builder.Connect(nav.phi_output, carrier.phi_input)
-    command = LAWS[resolved.controller].add(builder, resolved, features, nav, carrier)
+    command = LAWS[type(resolved.law)].add(builder, resolved, features, nav, carrier)
     disturbance = _drive(builder, resolved, carrier, command, study_ports)
     feature_sensor = (
         builder.GetSubsystemByName("feature_sensor")

@@ -2,18 +2,20 @@
 
 A law takes y and offers either a twist (Omega, V) in C or, on a
 force-driven carrier, a force system. :data:`LAWS` holds one entry per law
-name; ``add(builder, resolved, y, nav, carrier)`` adds the law's systems and
+variant; ``add(builder, resolved, y, nav, carrier)`` adds the law's systems and
 returns the twist's output port, or the force system (``ImageJacobianForce``)
 for the carrier to wire in. The loop builder adapts a twist to a force-driven
 carrier with the velocity-tracking force.
 
-* ``nf``: the navigation function. On a force-driven carrier Eq. (45)'s wrench
-  ``F = C(y)^T dphi k_p - B (Omega, V)`` (``image_jacobian_force``); on a
+* :class:`~geovs_drake.scenario.Nf`: the navigation function. On a force-driven
+  carrier Eq. (45)'s wrench ``F = C(y)^T dphi k_p - B (Omega, V)`` (``image_jacobian_force``); on a
   twist-driven one the kinematic law ``-k Tc^-1 dphi`` (Eqs. 18-19,
   ``kinematic_controller``).
-* ``ibvs``, ``pbvs``, ``spherical``: the baselines toward the goal image (the
+* :class:`~geovs_drake.scenario.Ibvs`, :class:`~geovs_drake.scenario.Pbvs`,
+  :class:`~geovs_drake.scenario.Spherical`: the baselines toward the goal image (the
   subsystem ``controller``).
-* ``path``: the planned y_d(t) (``desired_image``) followed by Eq. (18).
+* :class:`~geovs_drake.scenario.PathFollowing`: the planned y_d(t) (``desired_image``)
+  followed by Eq. (18).
 
 Every law believes the same radius, ``resolved.believed_radius``, in C(y) and
 in y*; the damping is ``resolved.damping``.
@@ -21,7 +23,7 @@ in y*; the damping is ``resolved.damping``.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, MutableMapping
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +32,14 @@ from pydrake.systems.primitives import TrajectorySource
 
 from geovs_drake.loop.carriers import CarrierParts
 from geovs_drake.planning import plan_for_scenario
-from geovs_drake.scenario import ResolvedScenario, ScenarioConfig
+from geovs_drake.scenario import (
+    Ibvs,
+    Nf,
+    PathFollowing,
+    Pbvs,
+    ResolvedScenario,
+    Spherical,
+)
 from geovs_drake.systems import (
     IbvsController,
     ImageJacobianForce,
@@ -41,7 +50,7 @@ from geovs_drake.systems import (
     SphericalFeatureController,
 )
 
-__all__ = ["LAWS", "TWIST_CONTROLLERS", "Law", "TwistControllerFactory"]
+__all__ = ["LAWS", "Law", "twist_law"]
 
 #: What a law adds: the twist's output port, or a force system for the carrier.
 LawOutput = OutputPort | LeafSystem
@@ -84,8 +93,11 @@ def _nf(builder, resolved, y, nav, carrier) -> LawOutput:
     return law if carrier.drive == "wrench" else law.camera_velocity_output
 
 
-def _twist_law(make: Callable[[DiagramBuilder, ResolvedScenario], LeafSystem]) -> Law:
-    """A law that commands a twist: its system, named ``controller``, reads y."""
+def twist_law(make: Callable[[DiagramBuilder, ResolvedScenario], LeafSystem]) -> Law:
+    """A law that commands a twist: ``make(builder, resolved)`` adds its system, which
+    is named ``controller``, reads y at an ``image_features`` input (if it has one) and
+    offers ``camera_velocity``, (Omega, V) in C. It runs on every carrier: a force-driven
+    one gets the velocity-tracking force."""
 
     def add(builder, resolved, y, nav, carrier) -> LawOutput:
         law = make(builder, resolved)
@@ -111,7 +123,7 @@ def _baseline(law: type, **options: Callable[[ResolvedScenario], object]) -> Law
             )
         )
 
-    return _twist_law(make)
+    return twist_law(make)
 
 
 def _path_following(builder: DiagramBuilder, resolved: ResolvedScenario) -> LeafSystem:
@@ -133,49 +145,13 @@ def _path_following(builder: DiagramBuilder, resolved: ResolvedScenario) -> Leaf
     return follower
 
 
-#: The laws, by name (``ScenarioConfig.controller``, :data:`~geovs_drake.scenario.CONTROLLERS`).
-LAWS: dict[str, Law] = {
-    "nf": Law(_nf),
-    "ibvs": _baseline(IbvsController, depth=lambda resolved: resolved.law.depth),
-    "pbvs": _baseline(PbvsController),
-    "spherical": _baseline(SphericalFeatureController),
-    "path": _twist_law(_path_following),
+#: The laws, by their variant (``ScenarioConfig.controller``'s type,
+#: :data:`~geovs_drake.scenario.LawConfig`). A law of one's own is a variant dataclass
+#: and an entry here (:doc:`/adding-a-part`).
+LAWS: dict[type, Law] = {
+    Nf: Law(_nf),
+    Ibvs: _baseline(IbvsController, depth=lambda resolved: resolved.law.depth),
+    Pbvs: _baseline(PbvsController),
+    Spherical: _baseline(SphericalFeatureController),
+    PathFollowing: twist_law(_path_following),
 }
-
-#: The earlier extension point: ``factory(builder, config, features)`` adds a
-#: twist-commanding law's system to ``builder`` and returns it (output port
-#: ``camera_velocity``; an ``image_features`` input, if any, is connected for it).
-TwistControllerFactory = Callable[[DiagramBuilder, ScenarioConfig, OutputPort], LeafSystem]
-
-
-class _TwistControllers(MutableMapping):
-    """:data:`LAWS`' twist-commanding laws as ``name -> factory``: registering a
-    factory here registers a law there, so there is one registry."""
-
-    def __init__(self) -> None:
-        self._factories: dict[str, TwistControllerFactory] = {}
-
-    def __getitem__(self, name: str) -> TwistControllerFactory:
-        return self._factories[name]
-
-    def __setitem__(self, name: str, factory: TwistControllerFactory) -> None:
-        self._factories[name] = factory
-
-        def make(builder: DiagramBuilder, resolved: ResolvedScenario) -> LeafSystem:
-            return factory(builder, resolved.config, None)
-
-        LAWS[name] = _twist_law(make)
-
-    def __delitem__(self, name: str) -> None:
-        del self._factories[name]
-        del LAWS[name]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._factories)
-
-    def __len__(self) -> int:
-        return len(self._factories)
-
-
-#: Register a twist-commanding law by name (see :data:`TwistControllerFactory`).
-TWIST_CONTROLLERS: MutableMapping[str, TwistControllerFactory] = _TwistControllers()

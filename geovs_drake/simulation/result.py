@@ -10,7 +10,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from geovs_drake.geometry.domain import DomainMargins
-from geovs_drake.scenario import Ibvs, ScenarioConfig, law_name, law_of
+from geovs_drake.scenario import Ibvs, ScenarioConfig, law_name
 
 __all__ = [
     "CONVERGENCE_POSITION_M",
@@ -265,11 +265,11 @@ class SimulationResult:
         estimate for the law ``ibvs``, else None."""
         dp, dr = self.final_errors
         tol_p, tol_r = convergence_tolerance(self.config)
-        law = law_of(self.config)
+        law = self.config.controller
         out = {
             "plant": self.config.plant,
             "carrier": self.config.carrier,
-            "controller": law_name(self.config.controller),
+            "controller": law_name(law),
             "mount": self.config.mount,
             "ibvs_depth": law.depth if isinstance(law, Ibvs) else None,
             "sensor": self.config.camera.sensor,
