@@ -35,6 +35,11 @@ logger = logging.getLogger(__name__)
 PARALLEL_NOTEBOOKS = 2
 #: Seconds a cell may run before the build fails.
 CELL_TIMEOUT_S = 600
+#: Seconds a kernel may take to start (nbclient's default is 60: on 2 busy cores, beside
+#: pytest's workers, one start took longer once), and the starts tried: kernels started
+#: side by side can also race for the same free TCP port, and then one never answers.
+KERNEL_STARTUP_TIMEOUT_S = 180
+KERNEL_START_TRIES = 3
 
 
 def _execute(source: str, target: str) -> tuple[str, float, str | None]:
@@ -50,19 +55,30 @@ def _execute(source: str, target: str) -> tuple[str, float, str | None]:
     os.dup2(devnull, 2)
     os.close(devnull)
     start = time.perf_counter()
-    notebook = nbformat.read(source, as_version=4)
-    client = NotebookClient(
-        notebook,
-        timeout=CELL_TIMEOUT_S,
-        kernel_name="python3",
-        resources={"metadata": {"path": str(Path(source).parent)}},
-    )
-    try:
-        client.execute()
-    except CellExecutionError as e:
-        return source, time.perf_counter() - start, failing_cell(notebook) or _last_line(str(e))
-    nbformat.write(notebook, target)
-    return source, time.perf_counter() - start, None
+    for attempt in range(1, KERNEL_START_TRIES + 1):
+        notebook = nbformat.read(source, as_version=4)
+        client = NotebookClient(
+            notebook,
+            timeout=CELL_TIMEOUT_S,
+            startup_timeout=KERNEL_STARTUP_TIMEOUT_S,
+            kernel_name="python3",
+            resources={"metadata": {"path": str(Path(source).parent)}},
+        )
+        try:
+            client.execute()
+        except CellExecutionError as e:
+            error = failing_cell(notebook) or _last_line(str(e))
+            return source, time.perf_counter() - start, error
+        except RuntimeError as e:  # jupyter_client: "Kernel didn't respond in N seconds"
+            if "Kernel didn't respond" not in str(e):
+                raise
+            if attempt == KERNEL_START_TRIES:
+                error = f"the kernel did not start ({attempt} tries): {_last_line(str(e))}"
+                return source, time.perf_counter() - start, error
+            continue
+        nbformat.write(notebook, target)
+        return source, time.perf_counter() - start, None
+    raise AssertionError("unreachable: every try returns or continues")
 
 
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
