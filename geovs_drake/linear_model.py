@@ -34,12 +34,27 @@ from geovs_drake.scenario import ScenarioConfig
 __all__ = [
     "chart_jacobian",
     "closed_form_A",
+    "closed_form_refusal",
     "goal_stiffness",
     "navigation_hessian",
     "rig_spatial_inertia",
     "second_order_A",
     "velocity_adjoint",
 ]
+
+
+def closed_form_refusal(config: ScenarioConfig, who: str) -> str | None:
+    """Why the closed form does not model ``config``'s loop, as ``who``'s one line, or
+    None where it does: it is the free rig's with the camera in its hand (Appendix C's
+    body; the fixed camera and the arm have other dynamics). The one place that decides
+    it, for the step limit, the linearisation and gain design; the law (the NF's) is
+    each caller's own question."""
+    if config.carrier == "free" and config.mount == "hand":
+        return None
+    return (
+        f"{who}: the closed form is the eye-in-hand free rig's: carrier = {config.carrier!r}, "
+        f"mount = {config.mount!r}"
+    )
 
 
 def navigation_hessian(nf: NavigationFunction, y: ImageFeatures) -> np.ndarray:

@@ -196,5 +196,8 @@ def test_tools_built_for_the_eye_in_hand_loop_refuse_the_fixed_camera():
     config = ScenarioConfig(mount="fixed")
     with pytest.raises(ValueError, match="batch engine runs the eye-in-hand loops only"):
         loop_parameters(config)
-    with pytest.raises(ValueError, match="closed form is the eye-in-hand loop's"):
+    with pytest.raises(
+        ValueError,
+        match="closed form is the eye-in-hand free rig's: carrier = 'free', mount = 'fixed'",
+    ):
         linearize_at_goal(config)

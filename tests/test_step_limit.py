@@ -85,3 +85,28 @@ def test_a_users_step_beyond_the_bound_gets_one_line(run_cli):
 def test_no_warning_for_the_automatic_limit(run_cli):
     run = run_cli("simulate", "--plant", "kinematic", "--duration", "1", "--json")
     assert "warning" not in run.err
+
+
+@pytest.mark.parametrize(
+    "changes", [dict(carrier="arm"), dict(mount="fixed")], ids=["arm", "fixed_camera"]
+)
+def test_the_closed_forms_readers_refuse_a_loop_it_does_not_model_alike(changes):
+    """The closed form is the eye-in-hand free rig's: linearize_at_goal, linearize and
+    design_gains refuse the arm and the fixed camera in one line naming the two fields
+    (one rule, linear_model.closed_form_refusal), and the step limit falls back on its
+    cap there (no stability bound from a model that is not the loop's)."""
+    from geovs_drake.analysis.gain_design import design_gains
+    from geovs_drake.analysis.linearization import linearize, linearize_at_goal
+
+    config = ScenarioConfig(**changes)
+    fields = f"carrier = {config.carrier!r}, mount = {config.mount!r}"
+    for who, call in (
+        ("linearize_at_goal", lambda: linearize_at_goal(config)),
+        ("linearize", lambda: linearize(config)),
+        ("design_gains", lambda: design_gains(config, 2.0, 0.7, run_start=False)),
+    ):
+        with pytest.raises(ValueError) as error:
+            call()
+        assert str(error.value) == f"{who}: the closed form is the eye-in-hand free rig's: {fields}"
+    limit = step_limit(resolve(config))
+    assert limit.stable_step is None and limit.max_step_size == DEFAULT_MAX_STEP

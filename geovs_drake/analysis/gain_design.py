@@ -39,6 +39,7 @@ from geovs_drake.batch.engine import run_batch
 from geovs_drake.geometry.so3 import so3_exp
 from geovs_drake.linear_model import (
     closed_form_A,
+    closed_form_refusal,
     goal_stiffness,
     rig_spatial_inertia,
     second_order_A,
@@ -194,11 +195,9 @@ def design_gains(
     """
     plant = config.plant
     _check_request(plant, settling_time, damping_ratio)
-    if config.carrier != "free" or config.mount != "hand":
-        raise ValueError(
-            "design_gains designs the eye-in-hand free rig's gains: "
-            f"carrier = {config.carrier!r}, mount = {config.mount!r}"
-        )
+    refusal = closed_form_refusal(config, "design_gains")
+    if refusal is not None:
+        raise ValueError(refusal)
     sigma = settling_rate(settling_time)
     designed = copy.deepcopy(config)
     M = rig_spatial_inertia(config)

@@ -52,6 +52,7 @@ from geovs_drake.geometry.rigid import quaternion_multiply, quaternion_to_rotati
 from geovs_drake.geometry.so3 import hat
 from geovs_drake.linear_model import (
     closed_form_A,
+    closed_form_refusal,
     navigation_hessian,
     rig_spatial_inertia,
     velocity_adjoint,
@@ -132,10 +133,9 @@ def linearize_at_goal(
     """Drake's ``Linearize`` of the whole closed loop at the goal, reduced to minimal form."""
     config = config_at_goal(config or ScenarioConfig())
     plant = plant or config.plant
-    if config.mount != "hand":
-        raise ValueError(
-            f"linearize_at_goal's closed form is the eye-in-hand loop's: mount = {config.mount!r}"
-        )
+    refusal = closed_form_refusal(config, "linearize_at_goal")
+    if refusal is not None:
+        raise ValueError(refusal)
     if plant == "dynamic":
         diagram = make_dynamic_servo_diagram(config, log=False)
     else:
@@ -392,11 +392,9 @@ def linearize(
     """
     config = copy.deepcopy(config or ScenarioConfig())
     config.plant = plant or config.plant
-    if config.mount != "hand" or config.carrier != "free":
-        raise ValueError(
-            "linearize models the eye-in-hand free rig only: "
-            f"mount = {config.mount!r}, carrier = {config.carrier!r}"
-        )
+    refusal = closed_form_refusal(config, "linearize")
+    if refusal is not None:
+        raise ValueError(refusal)
     config.camera.sensor = "exact"  # a sampled camera has discrete state: no A
     loop = build_loop(config, log=False, study_ports=True)
     diagram = _study_diagram(loop)

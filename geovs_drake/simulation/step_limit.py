@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geovs_drake.linear_model import closed_form_A
+from geovs_drake.linear_model import closed_form_A, closed_form_refusal
 from geovs_drake.scenario import (
     AUTOMATIC_STEP,
     DEFAULT_MAX_STEP,
@@ -130,7 +130,7 @@ def stable_step(resolved: ResolvedScenario) -> tuple[complex, float] | None:
     coefficients = STABILITY_POLYNOMIALS.get(config.simulator.integration_scheme)
     if coefficients is None or not isinstance(resolved.law, Nf):
         return None
-    if config.carrier != "free" or config.mount != "hand":
+    if closed_form_refusal(config, "the step limit") is not None:
         return None
     eigenvalues = np.linalg.eigvals(closed_form_A(config, damping=resolved.damping))
     eigenvalues = eigenvalues[np.abs(eigenvalues) > 0]
