@@ -1,4 +1,5 @@
-"""Scenario configuration: dataclasses loadable with Drake's ``yaml_load_typed``.
+"""The scenario's schema: dataclasses loadable with Drake's ``yaml_load_typed``, each
+with its own checks (``validate``), and the quantities derived from them.
 
 Defaults are the project's default scenario: rho = 0.1 m, theta = 35 deg,
 lambda in [0.05, 0.4], kappa = 0.1, goal X_BC* = translation (0, 0, -0.5) with
@@ -9,71 +10,51 @@ Poses of the camera are given in the *target* frame B, as X_BC (metres,
 radians, Drake's RollPitchYaw), the natural way to say where the camera is.
 """
 
-import copy
 import dataclasses
-import importlib.resources
 import math
-import typing
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-import yaml
-from pydrake.common.yaml import yaml_load_typed
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import GetIntegrationSchemes, SimulatorConfig
 
-from geovs_drake.geometry.baselines import IBVS_DEPTHS
 from geovs_drake.geometry.camera import ImageFeatures, camera_map
 from geovs_drake.geometry.domain import SafeDomain
 from geovs_drake.geometry.navigation import NavigationGains
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
+from geovs_drake.scenario.laws import (
+    CONTROLLERS,
+    LAW_VARIANTS,
+    Ibvs,
+    Nf,
+    PathFollowing,
+    Pbvs,
+    Spherical,
+    check_law,
+    law_name,
+)
 
 __all__ = [
-    "free_twin",
-    "CONTROLLERS",
-    "IBVS_DEPTHS",
+    "AUTOMATIC_STEP",
+    "CARRIERS",
+    "DEFAULT_MAX_STEP",
     "MOUNTS",
     "PLANTS",
     "SENSORS",
-    "CARRIERS",
-    "AUTOMATIC_STEP",
-    "DEFAULT_MAX_STEP",
     "ArmConfig",
-    "LAW_VARIANTS",
     "CameraConfig",
-    "Ibvs",
-    "LawConfig",
-    "Nf",
-    "PathFollowing",
-    "Pbvs",
-    "ResolvedScenario",
-    "Spherical",
     "ControlConfig",
     "DomainConfig",
     "NavigationGainsConfig",
     "PoseConfig",
     "RigConfig",
     "ScenarioConfig",
-    "SuiteConfig",
-    "SuiteScenario",
-    "default_suite_path",
-    "load_scenario",
     "damping_of",
-    "law_name",
-    "load_suite",
-    "resolve",
 ]
-
 
 #: The plants a scenario can run on.
 PLANTS = ("dynamic", "kinematic")
-#: The control laws (``ScenarioConfig.controller``): the navigation function
-#: ("nf"), and the baselines point IBVS, PBVS and sphere features
-#: (:mod:`geovs_drake.geometry.baselines`).
-CONTROLLERS = ("nf", "ibvs", "pbvs", "spherical", "path")
 #: Where the camera is: on the moving rig (eye-in-hand) or fixed in the world.
 MOUNTS = ("hand", "fixed")
 #: How the loop sees the target (``ScenarioConfig.camera.sensor``).
@@ -81,79 +62,6 @@ SENSORS = ("exact", "rendered", "pinhole")
 #: What carries the camera (``ScenarioConfig.carrier``): the free rigid body of
 #: Appendix C (its ``mount`` and ``plant`` say how), or a robot arm (``arm``).
 CARRIERS = ("free", "arm")
-
-
-# --------------------------------------------------------------------------
-# The control laws, one variant each (``ScenarioConfig.controller``)
-# --------------------------------------------------------------------------
-# Each law holds its own fields; in YAML a law is tagged with its class name, as
-# in Drake's hardware_sim scenarios: ``controller: !Ibvs {depth: mean}``. A scenario
-# file's bare name (``controller: ibvs``) reads as that variant with its defaults
-# (:func:`load_scenario`); in Python the law is always its variant.
-@dataclass
-class Nf:
-    """The navigation function: Eq. (45)'s wrench on a force-driven carrier, the
-    twist ``-Tc^-1 grad phi`` (Eqs. 18-19) on a twist-driven one. Its gains are
-    ``control.potential_gain``, the damping and ``control.kinematic_gain``."""
-
-
-@dataclass
-class Ibvs:
-    """Point IBVS on four points (:mod:`geovs_drake.geometry.baselines`). ``depth``:
-    "true" (the current interaction matrix with the true depths, from c^-1(y)),
-    "desired" (the matrix at the goal, L_e*) or "mean" ((L_e + L_e*) / 2)."""
-
-    depth: str = "true"
-
-
-@dataclass
-class Pbvs:
-    """PBVS on ``(c*t_c, theta u)``, the pose from c^-1(y) (Eq. 23)."""
-
-
-@dataclass
-class Spherical:
-    """The sphere features ``(s / lambda, theta u)`` and their interaction matrix."""
-
-
-@dataclass
-class PathFollowing:
-    """The path follower (Sec. 4, Eq. 18).
-
-    The planner plans y_d(t) from y(0) to y* in ``duration`` seconds (geodesic
-    in I, quintic time law; if that leaves D and ``fallback``, the NF's
-    gradient flow). ``feedback_gain`` k [1/s] adds ``k log_y(y_d)`` to the
-    feed-forward; 0 is Eq. (18) as written, open loop. ``radius_scale`` scales
-    the radius the follower believes (1: the loop's believed radius; 1.1: rho
-    off by 10% more, a model error).
-    """
-
-    duration: float = 8.0
-    feedback_gain: float = 2.0
-    fallback: bool = True
-    radius_scale: float = 1.0
-
-
-#: A law's configuration: one of the variants above.
-LawConfig = Nf | Ibvs | Pbvs | Spherical | PathFollowing
-#: The law of each name in :data:`CONTROLLERS` (``path`` is :class:`PathFollowing`).
-LAW_VARIANTS: dict[str, type] = {
-    "nf": Nf,
-    "ibvs": Ibvs,
-    "pbvs": Pbvs,
-    "spherical": Spherical,
-    "path": PathFollowing,
-}
-
-
-def law_name(law: object) -> str:
-    """A law variant's name: its :data:`CONTROLLERS` name (the command line's
-    ``--controller``), or its class's name for a law a user registered
-    (:data:`geovs_drake.loop.laws.LAWS`)."""
-    for name, variant in LAW_VARIANTS.items():
-        if type(law) is variant:
-            return name
-    return type(law).__name__
 
 
 @dataclass
@@ -524,7 +432,7 @@ class ScenarioConfig:
                     f"{path} must be finite and {'>' if strict else '>='} {low:g}{unit}: "
                     f"{where} = {value!r}"
                 )
-        _check_law(law)
+        check_law(law)
         inertia = _finite_numbers(self.rig.inertia_diagonal, 3)
         if inertia is None or not all(v > 0 for v in inertia):
             raise ValueError(
@@ -690,26 +598,6 @@ def _field(config: object, path: str) -> object:
     return config
 
 
-def _check_law(law: object) -> None:
-    """The law variant's own fields, each named ``controller.<field>``."""
-    if isinstance(law, Ibvs) and law.depth not in IBVS_DEPTHS:
-        raise ValueError(
-            f"controller.depth must be one of {', '.join(IBVS_DEPTHS)}, got {law.depth!r}"
-        )
-    if isinstance(law, PathFollowing):
-        for name, strict, unit in (
-            ("duration", True, " [s]"),
-            ("feedback_gain", False, " [1/s]"),
-            ("radius_scale", True, ""),
-        ):
-            value = getattr(law, name)
-            if not (math.isfinite(value) and (value > 0 if strict else value >= 0)):
-                raise ValueError(
-                    f"controller.{name} must be finite and {'>' if strict else '>='} 0{unit}: "
-                    f"{name} = {value}"
-                )
-
-
 #: How each law is written, in Python and as its YAML tag.
 _LAW_SPELLING = {name: f"{variant.__name__}()" for name, variant in LAW_VARIANTS.items()}
 
@@ -731,447 +619,8 @@ def _law_by_name(name: str) -> str:
     return f"controller must be one of {', '.join(CONTROLLERS)}, got {name!r}"
 
 
-def free_twin(config: ScenarioConfig) -> ScenarioConfig:
-    """The same scenario on the free rig (``carrier: free``): the camera, domain, NF and
-    law the batch engine's kernels and the sweep's start sampler read, for a loop whose
-    own carrier (the arm) they do not integrate."""
-    return dataclasses.replace(config, carrier="free")
-
-
 def damping_of(config: ScenarioConfig) -> list[float]:
     """The damping B the loop runs with, decided here only: ``camera.damping`` with a
     camera (rendered, pinhole), else ``control.damping`` (see :class:`CameraConfig`
     for why a sampled camera needs more)."""
     return config.control.damping if config.camera.sensor == "exact" else config.camera.damping
-
-
-@dataclass(frozen=True)
-class ResolvedScenario:
-    """A validated scenario with its derived quantities, resolved once (:func:`resolve`).
-
-    The loop builders, the simulator and the batch engine read these, never the
-    rules that make them: ``law`` (the variant, ``config.controller``), ``believed_radius``
-    (what every law and C(y) believe), ``damping`` (:func:`damping_of`), the goal
-    image ``y_goal`` = c(X_CB*) for the believed radius, and the safe domain ``domain``.
-    """
-
-    config: ScenarioConfig
-    law: LawConfig
-    believed_radius: float
-    damping: tuple[float, ...]
-    y_goal: ImageFeatures
-    domain: SafeDomain
-    gains: NavigationGains
-
-    @property
-    def controller(self) -> str:
-        """The law's name (:func:`law_name`)."""
-        return law_name(self.law)
-
-
-def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> ResolvedScenario:
-    """Validate ``config`` (default: the default scenario) and resolve what follows from
-    it, in one step; a :class:`ResolvedScenario` passes through unchanged."""
-    if isinstance(config, ResolvedScenario):
-        return config
-    config = ScenarioConfig() if config is None else config
-    config.validate()
-    if config.carrier == "arm" and config.plant == "dynamic" and config.arm.gain_scale != 1:
-        # The arm's gains (ArmConfig.gain_scale): a scaled copy, so that every part of
-        # the loop, the energy bound included, reads one k_p and one B.
-        config = copy.deepcopy(config)
-        scale = config.arm.gain_scale
-        config.control.potential_gain *= scale
-        config.control.damping = [scale * v for v in config.control.damping]
-        config.control.tracking_gains = [scale * v for v in config.control.tracking_gains]
-        config.arm.gain_scale = 1.0
-    return ResolvedScenario(
-        config=config,
-        law=config.controller,
-        believed_radius=config.believed_radius,
-        damping=tuple(float(v) for v in damping_of(config)),
-        y_goal=config.goal_features(),
-        domain=config.domain.to_domain(),
-        gains=config.navigation.to_gains(),
-    )
-
-
-def _describe(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
-def _is_number(value: Any) -> bool:
-    if isinstance(value, bool):
-        return False
-    if isinstance(value, int | float):
-        return True
-    if isinstance(value, str):  # PyYAML reads 1e-6 (no dot) as a string; Drake takes it
-        try:
-            float(value)
-        except ValueError:
-            return False
-        return True
-    return False
-
-
-def _schema_fields(default: Any) -> dict[str, Any] | None:
-    """Field name -> default value of a dataclass or a Drake-bound struct, else None."""
-    if dataclasses.is_dataclass(default):
-        hints = typing.get_type_hints(type(default))
-        out = {}
-        for f in dataclasses.fields(default):
-            value = getattr(default, f.name)
-            # An optional struct left unset (None): its shape is the struct's own.
-            shape = [t for t in typing.get_args(hints[f.name]) if dataclasses.is_dataclass(t)]
-            out[f.name] = shape[0]() if value is None and shape else value
-        return out
-    fields = getattr(type(default), "__fields__", None)
-    if fields is not None:
-        return {f.name: getattr(default, f.name) for f in fields}
-    return None
-
-
-#: The YAML tag of each law variant (``controller: !Ibvs {depth: mean}``).
-_LAW_TAGS = {f"!{variant.__name__}": variant for variant in LAW_VARIANTS.values()}
-#: The tag of the union's first variant, which Drake's YAML leaves out.
-_FIRST_LAW_TAG = f"!{typing.get_args(LawConfig)[0].__name__}"
-#: The key under which a tagged mapping keeps its tag once read (as pydrake's loader does).
-_TAG = "_tag"
-
-
-class _TaggedLoader(yaml.SafeLoader):
-    """PyYAML's safe loader that keeps a mapping's tag (a law variant) as ``_tag``."""
-
-
-def _construct_tagged(loader: yaml.SafeLoader, suffix: str, node: yaml.Node) -> dict:
-    tag = f"!{suffix}"
-    if not isinstance(node, yaml.MappingNode):
-        raise yaml.constructor.ConstructorError(
-            None, None, f"the tag {tag} needs a mapping, e.g. {tag} {{}}", node.start_mark
-        )
-    return {_TAG: tag, **loader.construct_mapping(node, deep=True)}
-
-
-_TaggedLoader.add_multi_constructor("!", _construct_tagged)
-
-
-class _TaggedDumper(yaml.SafeDumper):
-    """Writes a mapping with a ``_tag`` back as a tagged mapping, for Drake's loader."""
-
-
-def _represent_dict(dumper: yaml.SafeDumper, data: dict) -> yaml.Node:
-    if _TAG in data:
-        body = {k: v for k, v in data.items() if k != _TAG}
-        return dumper.represent_mapping(data[_TAG], body)
-    return dumper.represent_dict(data)
-
-
-_TaggedDumper.add_representer(dict, _represent_dict)
-
-
-def _load_yaml(text: str) -> Any:
-    """YAML text as a tree; tagged mappings keep their tag (``_tag``)."""
-    return yaml.load(text, Loader=_TaggedLoader)  # noqa: S506 - a SafeLoader subclass
-
-
-def _dump_yaml(tree: Any) -> str:
-    """A tree from :func:`_load_yaml` back as YAML text, tags included."""
-    return yaml.dump(tree, Dumper=_TaggedDumper)
-
-
-def _check_fields(value: Any, default: Any, where: str) -> None:
-    """``value`` as the mapping of a struct whose default is ``default``: known fields,
-    each of its field's shape."""
-    fields = _schema_fields(default)
-    if not isinstance(value, dict):
-        raise ValueError(f"{where}: expected a mapping of fields, got {_describe(value)}")
-    unknown = [k for k in value if k not in fields]
-    if unknown:
-        # repr() for a key that is no identifier: it may hold a newline or be empty.
-        key = unknown[0] if str(unknown[0]).isidentifier() else repr(unknown[0])
-        raise ValueError(
-            f"{where + '.' if where else ''}{key}: unknown field (known here: {', '.join(fields)})"
-        )
-    for key, item in value.items():
-        _check_node(item, fields[key], f"{where}.{key}" if where else str(key))
-
-
-def _check_node(value: Any, default: Any, where: str) -> None:
-    """Raise ValueError ``where: expected ..., got ...`` if ``value`` cannot fill a field
-    whose default is ``default`` (the defaults have the shapes the fields need)."""
-    if where == "controller":
-        # A law variant, by its tag; its fields are checked against the variant. An
-        # untagged mapping is the union's first variant, the NF, as Drake reads and
-        # writes it (yaml_dump_typed leaves the default variant's tag out).
-        tag = value.get(_TAG, _FIRST_LAW_TAG) if isinstance(value, dict) else None
-        if tag not in _LAW_TAGS:
-            raise ValueError(
-                f"controller: expected a law's name ({', '.join(CONTROLLERS)}) or a tagged "
-                f"variant ({', '.join(_LAW_TAGS)}), got {_describe(value)}"
-            )
-        _check_fields({k: v for k, v in value.items() if k != _TAG}, _LAW_TAGS[tag](), where)
-        return
-    if _schema_fields(default) is not None:
-        _check_fields(value, default, where)
-        return
-    if isinstance(default, bool):
-        ok, expected = isinstance(value, bool), "true or false"
-    elif isinstance(default, float | int):
-        ok, expected = _is_number(value), "a number"
-    elif isinstance(default, str):
-        ok, expected = isinstance(value, str), "a string"
-    elif isinstance(default, list):
-        # An empty default is a list whose length the model decides (an arm's joints):
-        # its length is checked where the model is known.
-        n = len(default)
-        sized = n == 0 or (isinstance(value, list) and len(value) == n)
-        ok = isinstance(value, list) and sized and all(_is_number(v) for v in value)
-        expected = f"a list of {n} numbers" if n else "a list of numbers"
-    else:  # not a shape this schema uses: Drake decides
-        return
-    if not ok:
-        raise ValueError(f"{where}: expected {expected}, got {_describe(value)}")
-
-
-#: The PoseConfig fields of a ScenarioConfig, as paths.
-_POSE_FIELDS = (
-    ("target",),
-    ("goal",),
-    ("initial",),
-    ("rig", "camera_offset"),
-    ("arm", "base_pose"),
-    ("arm", "camera_offset"),
-)
-
-
-def _complete_pose(tree: dict, path: tuple[str, ...]) -> None:
-    """A pose the file gives is the whole pose: what it leaves out of xyz / rpy is zero.
-
-    Why: Drake's loader fills a partial struct from the defaults, so a file giving
-    only ``initial: {xyz: ...}`` would quietly keep the default start's 2 rad roll.
-    """
-    node = tree
-    for key in path:
-        if not isinstance(node, dict) or key not in node:
-            return
-        node = node[key]
-    if isinstance(node, dict):
-        node.setdefault("xyz", [0.0, 0.0, 0.0])
-        node.setdefault("rpy", [0.0, 0.0, 0.0])
-
-
-#: The earlier spellings of a law's fields, outside the law, and what to write now.
-_EARLIER_LAW_FIELDS = {
-    ("control", "ibvs_depth"): "controller: !Ibvs {{depth: {value}}}",
-    ("path",): "controller: !PathFollowing {value}",
-}
-
-
-def _read_law(tree: dict) -> None:
-    """A file's ``controller`` as a tagged variant: a bare name (``controller: ibvs``)
-    is that law with its defaults. The law's fields outside the law, the earlier
-    spelling, are refused in one line that gives the new one."""
-    for path, spelling in _EARLIER_LAW_FIELDS.items():
-        node = tree
-        for key in path[:-1]:
-            node = node.get(key) if isinstance(node, dict) else None
-        if isinstance(node, dict) and path[-1] in node:
-            value = node[path[-1]]
-            shown = yaml.safe_dump(value, default_flow_style=True, width=10**6)
-            shown = shown.strip().removesuffix("...").strip()
-            if "\n" in shown or len(shown) > 60:  # a value too odd to quote in the line
-                shown = "..." if isinstance(value, str) else "{duration: ..., ...}"
-            new = spelling.format(value=shown)
-            raise ValueError(
-                f"{'.'.join(path)}: the law's fields are the law's own now: write {new}"
-            )
-    law = tree.get("controller")
-    if isinstance(law, str):
-        if law not in LAW_VARIANTS:
-            raise ValueError(_law_by_name(law))
-        tree["controller"] = {_TAG: f"!{LAW_VARIANTS[law].__name__}"}
-
-
-def _layer_tree(name: str, fragment: str | Mapping[str, Any]) -> dict:
-    """One layer as a checked tree of fields, its poses complete; errors start ``name: ``."""
-    tree = fragment
-    if isinstance(fragment, str):
-        try:
-            tree = _load_yaml(fragment)
-        except yaml.YAMLError as e:
-            mark = getattr(e, "problem_mark", None)
-            problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-            at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-            raise ValueError(f"{name}: malformed YAML{at}: {problem}") from None
-    if tree is None:
-        return {}
-    if not isinstance(tree, Mapping):
-        raise ValueError(
-            f"{name}: expected a mapping of ScenarioConfig fields, got {_describe(tree)}"
-        )
-    tree = _plain(tree)  # a copy: the poses are completed in place
-    try:
-        _read_law(tree)
-        _check_node(tree, ScenarioConfig(), "")
-    except ValueError as e:
-        raise ValueError(f"{name}: {e}") from None
-    for pose in _POSE_FIELDS:
-        _complete_pose(tree, pose)
-    return tree
-
-
-def _plain(value: Any) -> Any:
-    """``value`` with every mapping a new dict (and every list a new list)."""
-    if isinstance(value, Mapping):
-        return {key: _plain(item) for key, item in value.items()}
-    return [_plain(item) for item in value] if isinstance(value, list) else value
-
-
-def _merged(base: dict, over: Mapping[str, Any]) -> dict:
-    """``over`` on ``base``: mappings merge key by key, anything else (a list too) replaces."""
-    out = dict(base)
-    for key, value in over.items():
-        below = out.get(key)
-        if (
-            isinstance(value, Mapping)
-            and isinstance(below, Mapping)
-            and value.get(_TAG) == below.get(_TAG)  # another variant replaces, never merges
-        ):
-            out[key] = _merged(out[key], value)
-        else:
-            out[key] = value
-    return out
-
-
-def load_scenario(
-    path: str | Path | None = None,
-    data: str | None = None,
-    *,
-    overrides: Sequence[str | Mapping[str, Any] | tuple[str, str | Mapping[str, Any]]] = (),
-) -> ScenarioConfig:
-    """A ScenarioConfig from a YAML file or string; unspecified fields keep defaults.
-
-    ``overrides`` are layered over the file in order, each a YAML text or a mapping of
-    the same fields (or a pair ``(name, fragment)``, whose name its errors start
-    with; else ``overrides[k]``): mappings merge key by key, anything else replaces.
-    The command line passes ``--scenario-text`` and then each flag this way.
-
-    A pose (``target``, ``goal``, ``initial``, ``rig.camera_offset``) that the file or
-    a layer gives is complete: its ``xyz`` or ``rpy``, if left out, is zero, not the
-    default pose's nor a lower layer's.
-
-    A missing file, malformed YAML, an unknown field or a value of the wrong type or
-    length raises ValueError with one line naming the file (or the layer) and the
-    field. The values themselves are checked by ``ScenarioConfig.validate``.
-    """
-    source = "scenario" if path is None else str(path)
-    if path is not None:
-        try:
-            data = Path(path).read_text()
-        except FileNotFoundError:
-            raise ValueError(f"{source}: no such file") from None
-        except (OSError, UnicodeDecodeError) as e:
-            raise ValueError(f"{source}: cannot read: {e}") from None
-    layers: list[tuple[str, str | Mapping[str, Any]]] = []
-    if data is not None:
-        layers.append((source, data))
-    for k, item in enumerate(overrides):
-        layers.append(item if isinstance(item, tuple) else (f"overrides[{k}]", item))
-    tree: dict = {}
-    for name, fragment in layers:
-        tree = _merged(tree, _layer_tree(name, fragment))
-    if not tree:
-        return ScenarioConfig()
-    try:
-        return yaml_load_typed(
-            schema=ScenarioConfig, data=_dump_yaml(tree), defaults=ScenarioConfig()
-        )
-    except (RuntimeError, ValueError, TypeError) as e:  # Drake's long messages: first line
-        lines = str(e).strip().splitlines() or [type(e).__name__]
-        raise ValueError(f"{source}: {lines[0]}") from None
-
-
-# --------------------------------------------------------------------------
-# The comparison suite (geovs-drake compare)
-# --------------------------------------------------------------------------
-@dataclass
-class SuiteScenario:
-    """One start of a comparison suite: X_BC(0) as xyz [m] and RollPitchYaw [deg]."""
-
-    name: str = ""
-    description: str = ""
-    xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, -0.5])
-    rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-
-    def initial(self) -> PoseConfig:
-        """The start as a :class:`PoseConfig` (radians)."""
-        return PoseConfig(list(self.xyz), [math.radians(v) for v in self.rpy_deg])
-
-
-@dataclass
-class SuiteConfig:
-    """The scenarios every law of ``geovs-drake compare`` runs from, each for
-    ``duration`` seconds; ``conundrum`` names the scenario whose image-sphere
-    trajectories are plotted."""
-
-    duration: float = 20.0
-    conundrum: str = ""
-    scenarios: list[SuiteScenario] = field(default_factory=list)
-
-    def validate(self) -> None:
-        """Raise ValueError naming the first bad field and its value."""
-        if not (math.isfinite(self.duration) and self.duration > 0):
-            raise ValueError(f"duration must be finite and > 0 [s]: duration = {self.duration}")
-        if not self.scenarios:
-            raise ValueError("scenarios: the suite has none")
-        names = [s.name for s in self.scenarios]
-        for i, s in enumerate(self.scenarios):
-            if not s.name:
-                raise ValueError(f"scenarios[{i}].name is empty")
-            if names.count(s.name) > 1:
-                raise ValueError(f"scenarios[{i}].name {s.name!r} is not unique")
-            for key in ("xyz", "rpy_deg"):
-                if _finite_numbers(getattr(s, key), 3) is None:
-                    raise ValueError(
-                        f"scenarios[{i}].{key} ({s.name}) must be 3 finite numbers, "
-                        f"got {getattr(s, key)!r}"
-                    )
-        if self.conundrum and self.conundrum not in names:
-            raise ValueError(
-                f"conundrum {self.conundrum!r} is not a scenario of the suite ({', '.join(names)})"
-            )
-
-
-def default_suite_path() -> Path:
-    """The suite shipped with the package, ``geovs_drake/scenarios/suite.yaml``."""
-    return Path(str(importlib.resources.files("geovs_drake.scenarios") / "suite.yaml"))
-
-
-def load_suite(path: str | Path | None = None) -> SuiteConfig:
-    """A :class:`SuiteConfig` from a YAML file (default: :func:`default_suite_path`),
-    read with Drake's ``yaml_load_typed`` and validated; a missing or malformed
-    file or a bad field is a one-line ValueError naming the file."""
-    path = default_suite_path() if path is None else Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ValueError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise ValueError(f"{path}: cannot read: {e}") from None
-    try:
-        tree = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        raise ValueError(f"{path}: malformed YAML: {str(e).splitlines()[0]}") from None
-    if not isinstance(tree, dict):
-        raise ValueError(f"{path}: expected a mapping of SuiteConfig fields, got {_describe(tree)}")
-    try:
-        suite = yaml_load_typed(schema=SuiteConfig, data=text, defaults=SuiteConfig())
-    except (RuntimeError, ValueError, TypeError) as e:
-        lines = str(e).strip().splitlines() or [type(e).__name__]
-        raise ValueError(f"{path}: {lines[0]}") from None
-    try:
-        suite.validate()
-    except ValueError as e:
-        raise ValueError(f"{path}: {e}") from None
-    return suite

@@ -1,0 +1,119 @@
+"""The control laws, one variant each (``ScenarioConfig.controller``).
+
+Each law holds its own fields; in YAML a law is tagged with its class name, as in
+Drake's hardware_sim scenarios: ``controller: !Ibvs {depth: mean}``. A scenario file's
+bare name (``controller: ibvs``) reads as that variant with its defaults
+(:func:`~geovs_drake.scenario.load_scenario`); in Python the law is always its variant,
+and the code asks ``isinstance``: the loop takes each law's systems from
+:data:`geovs_drake.loop.laws.LAWS`, keyed by the variant's type.
+"""
+
+import math
+from dataclasses import dataclass
+
+from geovs_drake.geometry.baselines import IBVS_DEPTHS
+
+__all__ = [
+    "CONTROLLERS",
+    "IBVS_DEPTHS",
+    "LAW_VARIANTS",
+    "Ibvs",
+    "LawConfig",
+    "Nf",
+    "PathFollowing",
+    "Pbvs",
+    "Spherical",
+    "check_law",
+    "law_name",
+]
+
+#: The control laws (``ScenarioConfig.controller``): the navigation function
+#: ("nf"), and the baselines point IBVS, PBVS and sphere features
+#: (:mod:`geovs_drake.geometry.baselines`).
+CONTROLLERS = ("nf", "ibvs", "pbvs", "spherical", "path")
+
+
+@dataclass
+class Nf:
+    """The navigation function: Eq. (45)'s wrench on a force-driven carrier, the
+    twist ``-Tc^-1 grad phi`` (Eqs. 18-19) on a twist-driven one. Its gains are
+    ``control.potential_gain``, the damping and ``control.kinematic_gain``."""
+
+
+@dataclass
+class Ibvs:
+    """Point IBVS on four points (:mod:`geovs_drake.geometry.baselines`). ``depth``:
+    "true" (the current interaction matrix with the true depths, from c^-1(y)),
+    "desired" (the matrix at the goal, L_e*) or "mean" ((L_e + L_e*) / 2)."""
+
+    depth: str = "true"
+
+
+@dataclass
+class Pbvs:
+    """PBVS on ``(c*t_c, theta u)``, the pose from c^-1(y) (Eq. 23)."""
+
+
+@dataclass
+class Spherical:
+    """The sphere features ``(s / lambda, theta u)`` and their interaction matrix."""
+
+
+@dataclass
+class PathFollowing:
+    """The path follower (Sec. 4, Eq. 18).
+
+    The planner plans y_d(t) from y(0) to y* in ``duration`` seconds (geodesic
+    in I, quintic time law; if that leaves D and ``fallback``, the NF's
+    gradient flow). ``feedback_gain`` k [1/s] adds ``k log_y(y_d)`` to the
+    feed-forward; 0 is Eq. (18) as written, open loop. ``radius_scale`` scales
+    the radius the follower believes (1: the loop's believed radius; 1.1: rho
+    off by 10% more, a model error).
+    """
+
+    duration: float = 8.0
+    feedback_gain: float = 2.0
+    fallback: bool = True
+    radius_scale: float = 1.0
+
+
+#: A law's configuration: one of the variants above.
+LawConfig = Nf | Ibvs | Pbvs | Spherical | PathFollowing
+#: The law of each name in :data:`CONTROLLERS` (``path`` is :class:`PathFollowing`).
+LAW_VARIANTS: dict[str, type] = {
+    "nf": Nf,
+    "ibvs": Ibvs,
+    "pbvs": Pbvs,
+    "spherical": Spherical,
+    "path": PathFollowing,
+}
+
+
+def law_name(law: object) -> str:
+    """A law variant's name: its :data:`CONTROLLERS` name (the command line's
+    ``--controller``), or its class's name for a law a user registered
+    (:data:`geovs_drake.loop.laws.LAWS`)."""
+    for name, variant in LAW_VARIANTS.items():
+        if type(law) is variant:
+            return name
+    return type(law).__name__
+
+
+def check_law(law: object) -> None:
+    """The law variant's own fields, each named ``controller.<field>``."""
+    if isinstance(law, Ibvs) and law.depth not in IBVS_DEPTHS:
+        raise ValueError(
+            f"controller.depth must be one of {', '.join(IBVS_DEPTHS)}, got {law.depth!r}"
+        )
+    if isinstance(law, PathFollowing):
+        for name, strict, unit in (
+            ("duration", True, " [s]"),
+            ("feedback_gain", False, " [1/s]"),
+            ("radius_scale", True, ""),
+        ):
+            value = getattr(law, name)
+            if not (math.isfinite(value) and (value > 0 if strict else value >= 0)):
+                raise ValueError(
+                    f"controller.{name} must be finite and {'>' if strict else '>='} 0{unit}: "
+                    f"{name} = {value}"
+                )

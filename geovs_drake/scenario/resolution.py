@@ -1,0 +1,71 @@
+"""Resolution: a validated scenario and what follows from it, computed once."""
+
+import copy
+import dataclasses
+from dataclasses import dataclass
+
+from geovs_drake.geometry.camera import ImageFeatures
+from geovs_drake.geometry.domain import SafeDomain
+from geovs_drake.geometry.navigation import NavigationGains
+from geovs_drake.scenario.laws import LawConfig, law_name
+from geovs_drake.scenario.schema import ScenarioConfig, damping_of
+
+__all__ = ["ResolvedScenario", "free_twin", "resolve"]
+
+
+def free_twin(config: ScenarioConfig) -> ScenarioConfig:
+    """The same scenario on the free rig (``carrier: free``): the camera, domain, NF and
+    law the batch engine's kernels and the sweep's start sampler read, for a loop whose
+    own carrier (the arm) they do not integrate."""
+    return dataclasses.replace(config, carrier="free")
+
+
+@dataclass(frozen=True)
+class ResolvedScenario:
+    """A validated scenario with its derived quantities, resolved once (:func:`resolve`).
+
+    The loop builders, the simulator and the batch engine read these, never the
+    rules that make them: ``law`` (the variant, ``config.controller``), ``believed_radius``
+    (what every law and C(y) believe), ``damping`` (:func:`damping_of`), the goal
+    image ``y_goal`` = c(X_CB*) for the believed radius, and the safe domain ``domain``.
+    """
+
+    config: ScenarioConfig
+    law: LawConfig
+    believed_radius: float
+    damping: tuple[float, ...]
+    y_goal: ImageFeatures
+    domain: SafeDomain
+    gains: NavigationGains
+
+    @property
+    def controller(self) -> str:
+        """The law's name (:func:`law_name`)."""
+        return law_name(self.law)
+
+
+def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> ResolvedScenario:
+    """Validate ``config`` (default: the default scenario) and resolve what follows from
+    it, in one step; a :class:`ResolvedScenario` passes through unchanged."""
+    if isinstance(config, ResolvedScenario):
+        return config
+    config = ScenarioConfig() if config is None else config
+    config.validate()
+    if config.carrier == "arm" and config.plant == "dynamic" and config.arm.gain_scale != 1:
+        # The arm's gains (ArmConfig.gain_scale): a scaled copy, so that every part of
+        # the loop, the energy bound included, reads one k_p and one B.
+        config = copy.deepcopy(config)
+        scale = config.arm.gain_scale
+        config.control.potential_gain *= scale
+        config.control.damping = [scale * v for v in config.control.damping]
+        config.control.tracking_gains = [scale * v for v in config.control.tracking_gains]
+        config.arm.gain_scale = 1.0
+    return ResolvedScenario(
+        config=config,
+        law=config.controller,
+        believed_radius=config.believed_radius,
+        damping=tuple(float(v) for v in damping_of(config)),
+        y_goal=config.goal_features(),
+        domain=config.domain.to_domain(),
+        gains=config.navigation.to_gains(),
+    )

@@ -1,0 +1,96 @@
+"""The comparison suite (``geovs-drake compare``): the starts every law runs from."""
+
+import importlib.resources
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+from pydrake.common.yaml import yaml_load_typed
+
+from geovs_drake.scenario.load import _describe
+from geovs_drake.scenario.schema import PoseConfig, _finite_numbers
+
+__all__ = ["SuiteConfig", "SuiteScenario", "default_suite_path", "load_suite"]
+
+
+@dataclass
+class SuiteScenario:
+    """One start of a comparison suite: X_BC(0) as xyz [m] and RollPitchYaw [deg]."""
+
+    name: str = ""
+    description: str = ""
+    xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, -0.5])
+    rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+    def initial(self) -> PoseConfig:
+        """The start as a :class:`PoseConfig` (radians)."""
+        return PoseConfig(list(self.xyz), [math.radians(v) for v in self.rpy_deg])
+
+
+@dataclass
+class SuiteConfig:
+    """The scenarios every law of ``geovs-drake compare`` runs from, each for
+    ``duration`` seconds; ``conundrum`` names the scenario whose image-sphere
+    trajectories are plotted."""
+
+    duration: float = 20.0
+    conundrum: str = ""
+    scenarios: list[SuiteScenario] = field(default_factory=list)
+
+    def validate(self) -> None:
+        """Raise ValueError naming the first bad field and its value."""
+        if not (math.isfinite(self.duration) and self.duration > 0):
+            raise ValueError(f"duration must be finite and > 0 [s]: duration = {self.duration}")
+        if not self.scenarios:
+            raise ValueError("scenarios: the suite has none")
+        names = [s.name for s in self.scenarios]
+        for i, s in enumerate(self.scenarios):
+            if not s.name:
+                raise ValueError(f"scenarios[{i}].name is empty")
+            if names.count(s.name) > 1:
+                raise ValueError(f"scenarios[{i}].name {s.name!r} is not unique")
+            for key in ("xyz", "rpy_deg"):
+                if _finite_numbers(getattr(s, key), 3) is None:
+                    raise ValueError(
+                        f"scenarios[{i}].{key} ({s.name}) must be 3 finite numbers, "
+                        f"got {getattr(s, key)!r}"
+                    )
+        if self.conundrum and self.conundrum not in names:
+            raise ValueError(
+                f"conundrum {self.conundrum!r} is not a scenario of the suite ({', '.join(names)})"
+            )
+
+
+def default_suite_path() -> Path:
+    """The suite shipped with the package, ``geovs_drake/scenarios/suite.yaml``."""
+    return Path(str(importlib.resources.files("geovs_drake.scenarios") / "suite.yaml"))
+
+
+def load_suite(path: str | Path | None = None) -> SuiteConfig:
+    """A :class:`SuiteConfig` from a YAML file (default: :func:`default_suite_path`),
+    read with Drake's ``yaml_load_typed`` and validated; a missing or malformed
+    file or a bad field is a one-line ValueError naming the file."""
+    path = default_suite_path() if path is None else Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise ValueError(f"{path}: cannot read: {e}") from None
+    try:
+        tree = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise ValueError(f"{path}: malformed YAML: {str(e).splitlines()[0]}") from None
+    if not isinstance(tree, dict):
+        raise ValueError(f"{path}: expected a mapping of SuiteConfig fields, got {_describe(tree)}")
+    try:
+        suite = yaml_load_typed(schema=SuiteConfig, data=text, defaults=SuiteConfig())
+    except (RuntimeError, ValueError, TypeError) as e:
+        lines = str(e).strip().splitlines() or [type(e).__name__]
+        raise ValueError(f"{path}: {lines[0]}") from None
+    try:
+        suite.validate()
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from None
+    return suite
