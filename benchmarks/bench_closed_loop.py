@@ -40,7 +40,7 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
-from geovs_drake.analysis.linearization import config_at_goal
+from geovs_drake.analysis.linear.linearization import config_at_goal
 from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
 from geovs_drake.geometry import kernels
 from geovs_drake.scenario import ScenarioConfig, resolve

@@ -21,9 +21,9 @@ import time
 import numpy as np
 from _record import Figure, record
 
-from geovs_drake.analysis.certified_region import certify_region
-from geovs_drake.analysis.linearization import linearize, linearize_along, state_at
-from geovs_drake.analysis.region import lyapunov_region
+from geovs_drake.analysis.linear.certified_region import certify_region
+from geovs_drake.analysis.linear.linearization import linearize, linearize_along, state_at
+from geovs_drake.analysis.linear.region import lyapunov_region
 from geovs_drake.loop import build_loop
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 from geovs_drake.simulation import simulate

@@ -30,7 +30,7 @@ import timeit
 import numpy as np
 from _record import Figure, record
 
-from geovs_drake.analysis.camera_accuracy import render_frames
+from geovs_drake.analysis.studies.camera_accuracy import render_frames
 from geovs_drake.geometry.features import TargetMarks
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.simulation import simulate

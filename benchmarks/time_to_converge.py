@@ -16,7 +16,7 @@ import numpy as np
 from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RigidTransform
 
-from geovs_drake.analysis.monte_carlo import random_initial_poses, scenarios_from_starts
+from geovs_drake.analysis.studies.monte_carlo import random_initial_poses, scenarios_from_starts
 from geovs_drake.scenario import ScenarioConfig, load_scenario
 from geovs_drake.simulation import (
     CONVERGENCE_POSITION_M,

@@ -119,7 +119,7 @@ def run_rendered_demo(config: ScenarioConfig, out: Path) -> SimulationResult:
 
     import numpy as np
 
-    from geovs_drake.analysis.camera_accuracy import render_frames
+    from geovs_drake.analysis.studies.camera_accuracy import render_frames
     from geovs_drake.geometry.features import TargetMarks
     from geovs_drake.plotting import plot_camera_frames, plot_sensor_comparison
     from geovs_drake.simulation import simulate

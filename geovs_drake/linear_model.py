@@ -11,7 +11,7 @@ then its twist on the dynamic loop):
 
 Its readers: the integrator's step limit (:mod:`geovs_drake.simulation.step_limit`), the
 linearisation studies, which check it against Drake's ``Linearize``
-(:mod:`geovs_drake.analysis.linearization`), gain design and the arm at the goal. It sits
+(:mod:`geovs_drake.analysis.linear.linearization`), gain design and the arm at the goal. It sits
 below the simulation layer, as pure linear algebra over the scenario and the geometry.
 """
 
@@ -127,7 +127,7 @@ def closed_form_A(
     * kinematic (Eqs. 17-19): ``A = -k C_chart^-1 H C_chart``.
 
     ``damping``: the B the loop runs with (:attr:`ResolvedScenario.damping`), by default
-    ``control.damping``. :mod:`geovs_drake.analysis.linearization` checks it against
+    ``control.damping``. :mod:`geovs_drake.analysis.linear.linearization` checks it against
     Drake's ``Linearize``.
     """
     plant = plant or config.plant

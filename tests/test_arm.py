@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from geovs_drake.analysis.arm_study import linearize_arm_at_goal
+from geovs_drake.analysis.linear.arm_study import linearize_arm_at_goal
 from geovs_drake.loop.arm import (
     Unreachable,
     _better_solution,
@@ -376,7 +376,7 @@ def test_the_arm_enters_its_own_camera_s_view_and_the_rendered_camera_draws_it(r
     it: the label image of the rendered camera shows the arm's links there (more than 5
     % of the frame), and none of them at the goal. The feature extractor takes the arm's
     blob, cut by the image border, for the sphere: the rendered loop stops at t = 0."""
-    from geovs_drake.analysis.arm_study import arm_pixels
+    from geovs_drake.analysis.linear.arm_study import arm_pixels
 
     config = _arm()
     (start,) = [s for s in load_suite().scenarios if s.name == "translation_and_roll"]

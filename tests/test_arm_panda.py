@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 
-from geovs_drake.analysis.arm_study import linearize_arm_at_goal
+from geovs_drake.analysis.linear.arm_study import linearize_arm_at_goal
 from geovs_drake.loop.arm import (
     arm_model,
     camera_jacobians,

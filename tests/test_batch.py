@@ -12,7 +12,7 @@ import pytest
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-from geovs_drake.analysis.monte_carlo import random_initial_poses
+from geovs_drake.analysis.studies.monte_carlo import random_initial_poses
 from geovs_drake.batch import STATUS_NAMES, loop_parameters, run_batch
 from geovs_drake.diagrams import (
     initial_body_states,

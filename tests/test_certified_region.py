@@ -15,9 +15,9 @@ import math
 import numpy as np
 import pytest
 
-from geovs_drake.analysis.certified_region import certify_region, minimal_field, taylor_field
-from geovs_drake.analysis.linearization import linearize
-from geovs_drake.analysis.region import _minimal, check_inside, lyapunov_region, states_of
+from geovs_drake.analysis.linear.certified_region import certify_region, minimal_field, taylor_field
+from geovs_drake.analysis.linear.linearization import linearize
+from geovs_drake.analysis.linear.region import _minimal, check_inside, lyapunov_region, states_of
 from geovs_drake.batch.engine import _rhs, loop_parameters
 from geovs_drake.geometry.taylor import Jet, monomials, variables
 from geovs_drake.scenario import ScenarioConfig

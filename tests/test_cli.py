@@ -662,12 +662,12 @@ def test_the_command_line_starts_without_the_loop():
 
     heavy = (
         "geovs_drake.simulation", "geovs_drake.loop", "geovs_drake.systems", "geovs_drake.batch",
-        "geovs_drake.analysis.sweep", "geovs_drake.analysis.robustness",
+        "geovs_drake.analysis.sweep", "geovs_drake.analysis.studies.robustness",
     )  # fmt: skip
     code = (
         "import sys, geovs_drake.cli as c; c.build_parser(); "
         f"print(sorted(m for m in sys.modules if m.startswith({heavy!r}) "
-        "and m != 'geovs_drake.analysis.robustness_levels'))"
+        "and m != 'geovs_drake.analysis.studies.robustness_levels'))"
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]", done.stdout

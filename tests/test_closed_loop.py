@@ -11,8 +11,8 @@ from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RigidTransform
 from pydrake.multibody.tree import JacobianWrtVariable, RotationalInertia, SpatialInertia
 
-from geovs_drake.analysis.linearization import linearize_at_goal, navigation_hessian
-from geovs_drake.analysis.monte_carlo import (
+from geovs_drake.analysis.linear.linearization import linearize_at_goal, navigation_hessian
+from geovs_drake.analysis.studies.monte_carlo import (
     drake_monte_carlo,
     random_initial_poses,
     run_scenarios,

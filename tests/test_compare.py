@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from geovs_drake.analysis import compare
+from geovs_drake.analysis.studies import compare
 from geovs_drake.cli import main
 from geovs_drake.scenario import (
     LAW_VARIANTS,

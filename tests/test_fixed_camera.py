@@ -190,7 +190,7 @@ def test_fixed_camera_scene_has_a_still_camera_and_a_moving_sphere():
 
 
 def test_tools_built_for_the_eye_in_hand_loop_refuse_the_fixed_camera():
-    from geovs_drake.analysis.linearization import linearize_at_goal
+    from geovs_drake.analysis.linear.linearization import linearize_at_goal
     from geovs_drake.batch.engine import loop_parameters
 
     config = ScenarioConfig(mount="fixed")

@@ -9,13 +9,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from geovs_drake.analysis.gain_design import (
+from geovs_drake.analysis.linear.gain_design import (
     SETTLING_FRACTION,
     decay_check,
     design_gains,
     root_locus,
 )
-from geovs_drake.analysis.linearization import linearize
+from geovs_drake.analysis.linear.linearization import linearize
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.spectrum import assert_spectra_close
 

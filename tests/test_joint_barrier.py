@@ -219,7 +219,7 @@ def test_the_barrier_width_shrinks_the_goals_the_arm_can_reach():
     0 there): the count of reachable goals never grows with w, and at w = 0 it is every
     goal IK reaches; the default goal (1.98 rad from its nearest limit) stays reachable
     for the widths the docs suggest."""
-    from geovs_drake.analysis.arm_study import reachable_goals
+    from geovs_drake.analysis.linear.arm_study import reachable_goals
     from geovs_drake.loop.arm import joint_limit_margins, solve_joints
 
     config = ScenarioConfig(carrier="arm", plant="dynamic")

@@ -15,7 +15,7 @@ from pydrake.autodiffutils import AutoDiffXd, InitializeAutoDiff
 from pydrake.math import RigidTransform
 from pydrake.symbolic import Expression, Variable
 
-from geovs_drake.analysis.nf_study import random_features_in_domain
+from geovs_drake.analysis.studies.nf_study import random_features_in_domain
 from geovs_drake.geometry import _codegen, kernels
 from geovs_drake.geometry._ops import MATH
 from geovs_drake.geometry.camera import camera_map, camera_map_inverse

@@ -14,15 +14,15 @@ import copy
 import numpy as np
 import pytest
 
-from geovs_drake.analysis.latency import (
+from geovs_drake.analysis.linear.latency import (
     latency_margin,
     latency_study,
     sampled_model,
     slowest_stable_rate,
     spectral_radius,
 )
-from geovs_drake.analysis.linearization import rig_spatial_inertia
-from geovs_drake.analysis.robustness import sampled_spectral_radius, soft_gains
+from geovs_drake.analysis.linear.linearization import rig_spatial_inertia
+from geovs_drake.analysis.studies.robustness import sampled_spectral_radius, soft_gains
 from geovs_drake.scenario import ScenarioConfig
 
 

@@ -22,7 +22,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
-from geovs_drake.analysis.linearization import (
+from geovs_drake.analysis.linear.linearization import (
     INPUTS,
     OUTPUTS,
     closed_form_A,

@@ -9,7 +9,7 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.symbolic import Expression, Variable
 
 from geovs_drake import ImageFeatures, camera_map, so3_exp
-from geovs_drake.analysis.nf_study import (
+from geovs_drake.analysis.studies.nf_study import (
     chart_basis,
     chart_hessian,
     critical_point_search,

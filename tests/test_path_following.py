@@ -9,7 +9,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.analysis import Simulator
 
 from geovs_drake import camera_map, image_jacobian
-from geovs_drake.analysis.path_following import model_error_study, tracking_errors
+from geovs_drake.analysis.studies.path_following import model_error_study, tracking_errors
 from geovs_drake.cli import main
 from geovs_drake.diagrams import make_kinematic_servo_diagram
 from geovs_drake.geometry._ops import DRAKE, MATH

@@ -13,7 +13,7 @@ import pytest
 from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
 
 from geovs_drake import SafeDomain, camera_map, camera_map_inverse
-from geovs_drake.analysis.nf_study import random_features_in_domain
+from geovs_drake.analysis.studies.nf_study import random_features_in_domain
 from geovs_drake.geometry.features import (
     FEATURE_FAILURES,
     TargetMarks,

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from geovs_drake.analysis.region import (
+from geovs_drake.analysis.linear.region import (
     _minimal,
     _vdot,
     check_inside,

@@ -29,7 +29,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.sensors import RgbdSensor
 
-from geovs_drake.analysis.camera_accuracy import feature_accuracy
+from geovs_drake.analysis.studies.camera_accuracy import feature_accuracy
 from geovs_drake.cli import exit_code_of, main
 from geovs_drake.diagrams import (
     initial_rig_state,

@@ -12,12 +12,12 @@ import math
 import numpy as np
 import pytest
 
-from geovs_drake.analysis.linearization import (
+from geovs_drake.analysis.linear.linearization import (
     closed_form_A,
     linearize_at_goal,
     rig_spatial_inertia,
 )
-from geovs_drake.analysis.robustness import (
+from geovs_drake.analysis.studies.robustness import (
     case_config,
     plot_robustness,
     potential_stiffness,

@@ -95,8 +95,8 @@ def test_the_closed_forms_readers_refuse_a_loop_it_does_not_model_alike(changes)
     design_gains refuse the arm and the fixed camera in one line naming the two fields
     (one rule, linear_model.closed_form_refusal), and the step limit falls back on its
     cap there (no stability bound from a model that is not the loop's)."""
-    from geovs_drake.analysis.gain_design import design_gains
-    from geovs_drake.analysis.linearization import linearize, linearize_at_goal
+    from geovs_drake.analysis.linear.gain_design import design_gains
+    from geovs_drake.analysis.linear.linearization import linearize, linearize_at_goal
 
     config = ScenarioConfig(**changes)
     fields = f"carrier = {config.carrier!r}, mount = {config.mount!r}"

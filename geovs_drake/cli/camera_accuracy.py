@@ -1,5 +1,5 @@
 """``geovs-drake camera-accuracy``: the rendered camera's y against the exact c(H)
-(:mod:`geovs_drake.analysis.camera_accuracy`)."""
+(:mod:`geovs_drake.analysis.studies.camera_accuracy`)."""
 
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``camera-accuracy``; the exit code."""
     check_at_least_1(args, "poses")
     config = load_config(args)
-    from geovs_drake.analysis.camera_accuracy import feature_accuracy
+    from geovs_drake.analysis.studies.camera_accuracy import feature_accuracy
 
     result = feature_accuracy(
         config, n=args.poses, resolution=tuple(args.resolution), seed=args.seed

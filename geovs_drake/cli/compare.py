@@ -64,7 +64,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``compare``; the exit code."""
-    from geovs_drake.analysis import compare
+    from geovs_drake.analysis.studies import compare
 
     check_at_least_1(args, "workers")
     base = load_config(args)  # the scenario every start of the suite is put into

@@ -1,9 +1,9 @@
 """``geovs-drake linearize``: the loop's linear model at the goal or at a pose
-(:func:`geovs_drake.analysis.linearization.linearize`): its eigenvalues, damping ratios
+(:func:`geovs_drake.analysis.linear.linearization.linearize`): its eigenvalues, damping ratios
 and time constants, and whether it is stable; on request the studies built on it: gains
-for a response (:mod:`~geovs_drake.analysis.gain_design`), a camera's rate and latency
-(:mod:`~geovs_drake.analysis.latency`) and a sampled Lyapunov region
-(:mod:`~geovs_drake.analysis.region`)."""
+for a response (:mod:`~geovs_drake.analysis.linear.gain_design`), a camera's rate and latency
+(:mod:`~geovs_drake.analysis.linear.latency`) and a sampled Lyapunov region
+(:mod:`~geovs_drake.analysis.linear.region`)."""
 
 from __future__ import annotations
 
@@ -124,7 +124,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def summary(lin) -> dict:
-    """The JSON object of a :class:`~geovs_drake.analysis.linearization.LoopLinearization`."""
+    """The JSON object of a
+    :class:`~geovs_drake.analysis.linear.linearization.LoopLinearization`."""
     lam = lin.eigenvalues
 
     def finite_or_none(values: np.ndarray) -> list[float | None]:
@@ -143,7 +144,7 @@ def summary(lin) -> dict:
 
 
 def _design(config, args) -> dict:
-    from geovs_drake.analysis.gain_design import design_gains
+    from geovs_drake.analysis.linear.gain_design import design_gains
 
     zeta = args.damping_ratio
     if zeta is None and config.plant == "dynamic":
@@ -175,7 +176,7 @@ def _design(config, args) -> dict:
 
 
 def _camera(config, args) -> dict:
-    from geovs_drake.analysis.latency import check_camera, sampled_model
+    from geovs_drake.analysis.linear.latency import check_camera, sampled_model
 
     rate = config.camera.rate if args.camera_rate is None else args.camera_rate
     check_camera(rate, args.latency)
@@ -193,8 +194,8 @@ def _camera(config, args) -> dict:
 
 
 def _region(config, certify: bool, solver: str) -> dict:
-    from geovs_drake.analysis.certified_region import certify_region
-    from geovs_drake.analysis.region import lyapunov_region
+    from geovs_drake.analysis.linear.certified_region import certify_region
+    from geovs_drake.analysis.linear.region import lyapunov_region
 
     r = lyapunov_region(config)
     out = {
@@ -265,7 +266,7 @@ def _studies_table(out: dict) -> list[str]:
 
 
 def _locus(config, lin, path: Path) -> None:
-    from geovs_drake.analysis.gain_design import root_locus
+    from geovs_drake.analysis.linear.gain_design import root_locus
     from geovs_drake.plotting import plot_root_locus
 
     name = "potential_gain" if config.plant == "dynamic" else "kinematic_gain"
@@ -299,7 +300,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         check_out(args.out)
     config = load_config(args)
-    from geovs_drake.analysis.linearization import linearize, state_at
+    from geovs_drake.analysis.linear.linearization import linearize, state_at
     from geovs_drake.scenario import PoseConfig
     from geovs_drake.simulation import StartOutsideDomain, check_start
 
@@ -328,7 +329,7 @@ def run(args: argparse.Namespace) -> int:
             args.latency = 0 if args.latency is None else args.latency
             out["camera"] = _camera(config, args)
         if args.certify:
-            from geovs_drake.analysis.certified_region import check_solver
+            from geovs_drake.analysis.linear.certified_region import check_solver
 
             check_solver(args.sos_solver)
     except ValueError as e:

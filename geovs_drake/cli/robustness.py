@@ -1,5 +1,5 @@
 """``geovs-drake robustness``: the loop through a camera under pixel noise, focal-length
-and radius errors, latency and the camera rate (:mod:`geovs_drake.analysis.robustness`)."""
+and radius errors, latency and the camera rate (:mod:`geovs_drake.analysis.studies.robustness`)."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from geovs_drake.cli._options import (
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """The ``robustness`` command."""
-    from geovs_drake.analysis.robustness_levels import LEVELS, SHRINK
+    from geovs_drake.analysis.studies.robustness_levels import LEVELS, SHRINK
 
     p = add_command(
         sub,
@@ -93,7 +93,7 @@ def _check(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``robustness``; the exit code."""
-    from geovs_drake.analysis.robustness import robustness_study
+    from geovs_drake.analysis.studies.robustness import robustness_study
 
     _check(args)
     config = load_config(args)

@@ -45,9 +45,9 @@ import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 
 from geovs_drake.analysis._pool import map_scenarios
-from geovs_drake.analysis.latency import SampledModel
-from geovs_drake.analysis.linearization import rig_spatial_inertia
-from geovs_drake.analysis.robustness_levels import LEVELS, NOMINAL, SHRINK
+from geovs_drake.analysis.linear.latency import SampledModel
+from geovs_drake.analysis.linear.linearization import rig_spatial_inertia
+from geovs_drake.analysis.studies.robustness_levels import LEVELS, NOMINAL, SHRINK
 from geovs_drake.geometry.camera import camera_map, camera_map_inverse, image_jacobian
 from geovs_drake.geometry.features import FEATURE_FAILURES, TargetMarks, pinhole_measurement
 from geovs_drake.geometry.navigation import NavigationFunction
@@ -135,7 +135,7 @@ def potential_stiffness(
     damping, y the noise-free measurement (:func:`_measured`), and the pose is
     perturbed on the right in the camera's frame, ``X_BC exp(eps)``, eps =
     (rotation, translation): the coordinates of
-    :func:`~geovs_drake.analysis.linearization.closed_form_A`, whose K it equals for
+    :func:`~geovs_drake.analysis.linear.linearization.closed_form_A`, whose K it equals for
     the exact sensor (a test checks). Central differences: the measurement is a fit,
     not a formula to differentiate. With calibration errors this is where they
     enter the loop's stiffness: a focal error scales every measured angle, a
@@ -170,7 +170,7 @@ def sampled_spectral_radius(config: ScenarioConfig) -> float:
     coordinates (eps, nu) at frame k; between frames ``xdot = A_d x + A_p
     x_{k-L}``, ``A_d = [[0, I], [0, -M^-1 B]]`` (kinematics and the damping
     ``config.damping``, continuous) and ``A_p = [[0, 0], [-M^-1 K, 0]]`` (the
-    potential, sampled and held). :class:`~geovs_drake.analysis.latency.SampledModel`
+    potential, sampled and held). :class:`~geovs_drake.analysis.linear.latency.SampledModel`
     discretises it (Drake's ``DiscreteTimeApproximation``, a zero-order hold) and adds
     the delay. Below 1: locally stable.
     """

@@ -5,7 +5,7 @@ and the batch engine's check that every start inside converges.
 The paper's guarantee is global on D for ``E0 < k_p`` (at rest: every pose of D, where
 ``phi < 1``). A linear certificate is local and smaller, but it is what a user of
 Drake's linear tools reaches for. In the minimal coordinates centred at the goal,
-``x = (g, dp, Omega, V)`` (:func:`~geovs_drake.analysis.linearization.pose_error`'s
+``x = (g, dp, Omega, V)`` (:func:`~geovs_drake.analysis.linear.linearization.pose_error`'s
 Gibbs vector and position offset, then the camera's body twist; the pose alone on
 the kinematic body), ``A`` is the goal's minimal model (Drake's ``Linearize``) and
 ``P`` solves ``A^T P + P A = -Q`` (Drake's ``RealContinuousLyapunovEquation``,
@@ -29,7 +29,7 @@ import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RealContinuousLyapunovEquation, RigidTransform, RotationMatrix
 
-from geovs_drake.analysis.linearization import linearize, pose_error
+from geovs_drake.analysis.linear.linearization import linearize, pose_error
 from geovs_drake.batch.engine import _rhs, loop_parameters, run_batch
 from geovs_drake.geometry._ops import MATH, NUMPY
 from geovs_drake.geometry.camera import camera_map, visibility

@@ -1,5 +1,5 @@
 """The robustness study's settings, apart from the study
-(:mod:`geovs_drake.analysis.robustness`): the
+(:mod:`geovs_drake.analysis.studies.robustness`): the
 command line reads them for its help without importing the loop."""
 
 from __future__ import annotations

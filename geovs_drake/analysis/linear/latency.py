@@ -4,7 +4,7 @@ checked against the pinhole-sensor loop.
 A camera gives y every ``T = 1 / camera.rate`` seconds, ``camera.latency_frames`` (L)
 frames late, and the law holds it between frames
 (:class:`~geovs_drake.systems.PinholeFeatureSensor`). The loop's linearisation at the
-goal (:func:`~geovs_drake.analysis.linearization.linearize`, Drake's ``Linearize``)
+goal (:func:`~geovs_drake.analysis.linear.linearization.linearize`, Drake's ``Linearize``)
 splits along its feature-noise input: the law reads the image's chart coordinate
 ``xi = C_xi x`` (``C_xi`` = y's rows of C in the NF's chart) through ``B_n``, so
 
@@ -28,7 +28,7 @@ import numpy as np
 from pydrake.systems.analysis import DiscreteTimeApproximation
 from pydrake.systems.primitives import LinearSystem
 
-from geovs_drake.analysis.linearization import INPUTS, OUTPUTS, linearize, noise_directions
+from geovs_drake.analysis.linear.linearization import INPUTS, OUTPUTS, linearize, noise_directions
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 from geovs_drake.simulation import simulate
 

@@ -1,7 +1,7 @@
 """The region of attraction certified by sum of squares: Drake's ``RegionOfAttraction``
 on the Taylor expansion of the closed loop in minimal coordinates.
 
-:mod:`~geovs_drake.analysis.region` finds, by sampling, the largest level of the
+:mod:`~geovs_drake.analysis.linear.region` finds, by sampling, the largest level of the
 linearisation's Lyapunov function ``V = x^T P x`` on which the nonlinear loop's Vdot
 is negative. This module certifies a level with a proof, for a polynomial model:
 
@@ -47,7 +47,7 @@ from pydrake.solvers import ClarabelSolver, CsdpSolver, ScsSolver
 from pydrake.systems.analysis import RegionOfAttraction, RegionOfAttractionOptions
 from pydrake.systems.primitives import SymbolicVectorSystem
 
-from geovs_drake.analysis.region import (
+from geovs_drake.analysis.linear.region import (
     LyapunovRegion,
     _vdot,
     lyapunov_region,
@@ -105,7 +105,7 @@ def minimal_field(config: ScenarioConfig, x, p: LoopParameters | None = None) ->
     any scalar the kernels take (float, AutoDiffXd, :class:`~geovs_drake.geometry.taylor.Jet`).
 
     The pose is ``X_WC = X_WC* (Cay(g), dp)`` (``Cay(g)`` the rotation of the quaternion
-    ``(1, g/2)`` normalised; :func:`~geovs_drake.analysis.region.states_of`), the
+    ``(1, g/2)`` normalised; :func:`~geovs_drake.analysis.linear.region.states_of`), the
     twist ``(Omega, V)`` the camera's body twist.
     """
     p = loop_parameters(config) if p is None else p
@@ -248,7 +248,7 @@ class CertifiedRegion:
 
     def as_region(self) -> LyapunovRegion:
         """The certified set as a :class:`LyapunovRegion` (for
-        :func:`~geovs_drake.analysis.region.sample_inside` and ``check_inside``)."""
+        :func:`~geovs_drake.analysis.linear.region.sample_inside` and ``check_inside``)."""
         s = self.sampled
         return LyapunovRegion(
             s.plant, s.A, s.P, self.rho, s.rays, s.failing_level, f"certified ({self.solver})"

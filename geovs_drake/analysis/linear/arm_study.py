@@ -152,7 +152,7 @@ def reachable_goals(
 ) -> ReachableGoals:
     """Sample n goal poses X_BC in D, 0.2-0.8 m from the target, and count those the
     arm reaches with every joint ``w`` or more from its limits, for each width w."""
-    from geovs_drake.analysis.region import poses_in_domain
+    from geovs_drake.analysis.linear.region import poses_in_domain
     from geovs_drake.loop.arm import Unreachable, joint_limit_margins
     from geovs_drake.sampling import random_visible_poses
 
