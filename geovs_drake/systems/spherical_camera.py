@@ -26,6 +26,8 @@ from geovs_drake.systems._parameters import (
 
 __all__ = ["SphericalCamera", "SphericalCamera_"]
 
+#: A MultibodyPlant free body's state: [q (4), p (3), w (3), v (3)].
+BODY_STATE_SIZE = 13
 # Layout of the one numeric parameter: radius, X_WB, X_RC, domain.
 _RADIUS, _X_WB, _X_RC, _DOMAIN = 0, slice(1, 13), slice(13, 25), slice(25, 29)
 #: A pose parameter's rotation (row-major) and translation.
@@ -46,14 +48,19 @@ def SphericalCamera_(T):
             name: SphericalCamera
             input_ports:
             - body_pose
+            - body_state
             output_ports:
             - image_features
             - visibility
             - domain_margins
 
-        ``body_pose`` is the rig's pose X_WR as ``[qw, qx, qy, qz, x, y, z]``
-        (the first 7 entries of a MultibodyPlant free-body state). The camera
-        frame C sits at X_RC on the rig (Appendix C.0.6).
+        The rig's pose X_WR comes from one of two inputs; connect (or fix) one:
+        ``body_pose``, ``[qw, qx, qy, qz, x, y, z]`` (a kinematic body's pose), or
+        ``body_state``, a MultibodyPlant free body's 13-vector state ``[q, p, w, v]``
+        as the plant's state port gives it (no Demultiplexer: the camera reads its first
+        7 entries), the convention of ``ImageJacobianForce``'s input of the same name.
+        ``body_pose`` wins where both have a value. The camera frame C sits at X_RC on
+        the rig (Appendix C.0.6).
 
         ``image_features`` is y = c(X_CB) as the 13-vector ``[q1, q2, q3,
         lambda, s]``; ``visibility`` is nu(X_CB) of Eq. (5);
@@ -92,6 +99,9 @@ def SphericalCamera_(T):
                 )
             )
             self.body_pose_input = self.DeclareVectorInputPort(name="body_pose", size=POSE_SIZE)
+            self.body_state_input = self.DeclareVectorInputPort(
+                name="body_state", size=BODY_STATE_SIZE
+            )
             self.image_features_output = self.DeclareVectorOutputPort(
                 name="image_features",
                 size=13,
@@ -147,9 +157,20 @@ def SphericalCamera_(T):
             """The safe domain D in ``context``."""
             return SafeDomain(*floats(read(context, self._params_index)[_DOMAIN]))
 
+        def body_pose(self, context):
+            """X_WR as ``[q, p]`` (7), from ``body_pose`` or else ``body_state``'s first 7
+            entries; ValueError naming both ports when neither has a value."""
+            if self.body_pose_input.HasValue(context):
+                return self.body_pose_input.Eval(context)
+            if self.body_state_input.HasValue(context):
+                return self.body_state_input.Eval(context)[:POSE_SIZE]
+            raise ValueError(
+                "SphericalCamera: connect (or fix) body_pose or body_state; neither has a value"
+            )
+
         def pose_terms(self, context) -> tuple:
             """``(rho, r2, r3, d)``: the radius and the parts of X_CB the camera map uses."""
-            x = self.body_pose_input.Eval(context).tolist()
+            x = self.body_pose(context).tolist()
             p = read(context, self._params_index)
             R_WR = quaternion_to_rotation(x[0:4], namespace(x[0]))
             R_RC, p_RC = p[_X_RC][_ROTATION], p[_X_RC][_TRANSLATION]
@@ -167,7 +188,7 @@ def SphericalCamera_(T):
         # ---------------------------------------------------------- outputs
         def _image(self, context) -> tuple:
             """(nu, *y) by the generated kernel (compiled for floats)."""
-            x = self.body_pose_input.Eval(context)
+            x = self.body_pose(context)
             p = param_vector(context, self._params_index, T)
             return _camera_image(x, p)
 
