@@ -149,7 +149,7 @@ def real_time_factors(config: ScenarioConfig, repeat: int) -> dict[str, float]:
             else:
                 simulator = Simulator(diagram)
             if not monitor and scenario_integrator:
-                ApplySimulatorConfig(config.simulator, simulator)
+                ApplySimulatorConfig(config.simulator.to_drake(), simulator)
                 # The step limit the other rows run with (simulation.step_limit).
                 simulator.get_mutable_integrator().set_maximum_step_size(limit)
             simulator.Initialize()

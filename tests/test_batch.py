@@ -41,7 +41,7 @@ def _drake_state_at(config: ScenarioConfig, x0: np.ndarray, t: float) -> np.ndar
     truth.simulator.integration_scheme = "runge_kutta5" if dynamic else "runge_kutta3"
     truth.simulator.accuracy = 1e-10 if dynamic else 1e-9
     simulator = Simulator(build(truth, log=False))
-    ApplySimulatorConfig(truth.simulator, simulator)
+    ApplySimulatorConfig(truth.simulator.to_drake(), simulator)
     simulator.get_mutable_context().SetContinuousState(x0)
     simulator.AdvanceTo(t)
     return simulator.get_context().get_continuous_state_vector().CopyToVector()

@@ -45,8 +45,12 @@ def test_the_stable_step_of_a_real_mode_is_rk3s_real_axis_bound():
 
 def test_a_limit_the_user_sets_is_used_as_given():
     config = ScenarioConfig(plant="kinematic")
-    # Not set: Drake's own default, which Drake's ApplySimulatorConfig runs as it is.
-    assert config.simulator.max_step_size == SimulatorConfig().max_step_size
+    # Not set: None, automatic; Drake's struct gets Drake's own default for it.
+    assert config.simulator.max_step_size is None and step_limit(resolve(config)).automatic
+    assert config.simulator.to_drake().max_step_size == SimulatorConfig().max_step_size
+    # Any value is the user's, Drake's default 0.1 too (it used to read as "not set").
+    config.simulator.max_step_size = SimulatorConfig().max_step_size
+    assert step_limit(resolve(config)).max_step_size == 0.1
     config.simulator.max_step_size = DEFAULT_MAX_STEP  # the old default, now explicit
     limit = step_limit(resolve(config))
     assert not limit.automatic and limit.max_step_size == DEFAULT_MAX_STEP
@@ -110,3 +114,16 @@ def test_the_closed_forms_readers_refuse_a_loop_it_does_not_model_alike(changes)
         assert str(error.value) == f"{who}: the closed form is the eye-in-hand free rig's: {fields}"
     limit = step_limit(resolve(config))
     assert limit.stable_step is None and limit.max_step_size == DEFAULT_MAX_STEP
+
+
+def test_the_step_limit_reads_from_yaml_unset_or_a_value_and_a_bad_one_is_one_line():
+    from geovs_drake.scenario import load_scenario
+
+    assert load_scenario(data="simulator: {max_step_size: null}").simulator.max_step_size is None
+    assert load_scenario(data="simulator: {max_step_size: 0.02}").simulator.max_step_size == 0.02
+    for bad in ("0", "-0.1", ".nan"):
+        with pytest.raises(
+            ValueError, match=r"simulator.max_step_size must be finite and > 0 \[s\], or unset"
+        ) as e:
+            load_scenario(data=f"simulator: {{max_step_size: {bad}}}").validate()
+        assert len(str(e.value).splitlines()) == 1

@@ -32,7 +32,6 @@ from geovs_drake.scenario.laws import (
 from geovs_drake.scenario.load import load_scenario
 from geovs_drake.scenario.resolution import ResolvedScenario, free_twin, resolve
 from geovs_drake.scenario.schema import (
-    AUTOMATIC_STEP,
     CARRIERS,
     DEFAULT_MAX_STEP,
     MOUNTS,
@@ -46,12 +45,12 @@ from geovs_drake.scenario.schema import (
     PoseConfig,
     RigConfig,
     ScenarioConfig,
+    SimulatorSettings,
     damping_of,
 )
 from geovs_drake.scenario.suite import SuiteConfig, SuiteScenario, default_suite_path, load_suite
 
 __all__ = [
-    "AUTOMATIC_STEP",
     "CARRIERS",
     "CONTROLLERS",
     "DEFAULT_MAX_STEP",
@@ -74,6 +73,7 @@ __all__ = [
     "ResolvedScenario",
     "RigConfig",
     "ScenarioConfig",
+    "SimulatorSettings",
     "Spherical",
     "SuiteConfig",
     "SuiteScenario",

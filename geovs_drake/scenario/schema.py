@@ -36,7 +36,6 @@ from geovs_drake.scenario.laws import (
 )
 
 __all__ = [
-    "AUTOMATIC_STEP",
     "CARRIERS",
     "DEFAULT_MAX_STEP",
     "MOUNTS",
@@ -50,6 +49,7 @@ __all__ = [
     "PoseConfig",
     "RigConfig",
     "ScenarioConfig",
+    "SimulatorSettings",
     "damping_of",
 ]
 
@@ -311,6 +311,11 @@ class CameraConfig:
             )
 
 
+def _is_real(value: object) -> bool:
+    """A number that is not a bool."""
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 def _finite_numbers(values, n: int) -> list[float] | None:
     """``values`` as n finite floats, or None if it is not that."""
     try:
@@ -323,24 +328,33 @@ def _finite_numbers(values, n: int) -> list[float] | None:
 #: The automatic step limit's cap [s]; the NF's loops on the free rig run with the
 #: smaller of it and their goal's stability bound (:mod:`geovs_drake.simulation.step_limit`).
 DEFAULT_MAX_STEP = 0.05
-#: ``simulator.max_step_size`` at Drake's own default (``SimulatorConfig()``'s, 0.1 s), the
-#: default scenario's: not set, the step limit is automatic
-#: (:func:`geovs_drake.simulation.step_limit.step_limit`); any other value is the user's
-#: and is used as given. Why Drake's default and not a 0 or None: the struct stays one
-#: that Drake's ``ApplySimulatorConfig`` runs as it is (a zero limit would crawl), for
-#: code that builds its own Simulator from it. The price: a user's 0.1 reads as not set.
-AUTOMATIC_STEP = SimulatorConfig().max_step_size
 
 
-def _default_simulator() -> SimulatorConfig:
-    return SimulatorConfig(
-        integration_scheme="runge_kutta3",
-        accuracy=1e-6,
-        max_step_size=AUTOMATIC_STEP,
-        use_error_control=True,
-        target_realtime_rate=0.0,
-        publish_every_time_step=False,
-    )
+@dataclass
+class SimulatorSettings:
+    """The simulator: Drake's ``SimulatorConfig`` fields, the same names in YAML, with the
+    project's defaults (RK3 at accuracy 1e-6). ``max_step_size`` [s] left unset (None,
+    ``null`` in YAML) is automatic: the goal's stability bound, at most
+    :data:`DEFAULT_MAX_STEP` (:func:`geovs_drake.simulation.step_limit.step_limit`); a
+    value is the user's and is used as given. :meth:`to_drake` gives Drake's struct for
+    ``ApplySimulatorConfig``."""
+
+    integration_scheme: str = "runge_kutta3"
+    max_step_size: float | None = None
+    accuracy: float = 1e-6
+    use_error_control: bool = True
+    start_time: float = 0.0
+    target_realtime_rate: float = 0.0
+    publish_every_time_step: bool = False
+
+    def to_drake(self, max_step_size: float | None = None) -> SimulatorConfig:
+        """Drake's ``SimulatorConfig`` of these settings, its maximum step
+        ``max_step_size`` (the loop's step limit) where given, else the configured one
+        (Drake's own default where that is automatic)."""
+        step = self.max_step_size if max_step_size is None else max_step_size
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        fields["max_step_size"] = SimulatorConfig().max_step_size if step is None else step
+        return SimulatorConfig(**fields)
 
 
 @dataclass
@@ -398,7 +412,7 @@ class ScenarioConfig:
     duration: float = 30.0
     #: Samples per second of the logged signals.
     log_rate: float = 50.0
-    simulator: SimulatorConfig = field(default_factory=_default_simulator)
+    simulator: SimulatorSettings = field(default_factory=SimulatorSettings)
 
     def validate(self) -> None:
         """Raise ValueError naming the first bad field and its value.
@@ -458,10 +472,10 @@ class ScenarioConfig:
                 f"one Drake knows ({', '.join(schemes)})"
             )
         step = self.simulator.max_step_size
-        if not (math.isfinite(step) and step > 0):
+        if step is not None and not (_is_real(step) and math.isfinite(step) and step > 0):
             raise ValueError(
-                f"simulator.max_step_size must be finite and > 0 [s] ({AUTOMATIC_STEP:g}, "
-                f"Drake's default: automatic, from the goal's stability bound), got {step!r}"
+                "simulator.max_step_size must be finite and > 0 [s], or unset (null: "
+                f"automatic, from the goal's stability bound), got {step!r}"
             )
         twist = _finite_numbers(self.initial_velocity, 6)
         if twist is None:

@@ -277,7 +277,7 @@ def make_simulator(
     is called with each accepted step's time (progress); ``max_step_size``, if given,
     is the integrator's step limit, by default the one
     :func:`~geovs_drake.simulation.step_limit.step_limit` decides for ``config`` (the
-    configured ``simulator.max_step_size`` is Drake's default where it is automatic).
+    configured ``simulator.max_step_size`` is None where it is automatic).
     A law with feature points
     (point IBVS) gets them checked too (:func:`feature_point_check`). For the dynamic
     loop (a diagram with a ``plant``) the context starts in the carrier's start
@@ -285,7 +285,7 @@ def make_simulator(
     rig its pose and the velocity that gives the camera ``config.initial_velocity``.
     """
     simulator = Simulator(diagram)
-    ApplySimulatorConfig(config.simulator, simulator)
+    ApplySimulatorConfig(config.simulator.to_drake(), simulator)
     if max_step_size is None:  # decided in one place (simulation.step_limit)
         max_step_size = step_limit(resolve(config)).max_step_size
     simulator.get_mutable_integrator().set_maximum_step_size(max_step_size)

@@ -16,9 +16,8 @@ It is the one place that decides the step limit: the simulator
 (:func:`~geovs_drake.simulation.monitor.make_simulator`) and the batch engine both read
 :attr:`StepLimit.max_step_size`.
 
-Who decides. ``simulator.max_step_size`` left at Drake's default
-(:data:`~geovs_drake.scenario.AUTOMATIC_STEP`, 0.1 s, the default scenario's) means
-"not set": the loop runs with the automatic limit, the smaller of
+Who decides. ``simulator.max_step_size`` left unset (None, the default scenario's)
+is automatic: the loop runs with the smaller of
 :data:`~geovs_drake.scenario.DEFAULT_MAX_STEP` and the stability bound's share. Any
 other value is the user's and is used as given, with one warning line
 (:meth:`StepLimit.warning`) where it puts the goal's fastest mode outside the region.
@@ -36,7 +35,6 @@ import numpy as np
 
 from geovs_drake.linear_model import closed_form_A, closed_form_refusal
 from geovs_drake.scenario import (
-    AUTOMATIC_STEP,
     DEFAULT_MAX_STEP,
     Nf,
     ResolvedScenario,
@@ -66,7 +64,7 @@ class StepLimit:
     """The step limit the loop runs with, and the goal's fastest mode that sets it.
 
     ``max_step_size``: what the integrator runs with [s]; ``automatic``: True where
-    ``simulator.max_step_size`` was left at :data:`~geovs_drake.scenario.AUTOMATIC_STEP`
+    ``simulator.max_step_size`` was left unset (None)
     (then it is ``min(DEFAULT_MAX_STEP, STABILITY_MARGIN * stable_step)``), False where
     it is the user's value as given; ``fastest_mode``: the goal's eigenvalue of largest
     modulus [1/s] (of a conjugate pair, the member with Im >= 0) and ``stable_step``:
@@ -93,8 +91,8 @@ class StepLimit:
             f"simulator.max_step_size {self.max_step_size:g} s puts the goal's fastest mode "
             f"({lam.real:.4g}{lam.imag:+.4g}j 1/s) outside {scheme}'s stability region "
             f"(h |lambda| = {self.max_step_size * abs(lam):.3g}, bound at h = "
-            f"{self.stable_step:.3g} s): the pose error may stall near the goal; leave it at "
-            f"{AUTOMATIC_STEP:g} for the automatic {STABILITY_MARGIN * self.stable_step:.3g} s"
+            f"{self.stable_step:.3g} s): the pose error may stall near the goal; leave it "
+            f"unset for the automatic {STABILITY_MARGIN * self.stable_step:.3g} s"
         )
 
 
@@ -106,9 +104,9 @@ def _stable(coefficients: tuple[float, ...], z: np.ndarray) -> bool:
 def step_limit(resolved: ResolvedScenario) -> StepLimit:
     """The :class:`StepLimit` the loop runs with (the one place it is decided)."""
     config = resolved.config
-    configured = float(config.simulator.max_step_size)
-    automatic = configured == AUTOMATIC_STEP
-    chosen = DEFAULT_MAX_STEP if automatic else configured
+    configured = config.simulator.max_step_size
+    automatic = configured is None
+    chosen = DEFAULT_MAX_STEP if automatic else float(configured)
     bound = stable_step(resolved)
     if bound is None:
         return StepLimit(max_step_size=chosen, automatic=automatic)
