@@ -41,8 +41,8 @@ from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
 from geovs_drake.analysis.linear.linearization import config_at_goal
-from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
 from geovs_drake.geometry import kernels
+from geovs_drake.loop import build_loop
 from geovs_drake.scenario import ScenarioConfig, resolve
 from geovs_drake.simulation import make_simulator, simulate
 from geovs_drake.simulation.step_limit import step_limit
@@ -116,7 +116,7 @@ def framework_floor(config: ScenarioConfig) -> float:
         [0.0] * 6 if self.dphi_input.Eval(c) is not None else []
     )
     try:
-        evaluate, _ = derivative_timer(make_dynamic_servo_diagram(config, log=False))
+        evaluate, _ = derivative_timer(build_loop(config, log=False).diagram)
         return best(evaluate, 2000)
     finally:
         (
@@ -127,9 +127,6 @@ def framework_floor(config: ScenarioConfig) -> float:
 
 
 def real_time_factors(config: ScenarioConfig, repeat: int) -> dict[str, float]:
-    build = (
-        make_dynamic_servo_diagram if config.plant == "dynamic" else make_kinematic_servo_diagram
-    )
     limit = step_limit(resolve(config)).max_step_size
     out = {}
     out["simulate() (recorder)"] = max(
@@ -143,9 +140,10 @@ def real_time_factors(config: ScenarioConfig, repeat: int) -> dict[str, float]:
     ):
         rates = []
         for _ in range(repeat):
-            diagram = build(config, log=log)
+            loop = build_loop(config, log=log)
+            diagram = loop.diagram
             if monitor:
-                simulator, _ = make_simulator(diagram, config)
+                simulator, _ = make_simulator(loop)
             else:
                 simulator = Simulator(diagram)
             if not monitor and scenario_integrator:
@@ -169,7 +167,7 @@ def main() -> None:
     t_numpy = best(lambda: R @ v, 20000)
     t_floor = framework_floor(config)
 
-    diagram = make_dynamic_servo_diagram(config, log=False)
+    diagram = build_loop(config, log=False).diagram
     diagram_eval, ctx = derivative_timer(diagram)
     bare_eval = bare_timer(diagram, ctx)
     bare_eval()  # load the compiled kernels
@@ -209,7 +207,7 @@ def main() -> None:
                    DRAKE_DEFAULT, rates["Drake's default Simulator"]),
         ]  # fmt: skip
 
-    lin_diagram = make_dynamic_servo_diagram(config_at_goal(config), log=False)
+    lin_diagram = build_loop(config_at_goal(config), log=False).diagram
     lin_ctx = lin_diagram.CreateDefaultContext()
 
     def linearize() -> None:

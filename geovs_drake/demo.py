@@ -163,8 +163,8 @@ def run_demo(
     rendered run is skipped, with a line saying why).
 
     Bad ``out`` or ``duration`` raise ValueError before anything is written."""
-    from geovs_drake.diagrams import make_dynamic_servo_diagram
     from geovs_drake.geometry.navigation import NavigationFunction
+    from geovs_drake.loop import build_loop
     from geovs_drake.plotting import (
         plot_image_view,
         plot_navigation_slices,
@@ -211,7 +211,7 @@ def run_demo(
         config.domain.to_domain(), config.goal_features(), config.navigation.to_gains()
     )
     plot_navigation_slices(nf, out / "nf_slices.png")
-    write_block_diagram(make_dynamic_servo_diagram(config, log=False), out / "block_diagram")
+    write_block_diagram(build_loop(config, log=False).diagram, out / "block_diagram")
     print(result.one_line())
     if meshcat:
         # Drake's log line names a localhost URL that dies with this process; the

@@ -14,11 +14,8 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
 from geovs_drake.analysis.studies.monte_carlo import random_initial_poses
 from geovs_drake.batch import STATUS_NAMES, loop_parameters, run_batch
-from geovs_drake.diagrams import (
-    initial_body_states,
-    make_dynamic_servo_diagram,
-    make_kinematic_servo_diagram,
-)
+from geovs_drake.loop import build_loop
+from geovs_drake.loop.state import initial_body_states
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 from geovs_drake.simulation import simulate
 
@@ -31,16 +28,13 @@ def _starts(config: ScenarioConfig, n: int, seed: int) -> np.ndarray:
 
 
 def _drake_state_at(config: ScenarioConfig, x0: np.ndarray, t: float) -> np.ndarray:
-    build = (
-        make_dynamic_servo_diagram if config.plant == "dynamic" else make_kinematic_servo_diagram
-    )
     truth = copy.deepcopy(config)
     # Tight: RK5 at 1e-10 for the dynamic loop; RK3 at 1e-9 for the kinematic one, where
     # Drake's RK5 crawls (its error control meets the NF's steep walls near the boundary).
     dynamic = config.plant == "dynamic"
     truth.simulator.integration_scheme = "runge_kutta5" if dynamic else "runge_kutta3"
     truth.simulator.accuracy = 1e-10 if dynamic else 1e-9
-    simulator = Simulator(build(truth, log=False))
+    simulator = Simulator(build_loop(truth, log=False).diagram)
     ApplySimulatorConfig(truth.simulator.to_drake(), simulator)
     simulator.get_mutable_context().SetContinuousState(x0)
     simulator.AdvanceTo(t)

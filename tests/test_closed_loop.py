@@ -19,12 +19,9 @@ from geovs_drake.analysis.studies.monte_carlo import (
     scenarios_from_starts,
 )
 from geovs_drake.batch import run_batch
-from geovs_drake.diagrams import (
-    RIG_BODY_NAME,
-    make_dynamic_servo_diagram,
-    make_kinematic_servo_diagram,
-)
 from geovs_drake.geometry.navigation import NavigationFunction
+from geovs_drake.loop import build_loop
+from geovs_drake.loop.carriers import RIG_BODY_NAME
 from geovs_drake.scenario import Pbvs, PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import StartOutsideDomain, make_simulator, pose_error, simulate
 
@@ -74,8 +71,8 @@ def test_kinematic_eigenvalues_are_minus_gain_times_nf_hessian():
 
 
 def test_diagrams_are_named_and_convert_to_autodiff():
-    d = make_dynamic_servo_diagram(log=False)
-    k = make_kinematic_servo_diagram(log=False)
+    d = build_loop(ScenarioConfig(), log=False).diagram
+    k = build_loop(ScenarioConfig(plant="kinematic"), log=False).diagram
     assert d.get_name() == "dynamic_visual_servo" and k.get_name() == "kinematic_visual_servo"
     for name in ("plant", "spherical_camera", "navigation_controller", "image_jacobian_force"):
         d.GetSubsystemByName(name)
@@ -112,9 +109,9 @@ def test_logs_match_drakes_own_loggers(controller):
     config = ScenarioConfig(plant=controller, duration=3.0)
     config.simulator.accuracy = 1e-8
     r = simulate(config)
-    build = make_dynamic_servo_diagram if controller == "dynamic" else make_kinematic_servo_diagram
-    diagram = build(config, log=True)
-    simulator, _ = make_simulator(diagram, config)
+    loop = build_loop(config, log=True)
+    diagram = loop.diagram
+    simulator, _ = make_simulator(loop)
     simulator.AdvanceTo(config.duration)
     root = simulator.get_context()
     worst = 0.0
@@ -284,8 +281,9 @@ def test_initial_velocity_is_the_cameras_body_twist_in_drake(offset):
     velocity Jacobian at Co re-expressed in C, and by differencing G along qdot."""
     config = _with_offset() if offset else ScenarioConfig()
     config.initial_velocity = list(MOVING)
-    diagram = make_dynamic_servo_diagram(config, log=False)
-    simulator, _ = make_simulator(diagram, config)
+    loop = build_loop(config, log=False)
+    diagram = loop.diagram
+    simulator, _ = make_simulator(loop)
     plant = diagram.GetSubsystemByName("plant")
     ctx = plant.GetMyContextFromRoot(simulator.get_context())
     rig = plant.GetBodyByName(RIG_BODY_NAME)

@@ -6,8 +6,9 @@ import shutil
 import numpy as np
 import pytest
 
-from geovs_drake.diagrams import make_kinematic_servo_diagram
+from geovs_drake.loop import build_loop
 from geovs_drake.plotting import write_block_diagram
+from geovs_drake.scenario import ScenarioConfig
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -47,14 +48,16 @@ def test_demo_writes_every_result(tmp_path, run_cli):
 
 def test_block_diagram_is_skipped_with_a_message_without_dot(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(shutil, "which", lambda name: None)
-    assert write_block_diagram(make_kinematic_servo_diagram(log=False), tmp_path / "d") == []
+    kinematic = build_loop(ScenarioConfig(plant="kinematic"), log=False).diagram
+    assert write_block_diagram(kinematic, tmp_path / "d") == []
     assert "skipping the block diagram" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
 
 
 @pytest.mark.skipif(shutil.which("dot") is None, reason="Graphviz's dot is not installed")
 def test_block_diagram_svg_names_the_systems(tmp_path):
-    files = write_block_diagram(make_kinematic_servo_diagram(log=False), tmp_path / "k")
+    kinematic = build_loop(ScenarioConfig(plant="kinematic"), log=False).diagram
+    files = write_block_diagram(kinematic, tmp_path / "k")
     svg = files[0].read_text()
     for name in ("kinematic_rigid_body", "spherical_camera", "kinematic_controller"):
         assert name in svg

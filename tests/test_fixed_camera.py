@@ -14,13 +14,10 @@ from pydrake.multibody.tree import (
     SpatialInertia,
 )
 
-from geovs_drake.diagrams import (
-    TARGET_BODY_NAME,
-    fixed_camera_pose,
-    initial_rig_state,
-    make_fixed_camera_diagram,
-)
 from geovs_drake.geometry.rigid import camera_body_velocity
+from geovs_drake.loop import build_loop
+from geovs_drake.loop.carriers import TARGET_BODY_NAME
+from geovs_drake.loop.state import fixed_camera_pose, initial_rig_state
 from geovs_drake.scenario import Nf, PathFollowing, ScenarioConfig
 from geovs_drake.simulation import simulate
 from geovs_drake.systems import FixedCameraKinematicMount, FixedCameraMount
@@ -169,7 +166,7 @@ def test_fixed_camera_scene_has_a_still_camera_and_a_moving_sphere():
     the free target body; simulate draws it in Meshcat."""
     config = ScenarioConfig(mount="fixed", duration=0.5)
     meshcat = Meshcat()
-    diagram = make_fixed_camera_diagram(config, meshcat=meshcat, log=False)
+    diagram = build_loop(config, meshcat=meshcat, log=False).diagram
     plant = diagram.GetSubsystemByName("plant")
     scene_graph = diagram.GetSubsystemByName("scene_graph")
     inspector = scene_graph.model_inspector()
@@ -186,7 +183,7 @@ def test_fixed_camera_scene_has_a_still_camera_and_a_moving_sphere():
     assert meshcat.HasPath(f"/drake/visualizer/{TARGET_BODY_NAME}")
     assert result.status == "not_converged"  # 0.5 s: under way
     with pytest.raises(ValueError, match="meshcat needs the dynamic plant"):
-        make_fixed_camera_diagram(ScenarioConfig(mount="fixed", plant="kinematic"), meshcat)
+        build_loop(ScenarioConfig(mount="fixed", plant="kinematic"), meshcat)
 
 
 def test_tools_built_for_the_eye_in_hand_loop_refuse_the_fixed_camera():

@@ -34,7 +34,6 @@ from geovs_drake.analysis.linear.linearization import (
     wrench_to_generalized_force,
 )
 from geovs_drake.batch.engine import _rhs, loop_parameters
-from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
 from geovs_drake.geometry.camera import ImageFeatures, camera_map
 from geovs_drake.geometry.navigation import NavigationFunction, image_chart
 from geovs_drake.linear_model import chart_jacobian, navigation_hessian
@@ -86,8 +85,7 @@ def _batch_rhs(config: ScenarioConfig):
 def test_A_matches_central_differences_of_the_batch_engine_and_drakes_linearize(plant):
     config = ScenarioConfig(plant=plant)
     f = _batch_rhs(config)
-    build = make_dynamic_servo_diagram if plant == "dynamic" else make_kinematic_servo_diagram
-    diagram = build(config, log=False)
+    diagram = build_loop(config, log=False).diagram
     for x0 in _states_in_D(plant, seed=21):
         lin = linearize(config, x0)
         assert not lin.at_equilibrium and type(lin.system).__name__ == "AffineSystem"

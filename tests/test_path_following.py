@@ -11,7 +11,6 @@ from pydrake.systems.analysis import Simulator
 from geovs_drake import camera_map, image_jacobian
 from geovs_drake.analysis.studies.path_following import model_error_study, tracking_errors
 from geovs_drake.cli import main
-from geovs_drake.diagrams import make_kinematic_servo_diagram
 from geovs_drake.geometry._ops import DRAKE, MATH
 from geovs_drake.geometry.camera import ImageFeatures
 from geovs_drake.geometry.image_path import (
@@ -24,6 +23,7 @@ from geovs_drake.geometry.image_path import (
 )
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.geometry.servo import path_following_velocity
+from geovs_drake.loop import build_loop
 from geovs_drake.planning import PathPlanningError, plan_for_scenario, plan_path
 from geovs_drake.scenario import PathFollowing, PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import simulate
@@ -260,7 +260,7 @@ def test_feedback_shrinks_each_geodesic_error_as_exp_minus_k_t():
     )
     config.simulator.accuracy = 1e-10
     plan = plan_for_scenario(config)
-    diagram = make_kinematic_servo_diagram(config, log=True)
+    diagram = build_loop(config, log=True).diagram
     simulator = Simulator(diagram)
     config_sim = config.simulator
     simulator.get_mutable_integrator().set_target_accuracy(config_sim.accuracy)

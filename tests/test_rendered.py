@@ -31,15 +31,12 @@ from pydrake.systems.sensors import RgbdSensor
 
 from geovs_drake.analysis.studies.camera_accuracy import feature_accuracy
 from geovs_drake.cli import exit_code_of, main
-from geovs_drake.diagrams import (
-    initial_rig_state,
-    make_pinhole_servo_diagram,
-    make_rendered_servo_diagram,
-    vtk_camera_info,
-)
 from geovs_drake.geometry.camera import camera_map, camera_map_inverse
 from geovs_drake.geometry.features import FEATURE_FAILURES, TargetMarks
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
+from geovs_drake.loop import build_loop
+from geovs_drake.loop.sensors import vtk_camera_info
+from geovs_drake.loop.state import initial_rig_state
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.simulation import make_simulator, simulate
 from geovs_drake.systems import FeatureExtractor, PinholeFeatureSensor
@@ -176,8 +173,9 @@ def test_a_lost_feature_holds_the_last_y_and_stops_the_run():
     # is past the limb seen from the default start.
     config = ScenarioConfig()
     config.camera.sensor = "pinhole"
-    diagram = make_pinhole_servo_diagram(config, log=False)
-    simulator, monitor = make_simulator(diagram, config)
+    loop = build_loop(config, log=False)
+    diagram = loop.diagram
+    simulator, monitor = make_simulator(loop)
     sensor = diagram.GetSubsystemByName("feature_sensor")
     params = sensor.GetMyMutableContextFromRoot(simulator.get_mutable_context())
     p = params.get_mutable_numeric_parameter(0)
@@ -217,7 +215,12 @@ def test_the_rendered_loop_follows_the_pinhole_loop(short_runs):
 
 def test_the_rendered_diagram_is_named_and_wired():
     config = ScenarioConfig()
-    diagram = make_rendered_servo_diagram(config, camera_rate=15.0, resolution=(160, 120))
+    config.camera.sensor, config.camera.rate, config.camera.resolution = (
+        "rendered",
+        15.0,
+        [160, 120],
+    )
+    diagram = build_loop(config).diagram
     assert diagram.get_name() == "rendered_visual_servo"
     extractor = diagram.GetSubsystemByName("feature_sensor")
     root = diagram.CreateDefaultContext()

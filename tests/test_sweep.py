@@ -19,9 +19,10 @@ import pytest
 from pydrake.common.yaml import yaml_dump_typed
 
 from geovs_drake.analysis import sweep
-from geovs_drake.diagrams import initial_body_states, make_dynamic_servo_diagram
 from geovs_drake.geometry.camera import camera_map
 from geovs_drake.geometry.navigation import NavigationFunction
+from geovs_drake.loop import build_loop
+from geovs_drake.loop.state import initial_body_states
 from geovs_drake.scenario import ScenarioConfig
 
 FAILED = ("left_domain", "lost_visibility", "non_finite")
@@ -64,7 +65,7 @@ def test_starts_lie_in_D_and_below_the_energy_bound():
     )
 
     # E0 from Drake: the plant's kinetic energy of each start's state, plus k_p phi0.
-    plant = make_dynamic_servo_diagram(config, log=False).GetSubsystemByName("plant")
+    plant = build_loop(config, log=False).diagram.GetSubsystemByName("plant")
     context = plant.CreateDefaultContext()
     kinetic = np.empty(n)
     for i, x in enumerate(initial_body_states(config, X_BC, twists)):
@@ -443,7 +444,7 @@ from geovs_drake.analysis.sweep.parts import Part, run_part
 text, parameters = pickle.loads(sys.stdin.buffer.read())
 part = Part(text, 0, 0, 3, 1.0, "batch", parameters, seed=4, velocity="bounded")
 summary, table = run_part(part)
-heavy = [m for m in ("geovs_drake.diagrams", "geovs_drake.loop.build", "pydrake.multibody.plant")
+heavy = [m for m in ("geovs_drake.loop.build", "pydrake.multibody.plant")
          if m in sys.modules]
 sys.stdout.buffer.write(pickle.dumps((heavy, table.to_pandas())))
 """

@@ -127,11 +127,10 @@ def loop_parameters(config: ScenarioConfig) -> LoopParameters:
         )
     # Here, not at the top: a sweep's workers get these parameters from the client and
     # run the kernels without importing the Drake systems (geovs_drake._lazy).
-    from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
+    from geovs_drake.loop.build import build_loop
 
     dynamic = config.plant == "dynamic"
-    build = make_dynamic_servo_diagram if dynamic else make_kinematic_servo_diagram
-    diagram = build(config, log=False)
+    diagram = build_loop(config, log=False).diagram
     root = diagram.CreateDefaultContext()
 
     def params(name: str) -> np.ndarray:

@@ -9,7 +9,7 @@ from geovs_drake._lazy import attach
 __getattr__, __dir__, __all__ = attach(
     __name__,
     {
-        "build": ("Loop", "build_loop", "loop_of", "refusal"),
+        "build": ("Loop", "build_loop", "refusal"),
         "carriers": ("CARRIERS", "CarrierParts"),
         "laws": ("LAWS", "Law", "twist_law"),
         "sensors": ("SENSORS",),

@@ -48,7 +48,7 @@ from geovs_drake.loop.sensors import SENSORS, add_feature_loggers
 from geovs_drake.scenario import ResolvedScenario, ScenarioConfig, resolve
 from geovs_drake.systems import NavigationController, SphericalCamera, VelocityTrackingForce
 
-__all__ = ["DISTURBANCES", "FEATURE_SIZE", "Loop", "build_loop", "loop_of", "refusal"]
+__all__ = ["DISTURBANCES", "FEATURE_SIZE", "Loop", "build_loop", "refusal"]
 
 #: The size of y = (Q, lambda, s) as the ports carry it (Q as 9 entries).
 FEATURE_SIZE = 13
@@ -184,11 +184,7 @@ def build_loop(
         carrier.add_meshcat(builder, meshcat)
     diagram = builder.Build()
     diagram.set_name(_diagram_name(config))
-    loop = Loop(diagram, resolved, carrier, camera, nav, features, feature_sensor, disturbance)
-    # The simulator, the monitor and the logs find the parts from the diagram
-    # the earlier builders return (loop_of).
-    diagram.geovs_loop = loop
-    return loop
+    return Loop(diagram, resolved, carrier, camera, nav, features, feature_sensor, disturbance)
 
 
 def _drive(
@@ -242,14 +238,3 @@ class _DisturbedForce:
     @property
     def wrench_C_output(self) -> OutputPort:
         return self._disturbed(self._force.wrench_C_output, "wrench_C")
-
-
-def loop_of(diagram: Diagram) -> Loop:
-    """The :class:`Loop` a diagram was built as (by :func:`build_loop` or a builder over
-    it); ValueError for a diagram built otherwise."""
-    loop = getattr(diagram, "geovs_loop", None)
-    if loop is None:
-        raise ValueError(
-            f"diagram {diagram.get_name()!r} was not built by geovs_drake.loop.build_loop"
-        )
-    return loop

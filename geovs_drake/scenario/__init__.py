@@ -30,7 +30,7 @@ from geovs_drake.scenario.laws import (
     law_name,
 )
 from geovs_drake.scenario.load import load_scenario
-from geovs_drake.scenario.resolution import ResolvedScenario, free_twin, resolve
+from geovs_drake.scenario.resolution import ResolvedScenario, exact_twin, free_twin, resolve
 from geovs_drake.scenario.schema import (
     CARRIERS,
     DEFAULT_MAX_STEP,
@@ -79,6 +79,7 @@ __all__ = [
     "SuiteScenario",
     "damping_of",
     "default_suite_path",
+    "exact_twin",
     "free_twin",
     "law_name",
     "load_scenario",

@@ -10,7 +10,7 @@ from geovs_drake.geometry.navigation import NavigationGains
 from geovs_drake.scenario.laws import LawConfig, law_name
 from geovs_drake.scenario.schema import ScenarioConfig, damping_of
 
-__all__ = ["ResolvedScenario", "free_twin", "resolve"]
+__all__ = ["ResolvedScenario", "exact_twin", "free_twin", "resolve"]
 
 
 def free_twin(config: ScenarioConfig) -> ScenarioConfig:
@@ -18,6 +18,17 @@ def free_twin(config: ScenarioConfig) -> ScenarioConfig:
     law the batch engine's kernels and the sweep's start sampler read, for a loop whose
     own carrier (the arm) they do not integrate."""
     return dataclasses.replace(config, carrier="free")
+
+
+def exact_twin(config: ScenarioConfig) -> ScenarioConfig:
+    """The same scenario with the exact sensor, y = c(H): a camera model's own errors
+    (noise, focal error, latency) dropped, since they need a camera, and the radius the
+    controller believes (``camera.radius_error``) kept. What a study of the continuous
+    loop (Drake's ``Linearize``, the batch engine's parameters) builds."""
+    camera = dataclasses.replace(
+        config.camera, sensor="exact", pixel_noise=0.0, focal_error=0.0, latency_frames=0
+    )
+    return dataclasses.replace(config, camera=camera)
 
 
 @dataclass(frozen=True)

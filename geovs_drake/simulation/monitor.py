@@ -1,6 +1,6 @@
 """The safe-domain monitor and the simulator it watches; the camera's signals along states.
 
-The monitor reads the loop's parts (:func:`geovs_drake.loop.loop_of`): the
+The monitor reads the loop's parts (:class:`geovs_drake.loop.Loop`): the
 carrier says which pose the camera reads from a state, the exact camera holds
 the parameters of the kernel that checks it.
 """
@@ -13,7 +13,7 @@ from collections.abc import Callable
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-from pydrake.systems.framework import Diagram, EventStatus
+from pydrake.systems.framework import EventStatus
 from pydrake.trajectories import PiecewisePolynomial
 
 from geovs_drake.geometry._ops import MATH, NUMPY
@@ -27,8 +27,7 @@ from geovs_drake.geometry.kernels import (
     navigation,
 )
 from geovs_drake.geometry.rigid import quaternion_to_rotation
-from geovs_drake.loop.build import loop_of
-from geovs_drake.scenario import ScenarioConfig, resolve
+from geovs_drake.loop.build import Loop
 from geovs_drake.simulation.result import MARGIN_NAMES
 from geovs_drake.simulation.step_limit import step_limit
 
@@ -99,10 +98,11 @@ class FeaturePointCheck:
         )
 
 
-def feature_point_check(diagram: Diagram, config: ScenarioConfig) -> FeaturePointCheck | None:
+def feature_point_check(loop: Loop) -> FeaturePointCheck | None:
     """The check of the law's feature points, if its system has any (point IBVS):
     its ``target_points_B`` in the diagram's default context, seen from the body
     the carrier moves (where the camera system sees the target and the camera)."""
+    diagram = loop.diagram
     if not diagram.HasSubsystemNamed("controller"):
         return None
     law = diagram.GetSubsystemByName("controller")
@@ -110,8 +110,8 @@ def feature_point_check(diagram: Diagram, config: ScenarioConfig) -> FeaturePoin
         return None
     P_B = law.target_points_B(law.CreateDefaultContext())
     names = getattr(law, "TARGET_POINT_NAMES", None)
-    carrier = loop_of(diagram).carrier
-    theta = config.domain.to_domain().fov_half_angle
+    carrier = loop.carrier
+    theta = loop.resolved.domain.fov_half_angle
     return FeaturePointCheck(P_B, carrier.X_WB, carrier.X_RC, theta, names)
 
 
@@ -143,13 +143,13 @@ class SafeDomainMonitor:
 
     def __init__(
         self,
-        diagram: Diagram,
+        loop: Loop,
         record: bool = True,
         feature_points: FeaturePointCheck | None = None,
         on_step: Callable[[float], None] | None = None,
     ) -> None:
-        self._diagram = diagram
-        self._camera = diagram.GetSubsystemByName("spherical_camera")
+        diagram = self._diagram = loop.diagram
+        self._camera = loop.camera
         self._sensor = (
             diagram.GetSubsystemByName("feature_sensor")
             if diagram.HasSubsystemNamed("feature_sensor")
@@ -160,8 +160,8 @@ class SafeDomainMonitor:
         self._on_step = on_step
         self._reason: dict[str, str] = {}
         self._params_of: tuple = (None, None)
-        self._pose_of_states = loop_of(diagram).carrier.pose_of_states
-        self._limit_check = loop_of(diagram).carrier.limit_check
+        self._pose_of_states = loop.carrier.pose_of_states
+        self._limit_check = loop.carrier.limit_check
         self.times: list[float] = []
         self.states: list[np.ndarray] = []
 
@@ -265,18 +265,18 @@ class SafeDomainMonitor:
 
 
 def make_simulator(
-    diagram: Diagram,
-    config: ScenarioConfig,
+    loop: Loop,
     record: bool = False,
     on_step: Callable[[float], None] | None = None,
     max_step_size: float | None = None,
 ) -> tuple[Simulator, SafeDomainMonitor]:
-    """A Simulator with the config's integrator and a :class:`SafeDomainMonitor`.
+    """A Simulator of ``loop`` (:func:`~geovs_drake.loop.build_loop`) with its scenario's
+    integrator and a :class:`SafeDomainMonitor` on its parts.
 
     ``record`` makes the monitor keep every accepted step (for logs); ``on_step``
     is called with each accepted step's time (progress); ``max_step_size``, if given,
     is the integrator's step limit, by default the one
-    :func:`~geovs_drake.simulation.step_limit.step_limit` decides for ``config`` (the
+    :func:`~geovs_drake.simulation.step_limit.step_limit` decides for the scenario (the
     configured ``simulator.max_step_size`` is None where it is automatic).
     A law with feature points
     (point IBVS) gets them checked too (:func:`feature_point_check`). For the dynamic
@@ -284,23 +284,24 @@ def make_simulator(
     (:attr:`~geovs_drake.loop.carriers.CarrierParts.set_initial_state`): for the free
     rig its pose and the velocity that gives the camera ``config.initial_velocity``.
     """
-    simulator = Simulator(diagram)
+    config = loop.resolved.config
+    simulator = Simulator(loop.diagram)
     ApplySimulatorConfig(config.simulator.to_drake(), simulator)
     if max_step_size is None:  # decided in one place (simulation.step_limit)
-        max_step_size = step_limit(resolve(config)).max_step_size
+        max_step_size = step_limit(loop.resolved).max_step_size
     simulator.get_mutable_integrator().set_maximum_step_size(max_step_size)
-    loop_of(diagram).carrier.set_initial_state(simulator.get_mutable_context())
+    loop.carrier.set_initial_state(simulator.get_mutable_context())
     monitor = SafeDomainMonitor(
-        diagram,
+        loop,
         record=record,
-        feature_points=feature_point_check(diagram, config),
+        feature_points=feature_point_check(loop),
         on_step=on_step,
     )
     simulator.set_monitor(monitor)
     return simulator, monitor
 
 
-def camera_signals(diagram: Diagram, root_context, states: np.ndarray) -> dict[str, np.ndarray]:
+def camera_signals(loop: Loop, root_context, states: np.ndarray) -> dict[str, np.ndarray]:
     """The camera's and the NF's outputs along a batch of states, in one call each.
 
     ``states`` is (N, n) in the diagram's continuous-state layout (a free body's
@@ -310,12 +311,11 @@ def camera_signals(diagram: Diagram, root_context, states: np.ndarray) -> dict[s
     (N,), ``margins`` (N, 4) and ``phi`` (N,); where nu <= 0, y and phi are NaN
     and every margin reads nu, as on the systems' ports.
     """
-    camera = diagram.GetSubsystemByName("spherical_camera")
-    nav = diagram.GetSubsystemByName("navigation_controller")
+    camera, nav = loop.camera, loop.navigation
     p_cam = camera.GetMyContextFromRoot(root_context).get_numeric_parameter(0).CopyToVector()
     p_nav = nav.navigation_parameters(nav.GetMyContextFromRoot(root_context))
     # The poses the camera reads from these states (the carrier says which).
-    x = loop_of(diagram).carrier.pose_of_states(np.atleast_2d(states), NUMPY)
+    x = loop.carrier.pose_of_states(np.atleast_2d(states), NUMPY)
     with np.errstate(invalid="ignore", divide="ignore"):
         out = camera_image(x, p_cam)
         nu = np.asarray(out[_NU], dtype=float)

@@ -120,8 +120,7 @@ def simulate(
     diagram = loop.diagram
     limit = step_limit(resolved)
     simulator, monitor = make_simulator(
-        diagram,
-        config,
+        loop,
         record=True,
         on_step=progress,
         max_step_size=limit.max_step_size,
@@ -160,7 +159,7 @@ def simulate(
         )
 
     times, states = monitor.resample(config.log_rate)
-    signals = camera_signals(diagram, root, states)
+    signals = camera_signals(loop, root, states)
     energy = None
     arm = arm_trace(loop, root, states) if loop.carrier.arm is not None else None
     nf_law = isinstance(resolved.law, Nf)

@@ -23,6 +23,7 @@ eigenvector of Drake's A with eigenvalue 0. ``T^+ A T`` is the minimal model.
 from __future__ import annotations
 
 import copy
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,7 +45,6 @@ from pydrake.systems.primitives import (
     Multiplexer,
 )
 
-from geovs_drake.diagrams import make_dynamic_servo_diagram, make_kinematic_servo_diagram
 from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.camera import ImageFeatures
 from geovs_drake.geometry.navigation import image_chart
@@ -60,7 +60,7 @@ from geovs_drake.linear_model import (
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.build import FEATURE_SIZE
 from geovs_drake.loop.state import initial_body_states
-from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.scenario import PoseConfig, ScenarioConfig, exact_twin
 from geovs_drake.spectrum import canonical_eigenvalues
 
 __all__ = [
@@ -123,6 +123,7 @@ class LinearizationResult:
 def config_at_goal(config: ScenarioConfig) -> ScenarioConfig:
     """A copy of ``config`` that starts at rest at the goal pose."""
     c = copy.deepcopy(config)
+    c.initial_velocity = [0.0] * 6
     c.initial = PoseConfig(list(config.goal.xyz), list(config.goal.rpy))
     return c
 
@@ -136,10 +137,7 @@ def linearize_at_goal(
     refusal = closed_form_refusal(config, "linearize_at_goal")
     if refusal is not None:
         raise ValueError(refusal)
-    if plant == "dynamic":
-        diagram = make_dynamic_servo_diagram(config, log=False)
-    else:
-        diagram = make_kinematic_servo_diagram(config, log=False)
+    diagram = build_loop(dataclasses.replace(exact_twin(config), plant=plant), log=False).diagram
     context = diagram.CreateDefaultContext()
     lin = Linearize(
         diagram,

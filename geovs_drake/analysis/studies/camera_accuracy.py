@@ -2,7 +2,7 @@
 
 :func:`feature_accuracy` draws poses in D (images uniform in D's model chart),
 renders each with the rendered loop's own ``RgbdSensor`` (the diagram of
-:func:`~geovs_drake.diagrams.make_rendered_servo_diagram`), extracts y with
+:func:`~geovs_drake.loop.build_loop` with ``camera.sensor: rendered``), extracts y with
 :func:`~geovs_drake.systems.feature_extractor.extract_features` and compares it
 with the exact y = c(H) of the same pose: the error of lambda (absolute and
 relative) and the angles between the measured and exact s, q1 and q2. A pose
@@ -12,15 +12,17 @@ whose frame gives no y is counted by its reason, not averaged in.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from geovs_drake.diagrams import initial_body_states, make_rendered_servo_diagram
 from geovs_drake.geometry.camera import camera_map_inverse
 from geovs_drake.geometry.features import FEATURE_FAILURES, TargetMarks
+from geovs_drake.loop.build import build_loop
+from geovs_drake.loop.state import initial_body_states
 from geovs_drake.sampling import random_features_in_domain
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems.feature_extractor import extract_features
@@ -70,7 +72,10 @@ class AccuracyResult:
 def render_frames(config: ScenarioConfig, X_BC: np.ndarray, resolution: tuple[int, int]):
     """Colour images (N, H, W, 4) of the rendered loop's camera at camera poses X_BC (N, 4, 4),
     with the extractor's believed intrinsics and the wall time per frame [ms]."""
-    diagram = make_rendered_servo_diagram(config, resolution=resolution, log=False)
+    camera = dataclasses.replace(
+        config.camera, sensor="rendered", resolution=[int(v) for v in resolution]
+    )
+    diagram = build_loop(dataclasses.replace(config, camera=camera), log=False).diagram
     root = diagram.CreateDefaultContext()
     plant = diagram.GetSubsystemByName("plant")
     rgbd = diagram.GetSubsystemByName("rgbd_sensor")

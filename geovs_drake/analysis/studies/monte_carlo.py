@@ -24,8 +24,8 @@ from pydrake.math import RigidTransform
 from pydrake.systems.analysis import MonteCarloSimulation
 
 from geovs_drake.analysis._pool import map_scenarios
-from geovs_drake.diagrams import make_servo_diagram
 from geovs_drake.geometry.camera import camera_map_inverse
+from geovs_drake.loop.build import build_loop
 from geovs_drake.sampling import random_features_in_domain
 from geovs_drake.scenario import PoseConfig, ScenarioConfig
 from geovs_drake.simulation import camera_pose_in_target, make_simulator, pose_error, simulate
@@ -91,7 +91,7 @@ def drake_monte_carlo(
         c = copy.deepcopy(config)
         c.initial = random_initial_poses(rng, 1, config, shrink)[0]
         starts.append(c.initial)
-        simulator, _ = make_simulator(make_servo_diagram(c, log=False), c)
+        simulator, _ = make_simulator(build_loop(c, log=False))
         return simulator
 
     outputs: list[dict] = []
