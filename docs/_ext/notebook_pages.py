@@ -55,7 +55,8 @@ def _execute(source: str, target: str) -> tuple[str, float, str | None]:
     os.dup2(devnull, 2)
     os.close(devnull)
     start = time.perf_counter()
-    for attempt in range(1, KERNEL_START_TRIES + 1):
+    attempt = 1
+    while True:
         notebook = nbformat.read(source, as_version=4)
         client = NotebookClient(
             notebook,
@@ -72,13 +73,13 @@ def _execute(source: str, target: str) -> tuple[str, float, str | None]:
         except RuntimeError as e:  # jupyter_client: "Kernel didn't respond in N seconds"
             if "Kernel didn't respond" not in str(e):
                 raise
-            if attempt == KERNEL_START_TRIES:
-                error = f"the kernel did not start ({attempt} tries): {_last_line(str(e))}"
-                return source, time.perf_counter() - start, error
-            continue
+            if attempt < KERNEL_START_TRIES:
+                attempt += 1
+                continue
+            error = f"the kernel did not start ({attempt} tries): {_last_line(str(e))}"
+            return source, time.perf_counter() - start, error
         nbformat.write(notebook, target)
         return source, time.perf_counter() - start, None
-    raise AssertionError("unreachable: every try returns or continues")
 
 
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
