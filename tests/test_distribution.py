@@ -174,3 +174,16 @@ def test_no_build_or_test_file_pins_the_blas_kernel():
     for path in files:
         if path.resolve() != Path(__file__).resolve():  # this test's own examples
             assert not setting.search(path.read_text()), path.relative_to(ROOT)
+
+
+def test_the_configs_defaults_are_the_geometrys_written_once():
+    """DomainConfig and NavigationGainsConfig read their defaults from SafeDomain and
+    NavigationGains: the default scenario's D and NF are the geometry's, the degrees of
+    the field of view exactly 35."""
+    from geovs_drake.geometry.domain import SafeDomain
+    from geovs_drake.geometry.navigation import NavigationGains
+    from geovs_drake.scenario import DomainConfig, NavigationGainsConfig
+
+    assert DomainConfig().to_domain() == SafeDomain()
+    assert NavigationGainsConfig().to_gains() == NavigationGains()
+    assert DomainConfig().fov_half_angle_deg == 35.0

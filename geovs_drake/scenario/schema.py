@@ -89,6 +89,11 @@ class PoseConfig:
         )
 
 
+#: The geometry's own defaults (the default scenario's D and NF), which the configs below
+#: read: each default is written once, in its geometry dataclass.
+_DOMAIN, _GAINS = SafeDomain(), NavigationGains()
+
+
 @dataclass
 class DomainConfig:
     """The safe domain D: the field of view's half-angle [deg], the bounds on
@@ -96,10 +101,10 @@ class DomainConfig:
     and the occlusion margin kappa in (0, 1) (see :class:`~geovs_drake.geometry.domain.SafeDomain`).
     """
 
-    fov_half_angle_deg: float = 35.0
-    lam_min: float = 0.05
-    lam_max: float = 0.4
-    occlusion_margin: float = 0.1
+    fov_half_angle_deg: float = math.degrees(_DOMAIN.fov_half_angle)
+    lam_min: float = _DOMAIN.lam_min
+    lam_max: float = _DOMAIN.lam_max
+    occlusion_margin: float = _DOMAIN.occlusion_margin
 
     def to_domain(self) -> SafeDomain:
         """The :class:`~geovs_drake.geometry.domain.SafeDomain` (degrees to radians); ValueError
@@ -117,10 +122,10 @@ class NavigationGainsConfig:
     :class:`~geovs_drake.geometry.navigation.NavigationGains`.
     """
 
-    k_lam: float = 4.0
-    k_fov: float = 2.0
-    k_occ: float = 8.0
-    circle_weight: float = 0.9
+    k_lam: float = _GAINS.k_lam
+    k_fov: float = _GAINS.k_fov
+    k_occ: float = _GAINS.k_occ
+    circle_weight: float = _GAINS.circle_weight
 
     def to_gains(self) -> NavigationGains:
         """The :class:`~geovs_drake.geometry.navigation.NavigationGains`."""
