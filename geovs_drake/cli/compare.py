@@ -19,7 +19,7 @@ from geovs_drake.cli._options import (
     load_config,
 )
 from geovs_drake.progress import Progress
-from geovs_drake.scenario import CARRIERS, load_suite
+from geovs_drake.scenario import CARRIER_NAMES, load_suite
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -42,7 +42,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "free: the paper's free rig; arm: the camera on the arm shipped in the package, "
         "each start's joints by IK (the baselines' twists through the arm's velocity-"
         "tracking torques, or the kinematic arm's J_C^+)",
-        choices=CARRIERS,
+        choices=CARRIER_NAMES,
     )
     p.add_argument(
         "--suite",
@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     check_at_least_1(args, "workers")
     base = load_config(args)  # the scenario every start of the suite is put into
     suite = load_suite(args.suite)  # bad input before anything runs
-    runs = len(suite.scenarios) * len(compare.LAWS)
+    runs = len(suite.scenarios) * len(compare.COMPARED_LAWS)
     progress = Progress(runs, "runs", "geovs-drake compare")
     try:
         result, files = compare.compare(
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
         counts = ", ".join(f"{k} {v}" for k, v in summary["counts"].items())
         print(
             f"{result.plant}: {runs} runs ({len(suite.scenarios)} scenarios x "
-            f"{len(compare.LAWS)} laws): {counts} | {result.wall_time_s:.1f} s wall | "
+            f"{len(compare.COMPARED_LAWS)} laws): {counts} | {result.wall_time_s:.1f} s wall | "
             f"{args.out}/table.md"
         )
     return EXIT_CONVERGED

@@ -11,7 +11,7 @@ from geovs_drake.cli._options import (
     exit_code_of,
     field_default,
 )
-from geovs_drake.scenario import CARRIERS
+from geovs_drake.scenario import CARRIER_NAMES
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -30,7 +30,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_duration(p, "simulated time", None, f"{field_default(('duration',)):g}")
     p.add_argument(
         "--carrier",
-        choices=CARRIERS,
+        choices=CARRIER_NAMES,
         default="free",
         help="free: the paper's free rig; arm: the camera on the arm shipped in the "
         "package, IK from the same start (default: free)",

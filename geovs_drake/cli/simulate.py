@@ -24,7 +24,7 @@ from geovs_drake.cli._options import (
     twist_arg,
 )
 from geovs_drake.progress import HorizonProgress
-from geovs_drake.scenario import CARRIERS, CONTROLLERS, IBVS_DEPTHS, MOUNTS, SENSORS
+from geovs_drake.scenario import CARRIER_NAMES, CONTROLLERS, IBVS_DEPTHS, MOUNTS, SENSOR_NAMES
 
 
 def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None:
@@ -94,7 +94,7 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         ("carrier",),
         "what carries the camera: free (the rigid body of Appendix C) or arm (a robot arm, "
         "eye-in-hand: joint torques with --plant dynamic, joint velocities with kinematic)",
-        choices=CARRIERS,
+        choices=CARRIER_NAMES,
     )
     add_field(
         p,
@@ -171,7 +171,7 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         "exact: the controller reads y = c(H); rendered: Drake renders the target "
         "(RgbdSensor, VTK) and y is extracted from each frame; pinhole: that measurement "
         "on exact image points, without rendering (dynamic plant only for the last two)",
-        choices=SENSORS,
+        choices=SENSOR_NAMES,
     )
     add_field(
         p,

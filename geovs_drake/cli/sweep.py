@@ -23,7 +23,7 @@ from geovs_drake.cli._options import (
     load_config,
 )
 from geovs_drake.progress import Progress
-from geovs_drake.scenario import CARRIERS
+from geovs_drake.scenario import CARRIER_NAMES
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -49,7 +49,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "free: the paper's free rig; arm: the camera on the arm shipped in the package "
         "(with --engine drake: each start's joints by IK, its twist carried to the joints "
         "at the same E0 / k_p)",
-        choices=CARRIERS,
+        choices=CARRIER_NAMES,
     )
     p.add_argument(
         "--starts", type=int, default=1000, metavar="N", help="number of starts (default: 1000)"

@@ -32,11 +32,11 @@ from geovs_drake.scenario.laws import (
 from geovs_drake.scenario.load import load_scenario
 from geovs_drake.scenario.resolution import ResolvedScenario, exact_twin, free_twin, resolve
 from geovs_drake.scenario.schema import (
-    CARRIERS,
+    CARRIER_NAMES,
     DEFAULT_MAX_STEP,
     MOUNTS,
     PLANTS,
-    SENSORS,
+    SENSOR_NAMES,
     ArmConfig,
     CameraConfig,
     ControlConfig,
@@ -51,14 +51,14 @@ from geovs_drake.scenario.schema import (
 from geovs_drake.scenario.suite import SuiteConfig, SuiteScenario, default_suite_path, load_suite
 
 __all__ = [
-    "CARRIERS",
+    "CARRIER_NAMES",
     "CONTROLLERS",
     "DEFAULT_MAX_STEP",
     "IBVS_DEPTHS",
     "LAW_VARIANTS",
     "MOUNTS",
     "PLANTS",
-    "SENSORS",
+    "SENSOR_NAMES",
     "ArmConfig",
     "CameraConfig",
     "ControlConfig",

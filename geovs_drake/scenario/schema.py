@@ -36,11 +36,11 @@ from geovs_drake.scenario.laws import (
 )
 
 __all__ = [
-    "CARRIERS",
+    "CARRIER_NAMES",
     "DEFAULT_MAX_STEP",
     "MOUNTS",
     "PLANTS",
-    "SENSORS",
+    "SENSOR_NAMES",
     "ArmConfig",
     "CameraConfig",
     "ControlConfig",
@@ -58,10 +58,10 @@ PLANTS = ("dynamic", "kinematic")
 #: Where the camera is: on the moving rig (eye-in-hand) or fixed in the world.
 MOUNTS = ("hand", "fixed")
 #: How the loop sees the target (``ScenarioConfig.camera.sensor``).
-SENSORS = ("exact", "rendered", "pinhole")
+SENSOR_NAMES = ("exact", "rendered", "pinhole")
 #: What carries the camera (``ScenarioConfig.carrier``): the free rigid body of
 #: Appendix C (its ``mount`` and ``plant`` say how), or a robot arm (``arm``).
-CARRIERS = ("free", "arm")
+CARRIER_NAMES = ("free", "arm")
 
 
 @dataclass
@@ -270,9 +270,9 @@ class CameraConfig:
 
     def validate(self, plant: str) -> None:
         """Raise ValueError naming the first bad field ``camera.<name>`` and its value."""
-        if self.sensor not in SENSORS:
+        if self.sensor not in SENSOR_NAMES:
             raise ValueError(
-                f"camera.sensor must be one of {', '.join(SENSORS)}, got {self.sensor!r}"
+                f"camera.sensor must be one of {', '.join(SENSOR_NAMES)}, got {self.sensor!r}"
             )
         if not (math.isfinite(self.rate) and self.rate > 0):
             raise ValueError(f"camera.rate must be finite and > 0 [Hz]: rate = {self.rate}")
@@ -405,7 +405,7 @@ class ScenarioConfig:
     #: :class:`Spherical`, baselines that command the camera's twist;
     #: :class:`PathFollowing`, a planned image path followed (Eq. 18).
     controller: Nf | Ibvs | Pbvs | Spherical | PathFollowing = field(default_factory=Nf)
-    #: What carries the camera (:data:`CARRIERS`): "free", the rigid body of
+    #: What carries the camera (:data:`CARRIER_NAMES`): "free", the rigid body of
     #: Appendix C, or "arm", the robot arm of ``arm``.
     carrier: str = "free"
     #: The arm, with ``carrier: arm``.
@@ -428,7 +428,7 @@ class ScenarioConfig:
         """
         for name, choices in (
             ("plant", PLANTS),
-            ("carrier", CARRIERS),
+            ("carrier", CARRIER_NAMES),
             ("mount", MOUNTS),
         ):
             value = getattr(self, name)

@@ -1,6 +1,6 @@
 """``geovs-drake compare``: every control law on every scenario of a suite, in one table.
 
-The laws (:data:`LAWS`) are the navigation function and the baselines of
+The laws (:data:`COMPARED_LAWS`) are the navigation function and the baselines of
 :mod:`geovs_drake.geometry.baselines` (point IBVS with each depth estimate,
 PBVS, sphere features). Each runs through :func:`geovs_drake.simulation.simulate`
 in the same plant, with the same monitor: a run stops when it leaves D, when
@@ -58,7 +58,7 @@ from geovs_drake.scenario import (
 from geovs_drake.simulation import simulate
 
 __all__ = [
-    "LAWS",
+    "COMPARED_LAWS",
     "ROW_FIELDS",
     "CompareResult",
     "Run",
@@ -75,7 +75,7 @@ __all__ = [
 
 #: The laws compared: the NF, point IBVS with each depth estimate, PBVS and the
 #: sphere features.
-LAWS: tuple[LawConfig, ...] = (
+COMPARED_LAWS: tuple[LawConfig, ...] = (
     Nf(),
     Ibvs("true"),
     Ibvs("desired"),
@@ -155,7 +155,7 @@ def suite_cases(
         raise ValueError(f"duration must be finite and > 0 [s]: duration = {duration}")
     cases = []
     for scenario in suite.scenarios:
-        for law in LAWS:
+        for law in COMPARED_LAWS:
             config = copy.deepcopy(base) if base is not None else ScenarioConfig()
             config.plant, config.controller = plant, copy.deepcopy(law)
             config.initial = scenario.initial()
@@ -227,7 +227,7 @@ def run_compare(
     base: ScenarioConfig | None = None,
     on_run: Callable[[Run], None] | None = None,
 ) -> CompareResult:
-    """Every law of :data:`LAWS` on every scenario of ``suite`` on ``plant``.
+    """Every law of :data:`COMPARED_LAWS` on every scenario of ``suite`` on ``plant``.
 
     ``workers`` processes (1: in this process; more use multiprocessing's
     spawn, so a script that calls this needs the ``if __name__ == "__main__":``
@@ -331,7 +331,7 @@ def write_tables(result: CompareResult, out_dir: str | Path) -> tuple[Path, Path
     ]
     md.write_text(
         f"# geovs-drake compare: {result.plant} plant, {len(result.suite.scenarios)} scenarios "
-        f"x {len(LAWS)} laws, {result.suite.duration:g} s each\n\n"
+        f"x {len(COMPARED_LAWS)} laws, {result.suite.duration:g} s each\n\n"
         + "Time to converge, or how the run ended:\n\n"
         + status_matrix(result.rows)
         + "\nEvery run:\n\n"
@@ -376,7 +376,7 @@ def plot_compare(result: CompareResult, out_dir: str | Path) -> list[Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    laws = [law_label(law) for law in LAWS]
+    laws = [law_label(law) for law in COMPARED_LAWS]
     colours = {law: plt.get_cmap("tab10")(i) for i, law in enumerate(laws)}
     theta = None
     conundrum = result.suite.conundrum or result.suite.scenarios[0].name
@@ -463,7 +463,7 @@ def summarize(result: CompareResult, files: Sequence[Path] = ()) -> dict:
     """The comparison as JSON-ready values: counts per status, per law the scenarios
     it converged on, the rows, the files written."""
     counts: dict[str, int] = {}
-    converged: dict[str, list[str]] = {law_label(law): [] for law in LAWS}
+    converged: dict[str, list[str]] = {law_label(law): [] for law in COMPARED_LAWS}
     for row in result.rows:
         counts[row["status"]] = counts.get(row["status"], 0) + 1
         if row["status"] == "converged":
