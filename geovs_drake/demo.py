@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 from geovs_drake._optional import MissingExtra, require
 from geovs_drake.progress import HorizonProgress
-from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.scenario import PoseConfig, ScenarioConfig, exact_twin
 
 if TYPE_CHECKING:
     from geovs_drake.simulation import SimulationResult
@@ -129,8 +129,7 @@ def run_rendered_demo(config: ScenarioConfig, out: Path) -> SimulationResult:
     rendered_config.duration = min(config.duration, RENDERED_DURATION)
     rendered_config.camera.sensor = "rendered"
     rendered = simulate(rendered_config)
-    exact_config = copy.deepcopy(rendered_config)
-    exact_config.camera.sensor = "exact"
+    exact_config = exact_twin(rendered_config)
     exact_config.control.damping = list(rendered_config.camera.damping)  # the same gains
     exact = simulate(exact_config)
     plot_sensor_comparison(

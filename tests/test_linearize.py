@@ -432,3 +432,17 @@ def test_cli_certify_reports_the_certified_level_inside_the_sampled_one(run_cli)
     assert certified["nonlinear_check"] and certified["degree"] == 3  # the kinematic default
     assert 0 < certified["level"] < region["level"] / 0.9  # below the failing level
     assert 0 < certified["largest_distance_m"] < region["largest_distance_m"] / 0.9**0.5
+
+
+def test_linearize_of_a_camera_loop_is_its_continuous_twins_whatever_the_cameras_errors():
+    """A sampled camera has no A: linearize takes the exact-sensor twin, the camera's own
+    errors (noise, latency) dropped with it (it raised 'pixel_noise needs a camera'),
+    the believed radius kept (and B the exact loop's, control.damping, as before). Drake's
+    Linearize of the exact loop is the truth."""
+    camera = ScenarioConfig()
+    camera.camera.sensor, camera.camera.pixel_noise = "pinhole", 0.5
+    camera.camera.latency_frames, camera.camera.radius_error = 1, 0.05
+    exact = ScenarioConfig()
+    exact.camera.radius_error = 0.05
+    np.testing.assert_allclose(linearize(camera).A, linearize(exact).A, rtol=0, atol=1e-12)
+    assert camera.camera.sensor == "pinhole"  # the caller's config untouched

@@ -25,10 +25,11 @@ def exact_twin(config: ScenarioConfig) -> ScenarioConfig:
     (noise, focal error, latency) dropped, since they need a camera, and the radius the
     controller believes (``camera.radius_error``) kept. What a study of the continuous
     loop (Drake's ``Linearize``, the batch engine's parameters) builds."""
-    camera = dataclasses.replace(
-        config.camera, sensor="exact", pixel_noise=0.0, focal_error=0.0, latency_frames=0
+    twin = copy.deepcopy(config)  # a copy of its own: callers vary it further
+    twin.camera = dataclasses.replace(
+        twin.camera, sensor="exact", pixel_noise=0.0, focal_error=0.0, latency_frames=0
     )
-    return dataclasses.replace(config, camera=camera)
+    return twin
 
 
 @dataclass(frozen=True)

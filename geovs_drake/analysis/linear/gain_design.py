@@ -45,7 +45,7 @@ from geovs_drake.linear_model import (
     second_order_A,
 )
 from geovs_drake.loop import build_loop
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import ScenarioConfig, exact_twin
 from geovs_drake.simulation import simulate
 from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
 from geovs_drake.spectrum import canonical_eigenvalues
@@ -259,8 +259,7 @@ def _ratio_for(M, K1, d0, zeta: float) -> float:
 def _peaks(design: GainDesign) -> None:
     """The designed loop from the scenario's start: the largest wrench (dynamic) or
     twist (kinematic) the law commands along the run (at the logged states)."""
-    config = copy.deepcopy(design.config)
-    config.camera.sensor = "exact"
+    config = exact_twin(design.config)
     result = simulate(config)
     design.run_status = result.status
     loop = build_loop(config, log=False)

@@ -393,7 +393,7 @@ def linearize(
     refusal = closed_form_refusal(config, "linearize")
     if refusal is not None:
         raise ValueError(refusal)
-    config.camera.sensor = "exact"  # a sampled camera has discrete state: no A
+    config = exact_twin(config)  # a sampled camera has discrete state: no A
     loop = build_loop(config, log=False, study_ports=True)
     diagram = _study_diagram(loop)
     x0 = state_at(config) if state is None else np.asarray(state, dtype=float)
