@@ -78,10 +78,16 @@ __all__ = [
     "vw_from_twist",
 ]
 
-#: The depth estimates of point IBVS (Chaumette & Hutchinson 2006, Sec. III.B):
-#: "true" the current matrix L_e with the true depths, "desired" L_e* (at s* and
-#: Z*, constant), "mean" (L_e + L_e*) / 2.
-IBVS_DEPTHS = ("true", "desired", "mean")
+#: The depth estimates of point IBVS (Chaumette & Hutchinson 2006, Sec. III.B), each
+#: the L it makes from the current and the goal's interaction matrices (computed only
+#: where it reads them): "true" the current matrix L_e with the true depths, "desired"
+#: L_e* (at s* and Z*, constant), "mean" (L_e + L_e*) / 2.
+_DEPTH_ESTIMATES = {
+    "true": lambda current, goal: current(),
+    "desired": lambda current, goal: goal(),
+    "mean": lambda current, goal: (current() + goal()) / 2,
+}
+IBVS_DEPTHS = tuple(_DEPTH_ESTIMATES)
 
 #: Names of the :func:`target_points`, in order (a = the arrow e2, n = e1).
 TARGET_POINT_NAMES = ("b", "b + side a", "b + side (a + n)", "b + side n")
@@ -167,14 +173,13 @@ def ibvs_interaction(
     s: np.ndarray, Z: np.ndarray, s_goal: np.ndarray, Z_goal: np.ndarray, depth: str
 ) -> np.ndarray:
     """The estimate of L that the IBVS law inverts (``depth`` in :data:`IBVS_DEPTHS`)."""
-    if depth not in IBVS_DEPTHS:
+    estimate = _DEPTH_ESTIMATES.get(depth)
+    if estimate is None:
         raise ValueError(f"ibvs depth must be one of {', '.join(IBVS_DEPTHS)}, got {depth!r}")
-    if depth == "desired":
-        return point_interaction_matrix(s_goal[0::2], s_goal[1::2], Z_goal)
-    L = point_interaction_matrix(s[0::2], s[1::2], Z)
-    if depth == "true":
-        return L
-    return (L + point_interaction_matrix(s_goal[0::2], s_goal[1::2], Z_goal)) / 2
+    return estimate(
+        lambda: point_interaction_matrix(s[0::2], s[1::2], Z),
+        lambda: point_interaction_matrix(s_goal[0::2], s_goal[1::2], Z_goal),
+    )
 
 
 def pseudo_inverse_times(L: np.ndarray, e: np.ndarray) -> np.ndarray:
