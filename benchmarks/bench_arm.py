@@ -19,7 +19,7 @@ import statistics
 
 from _record import Figure, record
 
-from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.scenario import PLANT_VARIANTS, Arm, FreeRig, PoseConfig, ScenarioConfig
 from geovs_drake.simulation import simulate
 
 #: The issue's small move: a start every carrier reaches and converges from.
@@ -37,12 +37,16 @@ LOOPS = {
 
 def run(carrier: str, plant: str, duration: float) -> tuple[float, float, str]:
     """One run of ``carrier``: free, arm (the UR5), arm+barrier or panda."""
+    arm = Arm(
+        model="panda" if carrier == "panda" else "default",
+        joint_barrier_width=BARRIER_WIDTH if carrier == "arm+barrier" else 0.0,
+    )
     config = ScenarioConfig(
-        carrier="free" if carrier == "free" else "arm", plant=plant, duration=duration,
+        carrier=FreeRig() if carrier == "free" else arm,
+        plant=PLANT_VARIANTS[plant](),
+        duration=duration,
         initial=SMALL_MOVE,
-    )  # fmt: skip
-    config.arm.joint_barrier_width = BARRIER_WIDTH if carrier == "arm+barrier" else 0.0
-    config.arm.model = "panda" if carrier == "panda" else "default"
+    )
     r = simulate(config)
     return r.sim_time_s / r.wall_time_s, r.steps / r.sim_time_s, r.status
 

@@ -20,7 +20,7 @@ from pydrake.math import RigidTransform
 from geovs_drake.batch import loop_parameters, run_batch
 from geovs_drake.geometry.camera import camera_map_inverse
 from geovs_drake.sampling import random_features_in_domain
-from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.scenario import PLANT_VARIANTS, PoseConfig, ScenarioConfig
 from geovs_drake.simulation import simulate
 
 
@@ -39,7 +39,7 @@ def main() -> None:
     args = parser.parse_args()
     figures = []
     for plant in ("dynamic", "kinematic"):
-        config = ScenarioConfig(plant=plant, duration=args.duration)
+        config = ScenarioConfig(plant=PLANT_VARIANTS[plant](), duration=args.duration)
         X_BC = starts(config, args.starts, seed=1)
         p = loop_parameters(config)
         run_batch(config, X_BC[:2], duration=0.1, parameters=p)  # load the compiled code

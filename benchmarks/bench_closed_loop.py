@@ -43,7 +43,7 @@ from pydrake.systems.primitives import Linearize
 from geovs_drake.analysis.linear.linearization import config_at_goal
 from geovs_drake.geometry import kernels
 from geovs_drake.loop import build_loop
-from geovs_drake.scenario import ScenarioConfig, resolve
+from geovs_drake.scenario import PLANT_VARIANTS, ScenarioConfig, resolve
 from geovs_drake.simulation import make_simulator, simulate
 from geovs_drake.simulation.step_limit import step_limit
 from geovs_drake.systems import ImageJacobianForce_, NavigationController_, SphericalCamera_
@@ -193,7 +193,7 @@ def main() -> None:
                "the bare evaluation", t_bare * 1e6),
     ]  # fmt: skip
     for controller in ("dynamic", "kinematic"):
-        c = ScenarioConfig(plant=controller)
+        c = ScenarioConfig(plant=PLANT_VARIANTS[controller]())
         rates = real_time_factors(c, args.repeat)
         text = ", ".join(f"{k} {v:.0f}x" for k, v in rates.items())
         print(f"real-time factor, default {controller} scenario ({c.duration:.0f} s): {text}")

@@ -25,7 +25,7 @@ from geovs_drake.analysis.linear.certified_region import certify_region
 from geovs_drake.analysis.linear.linearization import linearize, linearize_along, state_at
 from geovs_drake.analysis.linear.region import lyapunov_region
 from geovs_drake.loop import build_loop
-from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.scenario import Kinematic, PoseConfig, ScenarioConfig
 from geovs_drake.simulation import simulate
 
 #: An arbitrary state in D: a small move off the goal, moving.
@@ -57,7 +57,7 @@ def main() -> None:
     times = np.linspace(0.0, run.times[-1], 100)
     ltv = _median_s(lambda: linearize_along(run, times), max(1, args.repeat // 2))
     region = _median_s(lambda: lyapunov_region(config, rays=200), 1)
-    kinematic = ScenarioConfig(plant="kinematic", duration=10.0)
+    kinematic = ScenarioConfig(plant=Kinematic(), duration=10.0)
     kinematic.initial = START
     sampled = lyapunov_region(kinematic, rays=200)
     certify = _median_s(lambda: certify_region(kinematic, sampled=sampled), 1)

@@ -32,7 +32,7 @@ from _record import Figure, record
 
 from geovs_drake.analysis.studies.camera_accuracy import render_frames
 from geovs_drake.geometry.features import TargetMarks
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import SENSOR_VARIANTS, Rendered, ScenarioConfig
 from geovs_drake.simulation import simulate
 from geovs_drake.systems.feature_extractor import (
     FeatureExtractor_,
@@ -114,7 +114,7 @@ def main() -> None:
 
     # Frames along the rendered run from the default start (what the loop sees).
     rendered_config = copy.deepcopy(config)
-    rendered_config.camera.sensor = "rendered"
+    rendered_config.sensor = Rendered()
     run = simulate(rendered_config)
     picks = np.linspace(0, len(run.times) - 1, 40).astype(int)
     frames, believed, _ = render_frames(rendered_config, run.X_BC[picks], (320, 240))
@@ -157,7 +157,7 @@ def main() -> None:
     factors, walls = {}, {}
     for sensor in ("exact", "pinhole", "rendered"):
         c = copy.deepcopy(config)
-        c.camera.sensor = sensor
+        c.sensor = SENSOR_VARIANTS[sensor]()
         spent[:] = [0.0, 0]
         factors[sensor], result = rtf(c, args.repeat)
         walls[sensor] = result.wall_time_s

@@ -17,7 +17,7 @@ from pydrake.common.yaml import yaml_dump_typed
 from pydrake.math import RigidTransform
 
 from geovs_drake.analysis.studies.monte_carlo import random_initial_poses, scenarios_from_starts
-from geovs_drake.scenario import ScenarioConfig, load_scenario
+from geovs_drake.scenario import PLANT_VARIANTS, ScenarioConfig, load_scenario
 from geovs_drake.simulation import (
     CONVERGENCE_POSITION_M,
     CONVERGENCE_ROTATION_RAD,
@@ -47,7 +47,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=123)
     args = parser.parse_args()
     for controller in ("dynamic", "kinematic"):
-        config = ScenarioConfig(plant=controller)
+        config = ScenarioConfig(plant=PLANT_VARIANTS[controller]())
         starts = random_initial_poses(np.random.default_rng(args.seed), args.samples, config)
         texts = [yaml_dump_typed(c) for c in scenarios_from_starts(config, starts)]
         with ProcessPoolExecutor(2, mp_context=get_context("spawn")) as pool:

@@ -26,7 +26,16 @@ from typing import TYPE_CHECKING
 
 from geovs_drake._optional import MissingExtra, require
 from geovs_drake.progress import HorizonProgress
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, exact_twin
+from geovs_drake.scenario import (
+    Arm,
+    CarrierConfig,
+    FreeRig,
+    PoseConfig,
+    Rendered,
+    ScenarioConfig,
+    camera_like,
+    exact_twin,
+)
 
 if TYPE_CHECKING:
     from geovs_drake.simulation import SimulationResult
@@ -49,12 +58,14 @@ HARD_START = PoseConfig(xyz=[0.18, -0.12, -0.85], rpy=[0.12, -0.15, 2.8])
 RENDERED_DURATION = 6.0
 
 
-def demo_config(duration: float | None = None, carrier: str = "free") -> ScenarioConfig:
+def demo_config(
+    duration: float | None = None, carrier: CarrierConfig | None = None
+) -> ScenarioConfig:
     """The demo's scenario: the default one from :data:`HARD_START`, run for ``duration`` [s]
-    (default: the scenario's), on ``carrier`` (``free``: the paper's rig; ``arm``: the
-    shipped arm, whose joints IK finds for the same start).
+    (default: the scenario's), on ``carrier`` (default :class:`FreeRig`, the paper's rig;
+    ``Arm()``: the shipped arm, whose joints IK finds for the same start).
     """
-    config = ScenarioConfig(initial=HARD_START, carrier=carrier)
+    config = ScenarioConfig(initial=HARD_START, carrier=carrier or FreeRig())
     if duration is not None:
         config.duration = duration
     return config
@@ -127,17 +138,17 @@ def run_rendered_demo(config: ScenarioConfig, out: Path) -> SimulationResult:
 
     rendered_config = copy.deepcopy(config)
     rendered_config.duration = min(config.duration, RENDERED_DURATION)
-    rendered_config.camera.sensor = "rendered"
+    rendered_config.sensor = camera_like(config.sensor, Rendered)
     rendered = simulate(rendered_config)
     exact_config = exact_twin(rendered_config)
-    exact_config.control.damping = list(rendered_config.camera.damping)  # the same gains
+    exact_config.control.damping = list(rendered_config.sensor.damping)  # the same gains
     exact = simulate(exact_config)
     plot_sensor_comparison(
         {"exact y": exact, "rendered 320x240": rendered}, out / "rendered_vs_exact.png"
     )
     picks = np.unique(np.linspace(0, len(rendered.times) - 1, 3).astype(int))
     frames, believed, _ = render_frames(
-        rendered_config, rendered.X_BC[picks], tuple(rendered_config.camera.resolution)
+        rendered_config, rendered.X_BC[picks], tuple(rendered_config.sensor.resolution)
     )
     read = [extract_features(f, believed, TargetMarks().arrow_angle)[0] for f in frames]
     plot_camera_frames(frames, read, believed, rendered.times[picks], out / "camera_frames.png")
@@ -151,14 +162,15 @@ def run_demo(
     duration: float | None = None,
     meshcat: bool = True,
     rendered: bool = True,
-    carrier: str = "free",
+    carrier: CarrierConfig | None = None,
 ) -> SimulationResult:
     """Run the demo, write its files to ``out`` and print the run's line; return the run.
 
     ``rendered``: also run :func:`run_rendered_demo` (it needs OpenCV and an EGL-capable
     OpenGL) and print its line after the others.
 
-    ``carrier``: ``free`` or ``arm`` (the recording then shows the arm servoing; the
+    ``carrier``: :class:`FreeRig` (default) or :class:`Arm` (the recording then shows the
+    arm servoing; the
     rendered run is skipped, with a line saying why).
 
     Bad ``out`` or ``duration`` raise ValueError before anything is written."""
@@ -175,7 +187,8 @@ def run_demo(
     check_demo_args(out, duration)
     config = demo_config(duration, carrier)
     config.validate()
-    if rendered and carrier == "arm":
+    on_arm = isinstance(config.carrier, Arm)
+    if rendered and on_arm:
         # Measured (docs/arm.md): at 30 Hz the held frames leave D within 0.2 s on the
         # dynamic arm, whose light wrist makes the loop faster than the frames.
         print(
@@ -194,7 +207,7 @@ def run_demo(
             rendered = False
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    label = "dynamic servo on the arm" if carrier == "arm" else "dynamic servo"
+    label = "dynamic servo on the arm" if on_arm else "dynamic servo"
     bar = HorizonProgress(config.duration, label)
     try:
         if meshcat:

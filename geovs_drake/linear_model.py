@@ -29,7 +29,7 @@ from geovs_drake.geometry.navigation import (
     navigation_differential,
 )
 from geovs_drake.geometry.so3 import hat
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import FreeRig, Kinematic, PlantConfig, ScenarioConfig
 
 __all__ = [
     "chart_jacobian",
@@ -49,11 +49,11 @@ def closed_form_refusal(config: ScenarioConfig, who: str) -> str | None:
     body; the fixed camera and the arm have other dynamics). The one place that decides
     it, for the step limit, the linearisation and gain design; the law (the NF's) is
     each caller's own question."""
-    if config.carrier == "free" and config.mount == "hand":
+    if isinstance(config.carrier, FreeRig):
         return None
     return (
-        f"{who}: the closed form is the eye-in-hand free rig's: carrier = {config.carrier!r}, "
-        f"mount = {config.mount!r}"
+        f"{who}: the closed form is the eye-in-hand free rig's (carrier FreeRig), got "
+        f"carrier {type(config.carrier).__name__}"
     )
 
 
@@ -89,8 +89,9 @@ def rig_spatial_inertia(config: ScenarioConfig) -> np.ndarray:
     ``Ad^T M_R Ad``), on (Omega, V)."""
     Ad = velocity_adjoint(config.X_RC)
     M_R = np.zeros((6, 6))
-    M_R[:3, :3] = np.diag(config.rig.inertia_diagonal)
-    M_R[3:, 3:] = config.rig.mass * np.eye(3)
+    rig = config.carrier  # a FreeRig (closed_form_refusal)
+    M_R[:3, :3] = np.diag(rig.inertia_diagonal)
+    M_R[3:, 3:] = rig.mass * np.eye(3)
     return Ad.T @ M_R @ Ad
 
 
@@ -117,7 +118,9 @@ def second_order_A(M: np.ndarray, K: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 
 def closed_form_A(
-    config: ScenarioConfig, plant: str | None = None, damping: tuple[float, ...] | None = None
+    config: ScenarioConfig,
+    plant: PlantConfig | None = None,
+    damping: tuple[float, ...] | None = None,
 ) -> np.ndarray:
     """The closed-form linearisation at the goal, in minimal coordinates (the camera's
     right-trivialised displacement eps, then its twist, for the dynamic loop):
@@ -130,9 +133,9 @@ def closed_form_A(
     ``control.damping``. :mod:`geovs_drake.analysis.linear.linearization` checks it against
     Drake's ``Linearize``.
     """
-    plant = plant or config.plant
+    plant = config.plant if plant is None else plant
     K1, KC = goal_stiffness(config)
-    if plant == "kinematic":
+    if isinstance(plant, Kinematic):
         return -config.control.kinematic_gain * KC
     Bd = np.diag(config.control.damping if damping is None else damping)
     return second_order_A(rig_spatial_inertia(config), config.control.potential_gain * K1, Bd)

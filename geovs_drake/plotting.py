@@ -214,7 +214,8 @@ def plot_run(result, path: str | Path | None = None):
     ax.plot(t, result.phi, label="phi")
     if result.energy is not None:
         ax.plot(t, result.energy, label="E = 1/2 nu^T M nu + k_p phi")
-    ax.set(ylabel="Lyapunov", yscale="log", title=f"{result.config.plant} loop: {result.message}")
+    plant = result.summary()["plant"]
+    ax.set(ylabel="Lyapunov", yscale="log", title=f"{plant} loop: {result.message}")
     ax.legend()
     ax = axes[1]
     for k, name in enumerate(DomainMargins._fields):

@@ -1,6 +1,13 @@
-"""The one CLI runner of the tests: ``run_cli(*argv)`` runs ``geovs-drake`` in this process
-(``main``, argparse's own exits caught), ``run_cli(*argv, subprocess=True)`` through
-``python -m geovs_drake.cli``; both give the exit code, stdout and stderr."""
+"""What the tests share.
+
+* The one CLI runner: ``run_cli(*argv)`` runs ``geovs-drake`` in this process (``main``,
+  argparse's own exits caught), ``run_cli(*argv, subprocess=True)`` through
+  ``python -m geovs_drake.cli``; both give the exit code, stdout and stderr.
+* The scenarios the tests build on, each a fresh copy to vary: ``default_config``, and
+  the default with one axis changed, ``kinematic_config`` (``plant=Kinematic()``),
+  ``pinhole_config`` (``sensor=Pinhole()``), ``fixed_camera_config``
+  (``carrier=FixedCamera()``) and ``arm_config`` (``carrier=Arm()``).
+"""
 
 from __future__ import annotations
 
@@ -10,6 +17,38 @@ from collections.abc import Callable
 from typing import NamedTuple
 
 import pytest
+
+from geovs_drake.scenario import Arm, FixedCamera, Kinematic, Pinhole, ScenarioConfig
+
+
+@pytest.fixture
+def default_config() -> ScenarioConfig:
+    """The default scenario: the free rig, dynamic, the exact sensor, the NF."""
+    return ScenarioConfig()
+
+
+@pytest.fixture
+def kinematic_config() -> ScenarioConfig:
+    """The default scenario on the kinematic plant (Eqs. 17-19)."""
+    return ScenarioConfig(plant=Kinematic())
+
+
+@pytest.fixture
+def pinhole_config() -> ScenarioConfig:
+    """The default scenario seen through the pinhole camera at 30 Hz."""
+    return ScenarioConfig(sensor=Pinhole())
+
+
+@pytest.fixture
+def fixed_camera_config() -> ScenarioConfig:
+    """The default scenario with the camera fixed and the target driven (eye-to-hand)."""
+    return ScenarioConfig(carrier=FixedCamera())
+
+
+@pytest.fixture
+def arm_config() -> ScenarioConfig:
+    """The default scenario on the default arm (the shipped UR5), dynamic."""
+    return ScenarioConfig(carrier=Arm())
 
 
 class CliRun(NamedTuple):

@@ -26,7 +26,15 @@ from geovs_drake.loop.arm import (
     smallest_singular_values,
     solve_joints,
 )
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_suite
+from geovs_drake.scenario import (
+    Arm,
+    Dynamic,
+    Kinematic,
+    PlantConfig,
+    PoseConfig,
+    ScenarioConfig,
+    load_suite,
+)
 from geovs_drake.simulation import simulate
 from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 
@@ -52,16 +60,16 @@ def _dh_tool_position(q: np.ndarray) -> np.ndarray:
     return T[:3, 3]
 
 
-def _arm(plant: str = "dynamic") -> ScenarioConfig:
-    return ScenarioConfig(carrier="arm", plant=plant)
+def _arm(plant: PlantConfig | None = None) -> ScenarioConfig:
+    return ScenarioConfig(carrier=Arm(), plant=plant or Dynamic())
 
 
 def test_the_shipped_arm_is_the_ur5_of_its_published_dh_parameters():
     """tool0's position for random joints equals the DH forward kinematics, up to the
     half-turn about z between the URDF's base_link and the DH base frame."""
     config = _arm()
-    config.arm.base_pose = PoseConfig()
-    config.arm.camera_offset = PoseConfig()
+    config.carrier.base_pose = PoseConfig()
+    config.carrier.camera_offset = PoseConfig()
     plant = arm_plant(arm_model(config))
     context = plant.CreateDefaultContext()
     tool = plant.GetFrameByName("tool0")
@@ -140,7 +148,7 @@ def test_a_pose_out_of_reach_names_the_closest_reach(run_cli):
         "simulate", "--carrier", "arm", "--goal", "0,0,-0.5,0,0,0", "--initial-joints", "1,2"
     )
     assert run.code == 2 and run.err.count("\n") == 1
-    assert "arm.initial_joints must give the arm's 6 joints, got 2" in run.err
+    assert "carrier.initial_joints must give the arm's 6 joints, got 2" in run.err
 
 
 @pytest.mark.parametrize("start", ["default", "small_move"])
@@ -151,7 +159,7 @@ def test_the_dynamic_arm_converges_and_its_energy_never_rises(start):
     config = _arm()
     if start == "small_move":
         config.initial = SMALL_MOVE
-        config.arm.initial_joint_velocity = [0.3, -0.2, 0.25, 0.4, -0.3, 0.5]
+        config.carrier.initial_joint_velocity = [0.3, -0.2, 0.25, 0.4, -0.3, 0.5]
     result = simulate(config)
     assert result.status == "converged", result.message
     assert result.energy is not None and result.initial_energy < result.energy_bound
@@ -171,7 +179,7 @@ def test_linearize_of_the_arm_loop_at_the_goal_is_the_closed_form_through_J_C():
 
 
 def test_the_kinematic_arm_converges_from_the_small_move_and_reports_its_clipping():
-    config = _arm("kinematic")
+    config = _arm(Kinematic())
     config.initial = SMALL_MOVE
     result = simulate(config)
     assert result.status == "converged", result.message
@@ -183,9 +191,9 @@ def test_the_kinematic_arm_converges_from_the_small_move_and_reports_its_clippin
 
 def test_a_joint_beyond_its_limit_stops_the_run_with_a_status():
     """Limits tightened around the start: the monitor stops the run and names the joint."""
-    config = _arm("kinematic")
+    config = _arm(Kinematic())
     q0 = solve_joints(arm_model(config), config.X_WB @ config.X_BC_initial)
-    config.arm.initial_joints = q0.tolist()
+    config.carrier.initial_joints = q0.tolist()
     # A wrist limit 0.05 rad from the start, on the side the wrist turns (either side
     # is tried: the loop moves every joint).
     outcomes = []
@@ -216,14 +224,14 @@ def _with_limit(config: ScenarioConfig, joint: int, q0: np.ndarray) -> ScenarioC
     path = Path(tempfile.mkdtemp()) / "arm.urdf"
     path.write_text(text.replace(block, new))
     c = copy.deepcopy(config)
-    c.arm.model = str(path)
+    c.carrier.model = str(path)
     # A model file takes the frame, base and camera from the scenario: the shipped arm's.
     shipped = ARMS["default"]
-    c.arm.end_effector_frame = shipped.end_effector_frame
-    c.arm.base_pose = PoseConfig(
+    c.carrier.end_effector_frame = shipped.end_effector_frame
+    c.carrier.base_pose = PoseConfig(
         xyz=list(shipped.base_xyz_rpy[:3]), rpy=list(shipped.base_xyz_rpy[3:])
     )
-    c.arm.camera_offset = PoseConfig(
+    c.carrier.camera_offset = PoseConfig(
         xyz=list(shipped.camera_xyz_rpy[:3]), rpy=list(shipped.camera_xyz_rpy[3:])
     )
     c.duration = 3.0
@@ -244,9 +252,12 @@ def test_cli_runs_the_arm_and_its_json_reports_the_arm(run_cli):
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (["--arm", "/no/such/arm.urdf"], "arm.model must be 'default', 'panda' or a model file"),
-        (["--mount", "fixed"], "carrier 'arm' carries the camera in its hand"),
-        (["--initial-velocity", "0,0,0,0.1,0,0"], "give arm.initial_joint_velocity instead"),
+        (
+            ["--arm", "/no/such/arm.urdf"],
+            "carrier.model must be 'default', 'panda' or a model file",
+        ),
+        (["--mount", "fixed"], "the carrier here is Arm, which carries the camera in its hand"),
+        (["--initial-velocity", "0,0,0,0.1,0,0"], "give carrier.initial_joint_velocity instead"),
         (["--plant", "kinematic", "--initial-joint-velocity", "0,0,0,0,0,1"], "dynamic arm only"),
         (["--initial-joints", "1,x"], "expected numbers q1,q2,..."),
     ],
@@ -263,15 +274,14 @@ def test_a_model_drake_cannot_load_or_without_the_frame_is_one_line(tmp_path, ru
     broken.write_text("<robot name='x'><link name='a'></robot>")
     run = run_cli("simulate", "--carrier", "arm", "--arm", str(broken))
     assert run.code == 2 and run.err.count("\n") == 1, run.err
-    assert "arm.end_effector_frame must name the frame the camera rides on" in run.err
+    assert "carrier.end_effector_frame must name the frame the camera rides on" in run.err
     run = run_cli(
         "simulate", "--carrier", "arm", "--arm", str(broken),
-        "--scenario-text", "{arm: {end_effector_frame: a}}",
+        "--scenario-text", "{carrier: !Arm {end_effector_frame: a}}",
     )  # fmt: skip
     assert run.code == 2 and "Drake cannot load it" in run.err and run.err.count("\n") == 1
-    run = run_cli(
-        "simulate", "--carrier", "arm", "--scenario-text", "{arm: {end_effector_frame: hand}}"
-    )
+    text = "{carrier: !Arm {end_effector_frame: hand}}"
+    run = run_cli("simulate", "--carrier", "arm", "--scenario-text", text)
     assert run.code == 2 and "'hand' is not a frame of" in run.err, run.err
 
 
@@ -314,7 +324,7 @@ def test_the_singular_zone_s_damping_is_the_singularity_robust_inverse():
     with numpy's SVD; at the goal (sigma_min > m) lambda^2 = mu^2."""
     from geovs_drake.systems import KinematicArm
 
-    config = _arm("kinematic")
+    config = _arm(Kinematic())
     model = arm_model(config)
     plant = arm_plant(model)
     pc = plant.CreateDefaultContext()
@@ -342,12 +352,12 @@ def test_the_kinematic_arm_crosses_the_wrist_singularity_from_the_default_start(
     """From the default start the path passes sigma_min(J_C) < 0.01: with the singular
     zone damped (the default, m = 0.05) the arm converges; with the plain pseudo-inverse
     (m = 0) it spins its wrist over there and stops at wrist 3's limit."""
-    damped = simulate(_arm("kinematic"))
+    damped = simulate(_arm(Kinematic()))
     assert damped.status == "converged", damped.message
     assert damped.summary()["min_jacobian_singular_value"] < 0.01
     assert damped.summary()["min_joint_limit_margin"] > 1.0
-    plain = _arm("kinematic")
-    plain.arm.singularity_damping = 0.0
+    plain = _arm(Kinematic())
+    plain.carrier.singularity_damping = 0.0
     result = simulate(plain)
     assert result.status == "joint_limit" and "wrist_3_joint" in result.message
 
@@ -363,12 +373,12 @@ def test_the_arm_s_scene_fields_default_to_the_named_arm_s_and_a_file_s_pose_is_
     assert model.end_effector_frame == shipped.end_effector_frame == "tool0"
     assert model.base_xyz_rpy == shipped.base_xyz_rpy
     assert model.camera_xyz_rpy == shipped.camera_xyz_rpy
-    config = load_scenario(data="carrier: arm\narm: {base_pose: {xyz: [-0.8, 0.6, 1.0]}}")
+    config = load_scenario(data="carrier: !Arm {base_pose: {xyz: [-0.8, 0.6, 1.0]}}")
     model = arm_model(config)
     assert model.base_xyz_rpy == (-0.8, 0.6, 1.0, 0.0, 0.0, 0.0)
     assert model.camera_xyz_rpy == shipped.camera_xyz_rpy
-    with pytest.raises(ValueError, match=r"arm.base_pose.xyz: expected a list of 3 numbers"):
-        load_scenario(data="carrier: arm\narm: {base_pose: {xyz: [1, 2]}}")
+    with pytest.raises(ValueError, match=r"carrier.base_pose.xyz: expected a list of 3 numbers"):
+        load_scenario(data="carrier: !Arm {base_pose: {xyz: [1, 2]}}")
 
 
 def test_the_arm_enters_its_own_camera_s_view_and_the_rendered_camera_draws_it(run_cli):
@@ -394,7 +404,7 @@ def test_the_arm_enters_its_own_camera_s_view_and_the_rendered_camera_draws_it(r
 
 def test_a_model_file_s_package_uris_resolve_through_arm_packages(tmp_path, run_cli):
     """A URDF whose mesh is a package:// URI: without its folder the loop's plant (with a
-    SceneGraph, which reads the mesh) fails in one line naming arm.packages; with it
+    SceneGraph, which reads the mesh) fails in one line naming carrier.packages; with it
     the loop builds and draws the mesh; a folder that is not there is one line, exit 2."""
     from pydrake.geometry import Mesh
 
@@ -421,12 +431,12 @@ def test_a_model_file_s_package_uris_resolve_through_arm_packages(tmp_path, run_
 </robot>"""
     )
     config = _arm()
-    config.arm.model = str(urdf)
-    config.arm.end_effector_frame = "tip"
-    config.arm.initial_joints = [0.0]
+    config.carrier.model = str(urdf)
+    config.carrier.end_effector_frame = "tip"
+    config.carrier.initial_joints = [0.0]
     with pytest.raises(ValueError, match=r"unknown package 'my_arm_description' \(name its folder"):
         build_loop(resolve(config), log=False)
-    config.arm.packages = {"my_arm_description": str(package)}
+    config.carrier.packages = {"my_arm_description": str(package)}
     loop = build_loop(resolve(config), log=False)
     inspector = loop.carrier.scene_graph.model_inspector()
     shapes = [inspector.GetShape(g) for g in inspector.GetAllGeometryIds()]
@@ -434,7 +444,8 @@ def test_a_model_file_s_package_uris_resolve_through_arm_packages(tmp_path, run_
     assert len(ours) == 1 and loop.carrier.plant.num_actuators() == 1
     run = run_cli(
         "simulate", "--carrier", "arm", "--arm", str(urdf), "--scenario-text",
-        "{arm: {end_effector_frame: tip, packages: {my_arm_description: /no/such/folder}}}",
+        "{carrier: !Arm {end_effector_frame: tip, "
+        "packages: {my_arm_description: /no/such/folder}}}",
     )  # fmt: skip
     assert run.code == 2 and run.err.count("\n") == 1
-    assert "arm.packages.my_arm_description must be a folder, got '/no/such/folder'" in run.err
+    assert "carrier.packages.my_arm_description must be a folder, got '/no/such/folder'" in run.err

@@ -29,7 +29,16 @@ from geovs_drake.loop.arm import (
     smallest_singular_values,
     solve_joints,
 )
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_suite
+from geovs_drake.scenario import (
+    Arm,
+    Dynamic,
+    Kinematic,
+    PlantConfig,
+    PoseConfig,
+    ScenarioConfig,
+    load_suite,
+    variant_name,
+)
 from geovs_drake.simulation import simulate
 from geovs_drake.systems._arm_model import (
     PANDA_REFLECTED_INERTIA,
@@ -55,10 +64,8 @@ DH_ALPHA = (0.0, -math.pi / 2, math.pi / 2, math.pi / 2, -math.pi / 2, math.pi /
 FLANGE_D = 0.107
 
 
-def _panda(plant: str = "dynamic") -> ScenarioConfig:
-    config = ScenarioConfig(carrier="arm", plant=plant)
-    config.arm.model = "panda"
-    return config
+def _panda(plant: PlantConfig | None = None) -> ScenarioConfig:
+    return ScenarioConfig(carrier=Arm(model="panda"), plant=plant or Dynamic())
 
 
 def _flange(q: np.ndarray) -> np.ndarray:
@@ -79,7 +86,7 @@ def test_the_panda_is_made_ready_for_the_continuous_loop():
     limit and Franka's reflected inertia; the loop's SceneGraph has collision geometry
     (the Panda's spheres) but no pair it would test: the loop models no contact."""
     config = _panda()
-    config.arm.base_pose = PoseConfig()
+    config.carrier.base_pose = PoseConfig()
     model = arm_model(config)
     plant = arm_plant(model)
     assert plant.num_positions() == 7 and plant.time_step() == 0
@@ -129,7 +136,7 @@ def test_the_panda_scene_reaches_every_start_with_margins():
         assert smallest_singular_values(model, q[None])[0] > 0.05
 
 
-@pytest.mark.parametrize("plant", ["dynamic", "kinematic"])
+@pytest.mark.parametrize("plant", [Dynamic(), Kinematic()], ids=variant_name)
 @pytest.mark.parametrize("start", ["default", "small_move"])
 def test_the_panda_converges(plant, start):
     config = _panda(plant)
@@ -139,7 +146,7 @@ def test_the_panda_converges(plant, start):
     assert result.status == "converged", result.message
     summary = result.summary()
     assert summary["min_joint_limit_margin"] > 0 and summary["min_jacobian_singular_value"] > 0
-    if plant == "dynamic":
+    if config.dynamic:
         assert summary["lyapunov_monotone"] is True
         assert np.max(np.diff(result.energy)) <= result.lyapunov_tolerance
         # The self-motion settled too: the joints, not only the camera, are at rest.
@@ -162,10 +169,10 @@ def _self_motion_run(null_space_damping: float):
     n *= np.sign(n[np.argmax(np.abs(n))])  # SVD's sign is rounding's: fix it, largest entry > 0
     assert np.max(np.abs(J @ n)) < 1e-12
     config.initial = copy.deepcopy(config.goal)
-    config.arm.initial_joints = q.tolist()
-    config.arm.initial_joint_velocity = (0.5 * n).tolist()
-    config.arm.joint_damping = 0.0
-    config.arm.null_space_damping = null_space_damping
+    config.carrier.initial_joints = q.tolist()
+    config.carrier.initial_joint_velocity = (0.5 * n).tolist()
+    config.carrier.joint_damping = 0.0
+    config.carrier.null_space_damping = null_space_damping
     return simulate(config)
 
 

@@ -16,7 +16,7 @@ from geovs_drake.analysis.studies.monte_carlo import random_initial_poses
 from geovs_drake.batch import STATUS_NAMES, loop_parameters, run_batch
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.state import initial_body_states
-from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.scenario import PLANT_VARIANTS, PoseConfig, ScenarioConfig
 from geovs_drake.simulation import simulate
 
 OFFSET = PoseConfig(xyz=[0.03, -0.02, 0.05], rpy=[0.1, 0.2, -0.3])
@@ -31,7 +31,7 @@ def _drake_state_at(config: ScenarioConfig, x0: np.ndarray, t: float) -> np.ndar
     truth = copy.deepcopy(config)
     # Tight: RK5 at 1e-10 for the dynamic loop; RK3 at 1e-9 for the kinematic one, where
     # Drake's RK5 crawls (its error control meets the NF's steep walls near the boundary).
-    dynamic = config.plant == "dynamic"
+    dynamic = config.dynamic
     truth.simulator.integration_scheme = "runge_kutta5" if dynamic else "runge_kutta3"
     truth.simulator.accuracy = 1e-10 if dynamic else 1e-9
     simulator = Simulator(build_loop(truth, log=False).diagram)
@@ -47,10 +47,10 @@ def _drake_state_at(config: ScenarioConfig, x0: np.ndarray, t: float) -> np.ndar
 def test_batch_states_at_one_second_match_the_drake_loop(controller, moving):
     """16 starts (dynamic: camera off the rig's centre of mass, anisotropic inertia):
     the states at t = 1 s agree to 1e-6, and so do the statuses."""
-    config = ScenarioConfig(plant=controller)
+    config = ScenarioConfig(plant=PLANT_VARIANTS[controller]())
     if controller == "dynamic":
-        config.rig.camera_offset = copy.deepcopy(OFFSET)
-        config.rig.inertia_diagonal = [0.02, 0.03, 0.025]
+        config.carrier.camera_offset = copy.deepcopy(OFFSET)
+        config.carrier.inertia_diagonal = [0.02, 0.03, 0.025]
     X_BC = _starts(config, 16, seed=11)
     twists = None
     if moving:

@@ -20,9 +20,9 @@ from geovs_drake.analysis.linear.linearization import linearize
 from geovs_drake.analysis.linear.region import _minimal, check_inside, lyapunov_region, states_of
 from geovs_drake.batch.engine import _rhs, loop_parameters
 from geovs_drake.geometry.taylor import Jet, monomials, variables
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import Dynamic, Kinematic, ScenarioConfig, variant_name
 
-PLANTS = ["kinematic", "dynamic"]
+PLANTS = [Kinematic(), Dynamic()]
 
 
 def test_jets_are_the_taylor_polynomial_of_a_formula():
@@ -57,22 +57,22 @@ def _flow(config, x):
     _, s = states_of(config, x[None])
     s = s[0]
     f = np.zeros(len(s))
-    _rhs(config.plant != "dynamic", s.copy(), f, p.camera, p.navigation, p.controller, p.body)
+    _rhs(not config.dynamic, s.copy(), f, p.camera, p.navigation, p.controller, p.body)
     h = 1e-6
     return (_minimal(config, (s + h * f)[None]) - _minimal(config, (s - h * f)[None]))[0] / (2 * h)
 
 
-@pytest.mark.parametrize("plant", PLANTS)
+@pytest.mark.parametrize("plant", PLANTS, ids=variant_name)
 def test_the_minimal_field_is_the_engines_flow(plant):
     config = ScenarioConfig(plant=plant)
     rng = np.random.default_rng(4)
     for _ in range(3):
-        x = 0.03 * rng.normal(size=12 if plant == "dynamic" else 6)
+        x = 0.03 * rng.normal(size=12 if isinstance(plant, Dynamic) else 6)
         exact = minimal_field(config, x)
         assert np.allclose(exact.astype(float), _flow(config, x), rtol=1e-7, atol=1e-7)
 
 
-@pytest.mark.parametrize("plant", PLANTS)
+@pytest.mark.parametrize("plant", PLANTS, ids=variant_name)
 def test_the_taylor_field_is_exact_to_its_order(plant):
     config = ScenarioConfig(plant=plant)
     model = taylor_field(config, 3)
@@ -100,7 +100,7 @@ def _polynomial_vdot(region, model, n_points, seed=2):
 
 
 def test_kinematic_certificate_small():
-    config = ScenarioConfig(plant="kinematic")
+    config = ScenarioConfig(plant=Kinematic())
     sampled = lyapunov_region(config, rays=40)
     region = certify_region(config, degree=2, sampled=sampled)
     # The SDP's claim, checked by evaluating the polynomial it certified.
@@ -115,7 +115,7 @@ def test_kinematic_certificate_small():
 
 
 def test_certify_region_rejects_bad_options():
-    config = ScenarioConfig(plant="kinematic")
+    config = ScenarioConfig(plant=Kinematic())
     with pytest.raises(ValueError, match="SOS solver must be one of clarabel, csdp, scs"):
         certify_region(config, solver="mosek")
     with pytest.raises(ValueError, match="Taylor degree must be >= 2"):
@@ -123,7 +123,7 @@ def test_certify_region_rejects_bad_options():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("plant", PLANTS)
+@pytest.mark.parametrize("plant", PLANTS, ids=variant_name)
 def test_every_start_inside_the_certified_region_converges(plant):
     config = ScenarioConfig(plant=plant)
     region = certify_region(config)

@@ -15,7 +15,15 @@ from pydrake.common.yaml import yaml_dump_typed
 from geovs_drake import cli
 from geovs_drake.cli import EXIT_CODES, main
 from geovs_drake.geometry.navigation import NavigationFunction
-from geovs_drake.scenario import LAW_VARIANTS, Ibvs, PoseConfig, ScenarioConfig
+from geovs_drake.scenario import (
+    AXES,
+    CarrierConfig,
+    Ibvs,
+    Kinematic,
+    PoseConfig,
+    ScenarioConfig,
+    resolve,
+)
 from geovs_drake.simulation import SimulationResult, simulate
 
 
@@ -48,8 +56,14 @@ BAD_CONFIGS = {
     ),
     "log-rate-zero": ("log_rate: 0\n", ["log_rate", "> 0", "0.0"]),
     "log-rate-negative": ("log_rate: -5\n", ["log_rate", "-5"]),
-    "inertia-two": ("rig:\n  inertia_diagonal: [0.02, 0.02]\n", ["rig.inertia_diagonal", "3"]),
-    "inertia-zero": ("rig:\n  inertia_diagonal: [0.02, 0, 0.02]\n", ["rig.inertia_diagonal"]),
+    "inertia-two": (
+        "carrier: !FreeRig\n  inertia_diagonal: [0.02, 0.02]\n",
+        ["carrier.inertia_diagonal", "3"],
+    ),
+    "inertia-zero": (
+        "carrier: !FreeRig\n  inertia_diagonal: [0.02, 0, 0.02]\n",
+        ["carrier.inertia_diagonal"],
+    ),
     "root-a-list": ("- 1\n- 2\n", ["expected a mapping"]),
 }
 
@@ -136,7 +150,7 @@ def test_demo_exit_3_when_the_run_did_not_converge(monkeypatch, tmp_path, capsys
         duration: float | None,
         meshcat: bool,
         rendered: bool = True,
-        carrier: str = "free",
+        carrier: CarrierConfig | None = None,
     ) -> SimulationResult:
         return _Result()  # type: ignore[return-value]
 
@@ -537,7 +551,7 @@ def test_layers_file_then_scenario_text_then_flags(tmp_path, run_cli, loaded):
     )  # fmt: skip
     assert run.code == cli.EXIT_INTERRUPTED, run.err
     (config,) = loaded
-    assert config.plant == "kinematic"  # the file's
+    assert config.plant == Kinematic()  # the file's
     assert config.control.potential_gain == 5  # the file's: mappings merge key by key
     assert config.control.kinematic_gain == 2  # the text over the file
     assert config.duration == 11  # the flag over the text and the file
@@ -587,19 +601,26 @@ def test_every_scenario_flag_shows_the_dataclass_default(run_cli, loaded, capsys
     assert set(shown) == set(entries) - plain  # every other flag sets a scenario field
     for flag, value in shown.items():
         loaded.clear()
-        # A law's flag (``with --controller NAME: ...``) goes with its law, whose
-        # defaults it shows.
-        law = re.search(
-            r"with --controller (\w+):", entries[next(e for e in entries if e.split()[0] == flag)]
+        # A variant's flag (``with --controller NAME: ...``, ``with --carrier arm: ...``,
+        # ``with --sensor pinhole|rendered: ...``) goes with its variant (the first named),
+        # whose defaults it shows.
+        variant = re.search(
+            r"with --(controller|carrier|sensor) (\w+)",
+            entries[next(e for e in entries if e.split()[0] == flag)],
         )
-        argv = ["--controller", law.group(1)] if law else []
+        argv = [f"--{variant.group(1)}", variant.group(2)] if variant else []
         run = run_cli("simulate", *argv, f"{flag}={value}")
         assert run.code == cli.EXIT_INTERRUPTED, (flag, run.err)
         expected = (
-            ScenarioConfig(controller=LAW_VARIANTS[law.group(1)]()) if law else ScenarioConfig()
+            ScenarioConfig(**{variant.group(1): AXES[variant.group(1)][variant.group(2)]()})
+            if variant
+            else ScenarioConfig()
         )
+        # Resolved, as the command runs it (the arm's gain_scale applied to the gains).
         # As YAML: Drake's SimulatorConfig compares by identity.
-        assert [yaml_dump_typed(c) for c in loaded] == [yaml_dump_typed(expected)], flag
+        assert [yaml_dump_typed(c) for c in loaded] == [
+            yaml_dump_typed(resolve(expected).config)
+        ], flag
 
 
 # ------------------------------------------------- robustness and camera-accuracy

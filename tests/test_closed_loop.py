@@ -22,7 +22,18 @@ from geovs_drake.batch import run_batch
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.carriers import RIG_BODY_NAME
-from geovs_drake.scenario import Pbvs, PoseConfig, ScenarioConfig, load_scenario
+from geovs_drake.scenario import (
+    Dynamic,
+    FixedCamera,
+    Kinematic,
+    Pbvs,
+    Pinhole,
+    PoseConfig,
+    Rendered,
+    ScenarioConfig,
+    load_scenario,
+    variant_name,
+)
 from geovs_drake.simulation import StartOutsideDomain, make_simulator, pose_error, simulate
 
 OFFSET = PoseConfig(xyz=[0.03, -0.02, 0.05], rpy=[0.1, 0.2, -0.3])
@@ -30,8 +41,8 @@ OFFSET = PoseConfig(xyz=[0.03, -0.02, 0.05], rpy=[0.1, 0.2, -0.3])
 
 def _with_offset() -> ScenarioConfig:
     c = ScenarioConfig()
-    c.rig.camera_offset = copy.deepcopy(OFFSET)
-    c.rig.inertia_diagonal = [0.02, 0.03, 0.025]
+    c.carrier.camera_offset = copy.deepcopy(OFFSET)
+    c.carrier.inertia_diagonal = [0.02, 0.03, 0.025]
     return c
 
 
@@ -39,15 +50,15 @@ def _with_offset() -> ScenarioConfig:
 @pytest.mark.parametrize(
     "controller,config",
     [
-        ("dynamic", ScenarioConfig()),
-        ("dynamic", _with_offset()),
-        ("kinematic", ScenarioConfig()),
+        (Dynamic(), ScenarioConfig()),
+        (Dynamic(), _with_offset()),
+        (Kinematic(), ScenarioConfig()),
     ],
     ids=["dynamic", "dynamic-camera-off-com", "kinematic"],
 )
 def test_linearize_matches_closed_form_and_is_stable(controller, config):
     lin = linearize_at_goal(config, controller)
-    n = 12 if controller == "dynamic" else 6
+    n = 12 if isinstance(controller, Dynamic) else 6
     assert lin.A.shape == (n, n)
     # The quaternion norm is Drake's extra state: an eigenvector with eigenvalue 0,
     # and the minimal coordinates span an invariant subspace.
@@ -62,7 +73,7 @@ def test_linearize_matches_closed_form_and_is_stable(controller, config):
 
 def test_kinematic_eigenvalues_are_minus_gain_times_nf_hessian():
     config = ScenarioConfig()
-    lin = linearize_at_goal(config, "kinematic")
+    lin = linearize_at_goal(config, Kinematic())
     nf = NavigationFunction(config.domain.to_domain(), config.goal_features())
     H = navigation_hessian(nf, config.goal_features())
     expected = np.sort(-config.control.kinematic_gain * np.linalg.eigvalsh(H))
@@ -72,7 +83,7 @@ def test_kinematic_eigenvalues_are_minus_gain_times_nf_hessian():
 
 def test_diagrams_are_named_and_convert_to_autodiff():
     d = build_loop(ScenarioConfig(), log=False).diagram
-    k = build_loop(ScenarioConfig(plant="kinematic"), log=False).diagram
+    k = build_loop(ScenarioConfig(plant=Kinematic()), log=False).diagram
     assert d.get_name() == "dynamic_visual_servo" and k.get_name() == "kinematic_visual_servo"
     for name in ("plant", "spherical_camera", "navigation_controller", "image_jacobian_force"):
         d.GetSubsystemByName(name)
@@ -102,7 +113,7 @@ def test_default_dynamic_run_converges_with_decreasing_energy(default_dynamic_ru
     assert dp < 1e-3 and dr < 1e-3
 
 
-@pytest.mark.parametrize("controller", ["dynamic", "kinematic"])
+@pytest.mark.parametrize("controller", [Dynamic(), Kinematic()], ids=variant_name)
 def test_logs_match_drakes_own_loggers(controller):
     """simulate() logs by resampling its recorded steps; Drake's LogVectorOutput on
     the same diagram (which cuts the steps at each sample) is the truth."""
@@ -124,12 +135,12 @@ def test_logs_match_drakes_own_loggers(controller):
         log = diagram.GetSubsystemByName(name).FindLog(root)
         np.testing.assert_allclose(log.sample_times(), r.times, atol=1e-12)
         worst = max(worst, float(np.max(np.abs(log.data().T - ours))))
-    print(f"\n{controller}: max |simulate() log - LogVectorOutput| = {worst:.1e}")
+    print(f"\n{variant_name(controller)}: max |simulate() log - LogVectorOutput| = {worst:.1e}")
     assert worst < 1e-7
 
 
 def test_kinematic_run_decreases_phi_and_converges():
-    r = simulate(ScenarioConfig(plant="kinematic", duration=15.0))
+    r = simulate(ScenarioConfig(plant=Kinematic(), duration=15.0))
     assert r.status == "converged", r.message
     assert r.energy is None
     assert np.max(np.diff(r.phi)) <= r.lyapunov_tolerance
@@ -194,7 +205,7 @@ def test_scenario_yaml_round_trip_and_partial_files(tmp_path):
     c2 = load_scenario(path)
     assert yaml_dump_typed(c2) == yaml_dump_typed(c)
     c3 = load_scenario(data="plant: kinematic\nduration: 7.5\n")
-    assert c3.plant == "kinematic" and c3.duration == 7.5
+    assert c3.plant == Kinematic() and c3.duration == 7.5
     assert c3.goal == ScenarioConfig().goal
     with pytest.raises(ValueError, match="controller must be one of nf.*, got 'pid'"):
         load_scenario(data="controller: pid\n").validate()
@@ -205,16 +216,18 @@ def test_scenario_yaml_round_trip_and_partial_files(tmp_path):
         load_scenario(data="plant: x\n").validate()
     # A partial pose is the whole pose: rpy left out is zero, not the default start's roll.
     c4 = load_scenario(
-        data="initial: {xyz: [0.05, 0.0, -0.7]}\nrig: {camera_offset: {rpy: [0, 0, 1]}}\n"
+        data="initial: {xyz: [0.05, 0.0, -0.7]}\n"
+        "carrier: !FreeRig {camera_offset: {rpy: [0, 0, 1]}}\n"
     )
     assert c4.initial.xyz == [0.05, 0.0, -0.7] and c4.initial.rpy == [0.0, 0.0, 0.0]
     assert ScenarioConfig().initial.rpy != [0.0, 0.0, 0.0]
-    assert c4.rig.camera_offset.xyz == [0.0, 0.0, 0.0] and c4.rig.camera_offset.rpy == [0, 0, 1]
+    assert c4.carrier.camera_offset.xyz == [0.0, 0.0, 0.0]
+    assert c4.carrier.camera_offset.rpy == [0, 0, 1]
     assert c4.goal == ScenarioConfig().goal  # a pose the file does not give keeps its default
 
 
 # ------------------------------------------------------------- Monte-Carlo
-@pytest.mark.parametrize("controller", ["dynamic", "kinematic"])
+@pytest.mark.parametrize("controller", [Dynamic(), Kinematic()], ids=variant_name)
 def test_monte_carlo_random_starts_converge_inside_domain(controller):
     """2000 seeded random starts in D through the batch engine (the Drake systems'
     kernels): all converge, none leaves D, the Lyapunov function never rises; and
@@ -224,13 +237,15 @@ def test_monte_carlo_random_starts_converge_inside_domain(controller):
     starts = random_initial_poses(np.random.default_rng(2026), n, config, shrink=0.97)
     X_BC = np.stack([s.to_rigid_transform().GetAsMatrix4() for s in starts])
     batch = run_batch(config, X_BC)
-    print(f"\n{controller}: {batch.counts()}; slowest {np.max(batch.t_converged):.2f} s")
+    print(
+        f"\n{variant_name(controller)}: {batch.counts()}; slowest {np.max(batch.t_converged):.2f} s"
+    )
     assert batch.counts()["converged"] == n
     assert np.min(batch.min_margins) > 0
     assert np.all(batch.monotone)
     # The process pool on one plant; the other runs in this process (spawning costs more
     # than the runs under make test's parallel workers).
-    processes = 2 if controller == "dynamic" else 1
+    processes = 2 if isinstance(controller, Dynamic) else 1
     drake = run_scenarios(scenarios_from_starts(config, starts[:10]), processes=processes)
     assert [r["status"] for r in drake] == list(batch.status[:10])
     assert all(r["lyapunov_monotone"] and not r["left_domain"] for r in drake)
@@ -240,7 +255,7 @@ def test_monte_carlo_random_starts_converge_inside_domain(controller):
 
 
 def test_drake_monte_carlo_simulation_runs():
-    config = ScenarioConfig(plant="kinematic", duration=12.0)
+    config = ScenarioConfig(plant=Kinematic(), duration=12.0)
     config.simulator.accuracy = 1e-5
     out = drake_monte_carlo(config, num_samples=3, seed=5)
     assert len(out) == 3
@@ -254,11 +269,11 @@ MOVING = [1.0, -0.8, 1.5, 0.4, -0.3, 0.5]  # (Omega, V) in C [rad/s, m/s]
 
 def _camera_spatial_inertia(config: ScenarioConfig) -> np.ndarray:
     """M_C: the rig's spatial inertia about Co, expressed in C, (rotational, translational)
-    order; from config.rig alone (mass and principal inertia about the CoM), by Drake's
+    order; from config.carrier alone (mass and principal inertia about the CoM), by Drake's
     parallel-axis shift, so 1/2 (Omega, V)^T M_C (Omega, V) is the kinetic energy."""
     X_RC = config.X_RC
     M_R = SpatialInertia.MakeFromCentralInertia(
-        config.rig.mass, np.zeros(3), RotationalInertia(*config.rig.inertia_diagonal)
+        config.carrier.mass, np.zeros(3), RotationalInertia(*config.carrier.inertia_diagonal)
     )
     return M_R.Shift(X_RC.translation()).ReExpress(X_RC.rotation().inverse()).CopyToFullMatrix6()
 
@@ -361,7 +376,7 @@ def test_start_above_the_energy_bound_runs_and_says_the_guarantee_does_not_cover
 
 
 def test_kinematic_loop_rejects_an_initial_velocity_and_has_no_energy_fields():
-    c = ScenarioConfig(plant="kinematic", initial_velocity=[0.0, 0.0, 0.0, 0.1, 0.0, 0.0])
+    c = ScenarioConfig(plant=Kinematic(), initial_velocity=[0.0, 0.0, 0.0, 0.1, 0.0, 0.0])
     with pytest.raises(ValueError, match="initial_velocity applies to the dynamic loop only"):
         c.validate()
     with pytest.raises(ValueError, match="initial_velocity applies to the dynamic loop only"):
@@ -369,7 +384,7 @@ def test_kinematic_loop_rejects_an_initial_velocity_and_has_no_energy_fields():
     for bad in ([0.0] * 5, [0.0] * 5 + [float("nan")], ["a"] * 6):
         with pytest.raises(ValueError, match=r"initial_velocity must be 6 finite numbers.*got"):
             ScenarioConfig(initial_velocity=bad).validate()
-    s = simulate(ScenarioConfig(plant="kinematic", duration=2.0)).summary()
+    s = simulate(ScenarioConfig(plant=Kinematic(), duration=2.0)).summary()
     for key in ("initial_energy", "energy_bound", "energy_guarantee", "max_energy"):
         assert s[key] is None, key
     json.loads(json.dumps(s, allow_nan=False))
@@ -402,7 +417,7 @@ def _constant_roll(builder, resolved):
     return builder.AddSystem(ConstantTwist())
 
 
-@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
 def test_a_law_of_ones_own_is_a_variant_and_a_laws_entry(plant, monkeypatch):
     """A law registered as its variant (LAWS[ConstantRoll] = twist_law(...)) runs the
     kinematic body directly and the rig through VelocityTrackingForce: a roll rate w
@@ -424,8 +439,8 @@ def test_a_law_of_ones_own_is_a_variant_and_a_laws_entry(plant, monkeypatch):
     assert result.summary()["controller"] == "ConstantRoll"
     t = result.sim_time_s
     angle = w * t
-    if plant == "dynamic":
-        tau = config.rig.inertia_diagonal[2] / config.control.tracking_gains[2]
+    if isinstance(plant, Dynamic):
+        tau = config.carrier.inertia_diagonal[2] / config.control.tracking_gains[2]
         angle = w * (t - tau * (1 - np.exp(-t / tau)))
     expected = config.X_BC_goal.rotation() @ RotationMatrix.MakeZRotation(angle)
     np.testing.assert_allclose(result.final_X_BC.rotation().matrix(), expected.matrix(), atol=1e-6)
@@ -437,8 +452,7 @@ def test_a_law_of_ones_own_is_a_variant_and_a_laws_entry(plant, monkeypatch):
 def test_a_baseline_runs_through_the_camera_model():
     """The laws that command a twist take y from the camera model too: PBVS through
     the pinhole sensor (30 Hz frames, fits of projected points) converges."""
-    config = ScenarioConfig(controller=Pbvs(), duration=10.0)
-    config.camera.sensor = "pinhole"
+    config = ScenarioConfig(controller=Pbvs(), sensor=Pinhole(), duration=10.0)
     result = simulate(config)
     assert result.status == "converged", result.message
     assert result.summary()["sensor"] == "pinhole"
@@ -447,12 +461,11 @@ def test_a_baseline_runs_through_the_camera_model():
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
-        ({"plant": "kinematic"}, "runs on the dynamic plant only, got plant 'kinematic'"),
-        ({"mount": "fixed"}, "runs eye-in-hand only .*got mount 'fixed'"),
+        ({"plant": Kinematic()}, r"runs on the dynamic plant only, got plant Kinematic\(\)"),
+        ({"carrier": FixedCamera()}, r"runs eye-in-hand only .*got carrier FixedCamera\(\)"),
     ],
 )
 def test_camera_models_name_the_loops_they_cannot_run(changes, message):
-    config = ScenarioConfig(**changes)
-    config.camera.sensor = "rendered"
+    config = ScenarioConfig(**changes, sensor=Rendered())
     with pytest.raises(ValueError, match=message):
         config.validate()

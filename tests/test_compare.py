@@ -18,13 +18,18 @@ from geovs_drake.analysis.studies import compare
 from geovs_drake.cli import main
 from geovs_drake.scenario import (
     LAW_VARIANTS,
+    Dynamic,
+    FixedCamera,
+    FreeRig,
     Ibvs,
+    Kinematic,
     Nf,
     PoseConfig,
     ScenarioConfig,
     SuiteConfig,
     SuiteScenario,
     load_suite,
+    variant_name,
 )
 from geovs_drake.simulation import simulate
 
@@ -49,7 +54,7 @@ def test_each_baseline_converges_from_a_small_move_on_the_dynamic_plant(law):
     """(The kinematic plant: the mini suite below.) Through the velocity-tracking wrench."""
     name, _, depth = law.partition("-")
     controller = Ibvs(depth) if depth else LAW_VARIANTS[name]()
-    config = ScenarioConfig(plant="dynamic", controller=controller, initial=SMALL_MOVE)
+    config = ScenarioConfig(plant=Dynamic(), controller=controller, initial=SMALL_MOVE)
     config.duration = 9.0
     result = simulate(config)
     assert result.status == "converged", result.message
@@ -57,7 +62,7 @@ def test_each_baseline_converges_from_a_small_move_on_the_dynamic_plant(law):
     assert result.convergence_time < 7.0
 
 
-@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
 def test_ibvs_true_depth_retreats_along_the_optical_axis_on_the_conundrum(plant):
     """The camera backs away along its optical axis without turning, and the run
     stops where it leaves D through lambda_min (2 m from the centre), not at 1e9 m."""
@@ -77,15 +82,17 @@ def test_ibvs_true_depth_retreats_along_the_optical_axis_on_the_conundrum(plant)
     assert result.summary()["ibvs_depth"] == "true"
 
 
-@pytest.mark.parametrize("mount", ["hand", "fixed"])
-def test_an_ibvs_point_out_of_view_stops_the_run_naming_it(monkeypatch, mount):
+@pytest.mark.parametrize("carrier", [FreeRig(), FixedCamera()], ids=variant_name)
+def test_an_ibvs_point_out_of_view_stops_the_run_naming_it(monkeypatch, carrier):
     """A square too large for the field of view: the monitor stops the run at once,
     with the status lost_visibility and the point's name; the NF ignores the points.
     The fixed camera (the target is the moving body) checks the same points."""
     import geovs_drake.systems.ibvs_controller as ibvs_module
 
     monkeypatch.setattr(ibvs_module, "DEFAULT_SQUARE_SIDE", 5.0)  # 0.5 m: corners at 51 deg
-    config = ScenarioConfig(plant="kinematic", controller=Ibvs(), initial=SMALL_MOVE, mount=mount)
+    config = ScenarioConfig(
+        plant=Kinematic(), controller=Ibvs(), initial=SMALL_MOVE, carrier=carrier
+    )
     result = simulate(config)
     assert result.status == "lost_visibility"
     assert "feature b + side (a + n) outside the field of view" in result.message
@@ -101,7 +108,7 @@ def test_compare_mini_suite_writes_the_table(tmp_path):
     its saddle. The files hold what the rows say."""
     suite_file = tmp_path / "mini.yaml"
     suite_file.write_text(MINI_SUITE)
-    result, files = compare.compare(suite_file, "kinematic", tmp_path / "out", workers=1)
+    result, files = compare.compare(suite_file, Kinematic(), tmp_path / "out", workers=1)
     rows = {(r["scenario"], r["law"]): r for r in result.rows}
     assert len(rows) == 2 * len(compare.COMPARED_LAWS)
     for variant in compare.COMPARED_LAWS:
@@ -129,7 +136,7 @@ def test_compare_mini_suite_writes_the_table(tmp_path):
     assert {"image_sphere_roll_180.png", "camera_paths.png"} <= names
 
 
-@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
 def test_nf_on_its_saddle_at_180_deg_and_converging_at_179(plant):
     """y* and the start rolled by pi are a critical pair: the NF's gradient vanishes
     there, so the loop stays (a note says why); one degree less converges."""
@@ -138,7 +145,7 @@ def test_nf_on_its_saddle_at_180_deg_and_converging_at_179(plant):
     assert on_saddle.status == "not_converged" and on_saddle.saddle_note is not None
     assert np.max(np.abs(on_saddle.X_BC - on_saddle.X_BC[0])) < 1e-9
     config.initial = PoseConfig([0.0, 0.0, -0.5], [0.0, 0.0, math.radians(179.0)])
-    config.duration = 10.0 if plant == "kinematic" else 4.0
+    config.duration = 10.0 if isinstance(plant, Kinematic) else 4.0
     assert simulate(config).status == "converged"
 
 
@@ -185,7 +192,7 @@ def test_the_shipped_suite_loads_and_every_start_is_in_D():
         "roll_180",
     } <= names
     assert "translation_and_roll" in names and suite.conundrum == "roll_180"
-    for _, _, config in compare.suite_cases(suite, "dynamic")[:: len(compare.COMPARED_LAWS)]:
+    for _, _, config in compare.suite_cases(suite, Dynamic())[:: len(compare.COMPARED_LAWS)]:
         check_start(config)
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from geovs_drake.loop import build_loop
 from geovs_drake.plotting import write_block_diagram
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import Kinematic, ScenarioConfig
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -48,7 +48,7 @@ def test_demo_writes_every_result(tmp_path, run_cli):
 
 def test_block_diagram_is_skipped_with_a_message_without_dot(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(shutil, "which", lambda name: None)
-    kinematic = build_loop(ScenarioConfig(plant="kinematic"), log=False).diagram
+    kinematic = build_loop(ScenarioConfig(plant=Kinematic()), log=False).diagram
     assert write_block_diagram(kinematic, tmp_path / "d") == []
     assert "skipping the block diagram" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
@@ -56,7 +56,7 @@ def test_block_diagram_is_skipped_with_a_message_without_dot(tmp_path, monkeypat
 
 @pytest.mark.skipif(shutil.which("dot") is None, reason="Graphviz's dot is not installed")
 def test_block_diagram_svg_names_the_systems(tmp_path):
-    kinematic = build_loop(ScenarioConfig(plant="kinematic"), log=False).diagram
+    kinematic = build_loop(ScenarioConfig(plant=Kinematic()), log=False).diagram
     files = write_block_diagram(kinematic, tmp_path / "k")
     svg = files[0].read_text()
     for name in ("kinematic_rigid_body", "spherical_camera", "kinematic_controller"):

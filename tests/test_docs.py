@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from geovs_drake import systems
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import Pinhole, ScenarioConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "docs" / "_ext"))
 pydrake_system = pytest.importorskip("pydrake_system")  # needs sphinx (the docs extra)
@@ -24,7 +24,7 @@ def _required_values() -> dict:
     return {
         "goal": config.goal_features(),
         "radius": config.radius,
-        "intrinsics": config.camera.intrinsics(config.domain.to_domain().fov_half_angle),
+        "intrinsics": Pinhole().intrinsics(config.domain.to_domain().fov_half_angle),
     }
 
 

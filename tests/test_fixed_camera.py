@@ -18,7 +18,14 @@ from geovs_drake.geometry.rigid import camera_body_velocity
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.carriers import TARGET_BODY_NAME
 from geovs_drake.loop.state import fixed_camera_pose, initial_rig_state
-from geovs_drake.scenario import Nf, PathFollowing, ScenarioConfig
+from geovs_drake.scenario import (
+    FixedCamera,
+    FreeRig,
+    Kinematic,
+    Nf,
+    PathFollowing,
+    ScenarioConfig,
+)
 from geovs_drake.simulation import simulate
 from geovs_drake.systems import FixedCameraKinematicMount, FixedCameraMount
 
@@ -112,7 +119,9 @@ def test_kinematic_mount_commands_the_target_twist_that_gives_the_camera_its_twi
 
 
 def test_initial_target_state_gives_the_camera_the_configured_relative_twist():
-    config = ScenarioConfig(mount="fixed", initial_velocity=[0.1, -0.2, 0.05, 0.03, 0.02, -0.04])
+    config = ScenarioConfig(
+        carrier=FixedCamera(), initial_velocity=[0.1, -0.2, 0.05, 0.03, 0.02, -0.04]
+    )
     plant, frame_B, frame_C = _plant_with_fixed_camera(fixed_camera_pose(config))
     ctx = plant.CreateDefaultContext()
     plant.SetPositionsAndVelocities(ctx, initial_rig_state(config))
@@ -134,8 +143,8 @@ def test_kinematic_fixed_camera_sees_the_eye_in_hand_image_trajectory(controller
     integrate different states, the camera's pose and the target's, so they agree
     to the integrator's error)."""
     images = {}
-    for mount in ("hand", "fixed"):
-        config = ScenarioConfig(plant="kinematic", controller=controller, mount=mount)
+    for mount, carrier in (("hand", FreeRig()), ("fixed", FixedCamera())):
+        config = ScenarioConfig(plant=Kinematic(), controller=controller, carrier=carrier)
         config.duration = 4.0
         config.simulator.integration_scheme = "runge_kutta5"
         config.simulator.accuracy = accuracy
@@ -150,7 +159,7 @@ def test_kinematic_fixed_camera_sees_the_eye_in_hand_image_trajectory(controller
 def test_dynamic_fixed_camera_converges_with_decreasing_energy():
     """The default scenario, the target sphere driven (rig's mass model): converges,
     E = 1/2 nu^T M nu + k_p phi never rises, the target moves and the camera does not."""
-    config = ScenarioConfig(mount="fixed", duration=15.0)
+    config = ScenarioConfig(carrier=FixedCamera(), duration=15.0)
     result = simulate(config)
     assert result.status == "converged", result.message
     assert result.lyapunov_monotone and result.energy_guarantee
@@ -164,7 +173,7 @@ def test_dynamic_fixed_camera_converges_with_decreasing_energy():
 def test_fixed_camera_scene_has_a_still_camera_and_a_moving_sphere():
     """In SceneGraph the camera's geometry hangs on the world frame and the sphere's on
     the free target body; simulate draws it in Meshcat."""
-    config = ScenarioConfig(mount="fixed", duration=0.5)
+    config = ScenarioConfig(carrier=FixedCamera(), duration=0.5)
     meshcat = Meshcat()
     diagram = build_loop(config, meshcat=meshcat, log=False).diagram
     plant = diagram.GetSubsystemByName("plant")
@@ -182,19 +191,24 @@ def test_fixed_camera_scene_has_a_still_camera_and_a_moving_sphere():
     result = simulate(config, meshcat=meshcat)
     assert meshcat.HasPath(f"/drake/visualizer/{TARGET_BODY_NAME}")
     assert result.status == "not_converged"  # 0.5 s: under way
-    with pytest.raises(ValueError, match="meshcat needs the dynamic plant"):
-        build_loop(ScenarioConfig(mount="fixed", plant="kinematic"), meshcat)
+    with pytest.raises(
+        ValueError, match=r"meshcat needs a carrier with geometry \(the kinematic FixedCamera"
+    ):
+        build_loop(ScenarioConfig(carrier=FixedCamera(), plant=Kinematic()), meshcat)
 
 
 def test_tools_built_for_the_eye_in_hand_loop_refuse_the_fixed_camera():
     from geovs_drake.analysis.linear.linearization import linearize_at_goal
     from geovs_drake.batch.engine import loop_parameters
 
-    config = ScenarioConfig(mount="fixed")
-    with pytest.raises(ValueError, match="batch engine runs the eye-in-hand loops only"):
+    config = ScenarioConfig(carrier=FixedCamera())
+    with pytest.raises(
+        ValueError, match="batch engine runs the eye-in-hand free rig only: carrier = FixedCamera"
+    ):
         loop_parameters(config)
     with pytest.raises(
         ValueError,
-        match="closed form is the eye-in-hand free rig's: carrier = 'free', mount = 'fixed'",
+        match=r"closed form is the eye-in-hand free rig's \(carrier FreeRig\), got carrier "
+        "FixedCamera",
     ):
         linearize_at_goal(config)

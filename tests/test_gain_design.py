@@ -16,7 +16,7 @@ from geovs_drake.analysis.linear.gain_design import (
     root_locus,
 )
 from geovs_drake.analysis.linear.linearization import linearize
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import PLANT_VARIANTS, Dynamic, Kinematic, ScenarioConfig, variant_name
 from geovs_drake.spectrum import assert_spectra_close
 
 #: The request's tolerance on Drake's eigenvalues (the issue's 1e-6).
@@ -41,7 +41,7 @@ def test_the_designed_dynamic_loop_meets_the_request_in_drakes_linearization(set
 
 
 def test_the_designed_kinematic_loop_settles_as_asked_and_costs_a_twist():
-    design = design_gains(ScenarioConfig(plant="kinematic"), settling_time=1.0)
+    design = design_gains(ScenarioConfig(plant=Kinematic()), settling_time=1.0)
     lam = linearize(design.config).eigenvalues
     assert -lam.real.max() == pytest.approx(-np.log(SETTLING_FRACTION), rel=REQUEST_TOL)
     # Real modes (a double one may split off the axis by rounding, not by more).
@@ -50,11 +50,11 @@ def test_the_designed_kinematic_loop_settles_as_asked_and_costs_a_twist():
     assert np.isfinite(design.peak_rate) and np.isfinite(design.peak_speed)
 
 
-@pytest.mark.parametrize("plant", ["dynamic", "kinematic"])
+@pytest.mark.parametrize("plant", [Dynamic(), Kinematic()], ids=variant_name)
 def test_the_tail_of_the_nonlinear_loop_decays_at_the_predicted_rate(plant):
     """Starts about the goal through the batch engine: the measured decay of the pose
     error against the slowest mode's rate (local, so it should agree closely)."""
-    zeta = 0.7 if plant == "dynamic" else None
+    zeta = 0.7 if isinstance(plant, Dynamic) else None
     design = design_gains(ScenarioConfig(plant=plant), 1.5, zeta, run_start=False)
     check = decay_check(design, starts=16, seed=1)
     assert check.relative_difference == pytest.approx(0.0, abs=1e-3)
@@ -74,7 +74,9 @@ def test_the_tail_of_the_nonlinear_loop_decays_at_the_predicted_rate(plant):
 )
 def test_a_request_out_of_range_is_one_line(plant, settling_time, zeta, match):
     with pytest.raises(ValueError, match=match):
-        design_gains(ScenarioConfig(plant=plant), settling_time, zeta, run_start=False)
+        design_gains(
+            ScenarioConfig(plant=PLANT_VARIANTS[plant]()), settling_time, zeta, run_start=False
+        )
 
 
 def test_the_root_locus_at_the_scenarios_gain_is_drakes_spectrum():

@@ -13,7 +13,7 @@ import pytest
 
 from geovs_drake.geometry.joint_barrier import combine, joint_barrier, smooth_step
 from geovs_drake.loop.arm import arm_model, joint_barrier_values
-from geovs_drake.scenario import ScenarioConfig, resolve
+from geovs_drake.scenario import Arm, ScenarioConfig, resolve
 from geovs_drake.simulation import simulate
 from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 
@@ -68,10 +68,10 @@ def _elbow_swing(width: float) -> ScenarioConfig:
     limits). With the free rig's gains (gain_scale 1) the torques stay within them.
     """
     # Logged at 1 kHz: the trapezoid rule must follow the first swing's transient.
-    config = ScenarioConfig(carrier="arm", plant="dynamic", duration=3.0, log_rate=1000.0)
-    config.arm.gain_scale = 1.0
-    config.arm.initial_joint_velocity = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
-    config.arm.joint_barrier_width = width
+    config = ScenarioConfig(carrier=Arm(), duration=3.0, log_rate=1000.0)
+    config.carrier.gain_scale = 1.0
+    config.carrier.initial_joint_velocity = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+    config.carrier.joint_barrier_width = width
     return config
 
 
@@ -81,7 +81,7 @@ def _energy_balance(result, width: float) -> np.ndarray:
     (twist = J_C v), integrated by the trapezoid rule: 0 up to the rule's error where
     Edot is exactly minus the dissipation."""
     resolved = resolve(result.config)
-    B, B_q = np.asarray(resolved.damping), resolved.config.arm.joint_damping
+    B, B_q = np.asarray(resolved.damping), resolved.config.carrier.joint_damping
     model = arm_model(resolved.config)
     plant = arm_plant(model)
     context = plant.CreateDefaultContext()
@@ -127,18 +127,18 @@ def test_the_barrier_torque_keeps_the_energy_with_phi_total_balanced():
     ],
 )
 def test_the_barrier_is_for_the_dynamic_arm_under_the_nf(argv, needle, run_cli):
-    text = "arm: {joint_barrier_width: 0.5}"
+    text = "carrier: !Arm {joint_barrier_width: 0.5}"
     run = run_cli("simulate", "--carrier", "arm", "--scenario-text", text, *argv)
     assert run.code == 2 and run.err.count("\n") == 1 and needle in run.err, run.err
 
 
 def test_a_negative_barrier_width_is_one_line(run_cli):
-    text = "arm: {joint_barrier_width: -0.1}"
+    text = "carrier: !Arm {joint_barrier_width: -0.1}"
     run = run_cli("simulate", "--carrier", "arm", "--scenario-text", text)
-    assert run.code == 2 and "arm.joint_barrier_width" in run.err and "-0.1" in run.err, run.err
+    assert run.code == 2 and "carrier.joint_barrier_width" in run.err and "-0.1" in run.err, run.err
 
 
-def test_the_barrier_torque_differentiates_by_autodiff_as_by_central_differences():
+def test_the_barrier_torque_differentiates_by_autodiff_as_by_central_differences(arm_config):
     """ArmCamera with the barrier converts to AutoDiffXd (Drake's Linearize needs it);
     d tau / d q by AutoDiffXd against central differences of the float system, at a q
     inside the barrier."""
@@ -146,7 +146,7 @@ def test_the_barrier_torque_differentiates_by_autodiff_as_by_central_differences
 
     from geovs_drake.systems import ArmCamera
 
-    config = ScenarioConfig(carrier="arm", plant="dynamic")
+    config = arm_config
     model = arm_model(config)
     system = ArmCamera(model=model, joint_barrier_width=2.5)
     ad = system.ToAutoDiffXd()
@@ -172,7 +172,7 @@ def test_the_barrier_torque_differentiates_by_autodiff_as_by_central_differences
     assert joint_barrier_values(model, q, 2.5)[0] > 0.1  # the barrier term is in play
 
 
-def test_the_barrier_reads_the_nf_wrench_s_own_k_p():
+def test_the_barrier_reads_the_nf_wrench_s_own_k_p(arm_config):
     """One k_p: the barrier's is the ImageJacobianForce's parameter, through a port, so a
     gain set in a context (set_potential_gain) moves the wrench and the barrier alike. At
     rest, doubling k_p doubles the NF wrench F_C, so the torque changes by
@@ -182,8 +182,8 @@ def test_the_barrier_reads_the_nf_wrench_s_own_k_p():
     from geovs_drake.scenario import resolve
     from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 
-    config = ScenarioConfig(carrier="arm", plant="dynamic")
-    config.arm.joint_barrier_width = 2.5
+    config = arm_config
+    config.carrier.joint_barrier_width = 2.5
     loop = build_loop(resolve(config), log=False)
     diagram = loop.diagram
     arm, force = (diagram.GetSubsystemByName(n) for n in ("arm_camera", "image_jacobian_force"))
@@ -214,7 +214,7 @@ def test_the_barrier_reads_the_nf_wrench_s_own_k_p():
     assert np.allclose(change, expected, rtol=1e-9, atol=1e-9 * np.max(np.abs(expected)))
 
 
-def test_the_barrier_width_shrinks_the_goals_the_arm_can_reach():
+def test_the_barrier_width_shrinks_the_goals_the_arm_can_reach(arm_config):
     """A goal whose joints lie within w of a limit is not a minimum of phi_total (phi_q >
     0 there): the count of reachable goals never grows with w, and at w = 0 it is every
     goal IK reaches; the default goal (1.98 rad from its nearest limit) stays reachable
@@ -222,7 +222,7 @@ def test_the_barrier_width_shrinks_the_goals_the_arm_can_reach():
     from geovs_drake.analysis.linear.arm_study import reachable_goals
     from geovs_drake.loop.arm import joint_limit_margins, solve_joints
 
-    config = ScenarioConfig(carrier="arm", plant="dynamic")
+    config = arm_config
     widths = (0.0, 0.5, 1.5, 2.5)
     goals = reachable_goals(config, widths, n=20)
     counts = [goals.reachable[w] for w in widths]

@@ -23,13 +23,11 @@ from geovs_drake.analysis.linear.latency import (
 )
 from geovs_drake.analysis.linear.linearization import rig_spatial_inertia
 from geovs_drake.analysis.studies.robustness import sampled_spectral_radius, soft_gains
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import Kinematic, Pinhole, ScenarioConfig
 
 
 def _camera_config() -> ScenarioConfig:
-    config = ScenarioConfig()
-    config.camera.sensor = "pinhole"
-    return config
+    return ScenarioConfig(sensor=Pinhole())
 
 
 def test_the_continuous_part_is_the_rigs_kinematics_and_damping():
@@ -38,10 +36,10 @@ def test_the_continuous_part_is_the_rigs_kinematics_and_damping():
     M = rig_spatial_inertia(config)
     expected = np.zeros((12, 12))
     expected[:6, 6:] = np.eye(6)
-    expected[6:, 6:] = -np.linalg.solve(M, np.diag(config.camera.damping))
+    expected[6:, 6:] = -np.linalg.solve(M, np.diag(config.sensor.damping))
     assert np.allclose(model.A_c, expected, atol=1e-9 * np.abs(expected).max())
     # The kinematic body keeps nothing continuous: its twist is all the law's.
-    kinematic = sampled_model(ScenarioConfig(plant="kinematic"))
+    kinematic = sampled_model(ScenarioConfig(plant=Kinematic()))
     assert np.abs(kinematic.A_c).max() < 1e-9 * np.abs(kinematic.B_n @ kinematic.C_xi).max()
 
 
@@ -49,7 +47,7 @@ def test_the_continuous_part_is_the_rigs_kinematics_and_damping():
 def test_the_radius_is_the_robustness_studys_independent_model(latency):
     for config in (_camera_config(), soft_gains(_camera_config())):
         c = copy.deepcopy(config)
-        c.camera.latency_frames = latency
+        c.sensor.latency_frames = latency
         assert spectral_radius(c) == pytest.approx(sampled_spectral_radius(c), rel=1e-8)
 
 

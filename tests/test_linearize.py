@@ -10,7 +10,6 @@ differences of the vector field written in the Gibbs chart itself.
 from __future__ import annotations
 
 import copy
-import dataclasses
 import json
 import re
 
@@ -38,7 +37,16 @@ from geovs_drake.geometry.camera import ImageFeatures, camera_map
 from geovs_drake.geometry.navigation import NavigationFunction, image_chart
 from geovs_drake.linear_model import chart_jacobian, navigation_hessian
 from geovs_drake.loop import build_loop
-from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.scenario import (
+    Dynamic,
+    Kinematic,
+    Pinhole,
+    PlantConfig,
+    PoseConfig,
+    ScenarioConfig,
+    exact_twin,
+    variant_name,
+)
 from geovs_drake.simulation import StartOutsideDomain, check_start, simulate
 from geovs_drake.spectrum import assert_spectra_close, canonical_eigenvalues
 
@@ -50,7 +58,7 @@ ROTATION_SPREAD_RAD, POSITION_SPREAD_M, TWIST_SPREAD = 0.3, 0.08, 0.2
 FD_STEP, FD_RTOL = 1e-5, 1e-6
 
 
-def _states_in_D(plant: str, seed: int) -> list[np.ndarray]:
+def _states_in_D(plant: PlantConfig, seed: int) -> list[np.ndarray]:
     """Random Drake states whose camera pose is in D (rejection), at random twists."""
     rng = np.random.default_rng(seed)
     config = ScenarioConfig(plant=plant)
@@ -64,14 +72,14 @@ def _states_in_D(plant: str, seed: int) -> list[np.ndarray]:
             check_start(c)
         except StartOutsideDomain:
             continue
-        twist = rng.uniform(-TWIST_SPREAD, TWIST_SPREAD, 6) if plant == "dynamic" else None
+        twist = rng.uniform(-TWIST_SPREAD, TWIST_SPREAD, 6) if config.dynamic else None
         out.append(state_at(config, c.X_BC_initial, twist))
     return out
 
 
 def _batch_rhs(config: ScenarioConfig):
     p = loop_parameters(config)
-    kinematic = config.plant != "dynamic"
+    kinematic = not config.dynamic
 
     def f(x: np.ndarray) -> np.ndarray:
         out = np.zeros(len(x))
@@ -81,7 +89,7 @@ def _batch_rhs(config: ScenarioConfig):
     return f
 
 
-@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
 def test_A_matches_central_differences_of_the_batch_engine_and_drakes_linearize(plant):
     config = ScenarioConfig(plant=plant)
     f = _batch_rhs(config)
@@ -109,10 +117,10 @@ def test_A_matches_central_differences_of_the_batch_engine_and_drakes_linearize(
             equilibrium_check_tolerance=np.inf,
         )
         assert np.allclose(drake.A(), lin.A_drake, rtol=1e-12, atol=1e-9)
-        assert lin.A.shape == ((12, 12) if plant == "dynamic" else (6, 6))
+        assert lin.A.shape == ((12, 12) if isinstance(plant, Dynamic) else (6, 6))
 
 
-@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
 def test_at_the_goal_it_is_linearize_at_goal_and_the_closed_form(plant):
     config = ScenarioConfig(plant=plant)
     lin = linearize(config)
@@ -152,9 +160,9 @@ def _gibbs_chart(x0: np.ndarray, f):
 def test_the_kinematic_minimal_A_is_the_chart_jacobian():
     """Away from the goal the kinematic loop's A is exactly the Jacobian of its vector field
     in the Gibbs chart (central differences of that field, on the batch engine's f)."""
-    config = ScenarioConfig(plant="kinematic")
+    config = ScenarioConfig(plant=Kinematic())
     f = _batch_rhs(config)
-    for x0 in _states_in_D("kinematic", seed=5):
+    for x0 in _states_in_D(Kinematic(), seed=5):
         lin = linearize(config, x0)
         F = _gibbs_chart(x0, f)
         fd = np.stack(
@@ -163,13 +171,13 @@ def test_the_kinematic_minimal_A_is_the_chart_jacobian():
         assert np.linalg.norm(lin.A - fd) < FD_RTOL * np.linalg.norm(fd), np.abs(lin.A - fd).max()
 
 
-@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
 def test_linearize_along_a_run_ends_at_the_goals_model(plant):
     config = ScenarioConfig(plant=plant, duration=20.0)
     config.initial = PoseConfig(xyz=[0.02, -0.01, -0.52], rpy=[0.02, -0.01, 0.1])
     result = simulate(config)
     along = linearize_along(result, [0.0, 1.0, 20.0])
-    assert along.eigenvalues.shape == (3, 12 if plant == "dynamic" else 6)
+    assert along.eigenvalues.shape == (3, 12 if isinstance(plant, Dynamic) else 6)
     goal = linearize_at_goal(config)
     # At 20 s the state is at the goal to rounding: the same spectrum.
     assert_spectra_close(along.eigenvalues[-1], goal.eigenvalues, rtol=0, atol=1e-6)
@@ -184,21 +192,21 @@ def test_linearize_along_a_run_ends_at_the_goals_model(plant):
 # ---- inputs (disturbance, feature noise) and outputs (pose error, y)
 
 
-def _offset_config(plant: str) -> ScenarioConfig:
+def _offset_config(plant: PlantConfig) -> ScenarioConfig:
     """A rig whose camera sits off its centre of mass, turned: the disturbance's map to
     the plant's generalized force and the rig's inertia about C are not trivial."""
     config = ScenarioConfig(plant=plant)
-    config.rig.camera_offset = PoseConfig(xyz=[0.03, -0.02, 0.05], rpy=[0.2, -0.1, 0.3])
+    config.carrier.camera_offset = PoseConfig(xyz=[0.03, -0.02, 0.05], rpy=[0.2, -0.1, 0.3])
     return config
 
 
 def test_the_wrench_map_is_the_force_systems_own():
     """G (F_C -> the free rig's generalized force) against ImageJacobianForce, which
     outputs both at a random rig state."""
-    config = _offset_config("dynamic")
+    config = _offset_config(Dynamic())
     loop = build_loop(config, log=False)
     force = loop.diagram.GetSubsystemByName("image_jacobian_force")
-    x0 = _states_in_D("dynamic", seed=3)[0]
+    x0 = _states_in_D(Dynamic(), seed=3)[0]
     context = loop.diagram.CreateDefaultContext()
     context.SetContinuousState(x0)
     sub = force.GetMyContextFromRoot(context)
@@ -209,7 +217,7 @@ def test_the_wrench_map_is_the_force_systems_own():
     assert np.allclose(G @ F_C, generalized, rtol=1e-12, atol=1e-12 * np.abs(generalized).max())
 
 
-@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
 def test_at_the_goal_inputs_and_outputs_are_the_closed_form(plant):
     """At the goal: the disturbance enters as M^-1 (a wrench on the rig's inertia about
     C, Appendix C.0.6) or as the twist itself; the pose error is the minimal coordinates;
@@ -218,7 +226,7 @@ def test_at_the_goal_inputs_and_outputs_are_the_closed_form(plant):
     lin = linearize(config)
     assert type(lin.minimal).__name__ == "LinearSystem"
     dist, noise = INPUTS["disturbance"], INPUTS["feature_noise"]
-    if plant == "dynamic":
+    if isinstance(plant, Dynamic):
         expected = np.vstack([np.zeros((6, 6)), np.linalg.inv(rig_spatial_inertia(config))])
     else:
         expected = np.eye(6)
@@ -232,7 +240,7 @@ def test_at_the_goal_inputs_and_outputs_are_the_closed_form(plant):
     y = config.goal_features()
     nf = NavigationFunction(config.domain.to_domain(), y, config.navigation.to_gains())
     H, Cc = navigation_hessian(nf, y), chart_jacobian(y, config.radius)
-    if plant == "dynamic":
+    if isinstance(plant, Dynamic):
         M = rig_spatial_inertia(config)
         gain = config.control.potential_gain * Cc.T @ H
         expected = np.vstack([np.zeros((6, 6)), np.linalg.solve(M, gain)])
@@ -244,16 +252,12 @@ def test_at_the_goal_inputs_and_outputs_are_the_closed_form(plant):
     )
 
 
-@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
 def test_B_matches_central_differences_of_the_diagram_in_its_inputs(plant):
     """B at random states in D (AffineSystems) against central differences of the
     study diagram's double derivative in u, mapped as linearize documents."""
     config = _offset_config(plant)
-    loop = build_loop(
-        dataclasses.replace(config, camera=dataclasses.replace(config.camera, sensor="exact")),
-        log=False,
-        study_ports=True,
-    )
+    loop = build_loop(exact_twin(config), log=False, study_ports=True)
     diagram = loop.diagram
     for x0 in _states_in_D(plant, seed=8)[:2]:
         lin = linearize(config, x0)
@@ -292,7 +296,7 @@ def _gibbs(d):
     )
 
 
-@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
 def test_C_is_the_autodiff_of_the_camera_map_and_the_pose_error(plant):
     """C's y rows against AutoDiffXd of c(H) (the geometry, not the diagram) along the
     minimal coordinates, X_WC = X_WC0 (Cay(dtheta), dp); its pose-error rows against
@@ -301,7 +305,7 @@ def test_C_is_the_autodiff_of_the_camera_map_and_the_pose_error(plant):
     for x0 in _states_in_D(plant, seed=13)[:2]:
         lin = linearize(config, x0)
         X_WR = RigidTransform(Quaternion(x0[0:4] / np.linalg.norm(x0[0:4])), x0[4:7])
-        X_WC0 = X_WR @ (config.X_RC if plant == "dynamic" else RigidTransform())
+        X_WC0 = X_WR @ (config.X_RC if isinstance(plant, Dynamic) else RigidTransform())
         eps = InitializeAutoDiff(np.zeros(6)).ravel()
         R = X_WC0.rotation().matrix() @ _gibbs(eps[0:3])
         p = X_WC0.translation() + X_WC0.rotation().matrix() @ eps[3:6]
@@ -334,11 +338,11 @@ def _gibbs_vector(R):
 
 def test_a_state_of_the_wrong_size_is_refused():
     with pytest.raises(ValueError, match="state must have 7 entries"):
-        linearize(ScenarioConfig(plant="kinematic"), np.zeros(13))
+        linearize(ScenarioConfig(plant=Kinematic()), np.zeros(13))
 
 
 def test_state_at_puts_the_camera_where_asked():
-    config = ScenarioConfig(plant="kinematic")
+    config = ScenarioConfig(plant=Kinematic())
     X = RigidTransform(RollPitchYaw(0.1, -0.2, 0.3), [0.01, 0.02, -0.6])
     x = state_at(config, X)
     X_WC = RigidTransform(Quaternion(x[0:4]), x[4:7])
@@ -353,7 +357,7 @@ def test_cli_json_at_the_goal_is_the_closed_forms_spectrum(run_cli, tmp_path):
     assert run.code == 0, run.err
     out = json.loads(run.out)
     assert out["plant"] == "kinematic" and out["stable"] and out["at_equilibrium"]
-    closed = canonical_eigenvalues(closed_form_A(ScenarioConfig(), "kinematic"))
+    closed = canonical_eigenvalues(closed_form_A(ScenarioConfig(), Kinematic()))
     lam = np.array([complex(re, im) for re, im in out["eigenvalues"]])
     assert_spectra_close(lam, closed, rtol=1e-9)
     assert np.allclose(lam, closed, rtol=1e-9)  # the JSON's order is the canonical one
@@ -439,10 +443,9 @@ def test_linearize_of_a_camera_loop_is_its_continuous_twins_whatever_the_cameras
     errors (noise, latency) dropped with it (it raised 'pixel_noise needs a camera'),
     the believed radius kept (and B the exact loop's, control.damping, as before). Drake's
     Linearize of the exact loop is the truth."""
-    camera = ScenarioConfig()
-    camera.camera.sensor, camera.camera.pixel_noise = "pinhole", 0.5
-    camera.camera.latency_frames, camera.camera.radius_error = 1, 0.05
+    camera = ScenarioConfig(sensor=Pinhole(pixel_noise=0.5, latency_frames=1, radius_error=0.05))
     exact = ScenarioConfig()
-    exact.camera.radius_error = 0.05
+    exact.sensor.radius_error = 0.05
     np.testing.assert_allclose(linearize(camera).A, linearize(exact).A, rtol=0, atol=1e-12)
-    assert camera.camera.sensor == "pinhole"  # the caller's config untouched
+    # the caller's config untouched
+    assert camera.sensor == Pinhole(pixel_noise=0.5, latency_frames=1, radius_error=0.05)

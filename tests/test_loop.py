@@ -12,65 +12,77 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import Simulator
 
 from geovs_drake.loop import CARRIERS, LAWS, SENSORS, build_loop, refusal
-from geovs_drake.scenario import CONTROLLERS, LAW_VARIANTS, PoseConfig, ScenarioConfig, resolve
+from geovs_drake.scenario import (
+    CONTROLLERS,
+    LAW_VARIANTS,
+    SENSOR_VARIANTS,
+    Arm,
+    Dynamic,
+    Exact,
+    FixedCamera,
+    FreeRig,
+    Kinematic,
+    Pinhole,
+    PoseConfig,
+    Rendered,
+    ScenarioConfig,
+    resolve,
+    variant_name,
+)
 from geovs_drake.simulation import simulate
 
 SMALL_MOVE = PoseConfig(xyz=[0.05, -0.03, -0.55], rpy=[0.1, -0.05, 0.3])
 
-#: ``(carrier, mount, plant)`` with each sensor that can see through it.
-CAMERA_CARRIERS = {("free", "hand", "dynamic")}
+#: ``(carrier, plant)`` (the :data:`CARRIERS` key) with each sensor that can see through it.
+CAMERA_CARRIERS = {(FreeRig, Dynamic)}
 COMBINATIONS = [
     (carrier, sensor, law)
     for carrier in CARRIERS
     for sensor in SENSORS
     for law in CONTROLLERS
-    if sensor == "exact" or carrier in CAMERA_CARRIERS
+    if sensor is Exact or carrier in CAMERA_CARRIERS
 ]
 
 
-def _suite_case(carrier: tuple[str, str, str], sensor: str, law: str):
+def _suite_case(carrier: tuple[type, type], sensor: type, law: str):
     """The combination as a test case: the long ones (a rendered camera, the arm with a
     twist law, a few seconds each) are marked slow, each keeping its NF case in the
     suite (make test-slow runs them all)."""
-    long = (sensor == "rendered" or carrier[0] == "arm") and law != "nf"
-    return (
-        pytest.param(carrier, sensor, law, marks=pytest.mark.slow)
-        if long
-        else (carrier, sensor, law)
-    )
+    long = (sensor is Rendered or carrier[0] is Arm) and law != "nf"
+    name = "-".join([*(variant_name(kind()) for kind in (*carrier, sensor)), law])
+    marks = [pytest.mark.slow] if long else []
+    return pytest.param(carrier, sensor, law, marks=marks, id=name)
 
 
-def _config(carrier: tuple[str, str, str], sensor: str, law: str, **changes) -> ScenarioConfig:
-    name, mount, plant = carrier
-    config = ScenarioConfig(
-        carrier=name,
-        mount=mount,
-        plant=plant,
+def _config(carrier: tuple[type, type], sensor: type, law: str, **changes) -> ScenarioConfig:
+    kind, plant = carrier
+    return ScenarioConfig(
+        carrier=kind(),
+        plant=plant(),
+        sensor=sensor(),
         controller=LAW_VARIANTS[law](),
         initial=SMALL_MOVE,
         **changes,
     )
-    config.camera.sensor = sensor
-    return config
 
 
 def test_the_registries_hold_every_part_the_scenario_names():
     """One registry per part, and the config's variants are exactly the registered ones."""
     assert set(LAWS) == set(LAW_VARIANTS.values()) and set(LAW_VARIANTS) == set(CONTROLLERS)
-    assert set(SENSORS) == {"exact", "pinhole", "rendered"}
+    assert set(SENSORS) == {Exact, Pinhole, Rendered}
     assert len(COMBINATIONS) == len(CARRIERS) * 5 + len(CAMERA_CARRIERS) * 2 * 5
 
 
 @pytest.mark.parametrize(("carrier", "sensor", "law"), [_suite_case(*c) for c in COMBINATIONS])
 def test_every_combination_builds_through_build_loop_and_converges(carrier, sensor, law):
-    if sensor == "rendered":
+    if sensor is Rendered:
         pytest.importorskip("cv2", reason="the rendered sensor needs the vision extra (OpenCV)")
     config = _config(carrier, sensor, law, duration=20.0)
     loop = build_loop(config, log=False)
     diagram = loop.diagram
     # The parts are in the diagram under their names, and the law acts on the sensor's y.
     assert diagram.HasSubsystemNamed("spherical_camera")
-    assert (sensor != "exact") == diagram.HasSubsystemNamed("feature_sensor")
+    assert (sensor is not Exact) == diagram.HasSubsystemNamed("feature_sensor")
     result = simulate(config)
     assert result.status == "converged", (carrier, sensor, law, result.message)
 
@@ -78,18 +90,21 @@ def test_every_combination_builds_through_build_loop_and_converges(carrier, sens
 @pytest.mark.parametrize(
     ("changes", "sensor", "message"),
     [
-        (dict(plant="kinematic"), "pinhole", "runs on the dynamic plant only, got plant"),
-        (dict(plant="kinematic"), "rendered", "runs on the dynamic plant only, got plant"),
-        (dict(mount="fixed"), "pinhole", "runs eye-in-hand only .*got mount 'fixed'"),
-        (dict(mount="fixed"), "rendered", "runs eye-in-hand only .*got mount 'fixed'"),
-        (dict(carrier="gantry"), "exact", "carrier must be one of free, arm, got 'gantry'"),
+        (dict(plant=Kinematic()), "pinhole", "dynamic plant only, got plant Kinematic"),
+        (dict(plant=Kinematic()), "rendered", "dynamic plant only, got plant Kinematic"),
+        (dict(carrier=FixedCamera()), "pinhole", "eye-in-hand only .*got carrier FixedCamera"),
+        (dict(carrier=FixedCamera()), "rendered", "eye-in-hand only .*got carrier FixedCamera"),
+        (
+            dict(carrier="gantry"),
+            "exact",
+            "carrier must be one of free, fixed_camera, arm, got 'gantry'",
+        ),
         (dict(controller="kinematic"), "exact", "names a plant: write plant: kinematic"),
         (dict(controller="lqr"), "exact", "controller must be one of nf, ibvs"),
     ],
 )
 def test_combinations_that_make_no_sense_are_refused_in_one_line(changes, sensor, message):
-    config = ScenarioConfig(**changes)
-    config.camera.sensor = sensor
+    config = ScenarioConfig(sensor=SENSOR_VARIANTS[sensor](), **changes)
     with pytest.raises(ValueError, match=message) as error:
         build_loop(config)
     assert len(str(error.value).splitlines()) == 1
@@ -97,12 +112,15 @@ def test_combinations_that_make_no_sense_are_refused_in_one_line(changes, sensor
 
 def test_a_registry_without_the_part_is_named_in_one_line(monkeypatch):
     """A combination the config allows but no registered part carries: refusal() names it."""
-    monkeypatch.delitem(CARRIERS, ("free", "fixed", "kinematic"))
-    config = ScenarioConfig(mount="fixed", plant="kinematic")
-    assert refusal(config) == (
-        "no carrier moves a camera with carrier 'free', mount 'fixed', plant 'kinematic'"
+    monkeypatch.delitem(CARRIERS, (FixedCamera, Kinematic))
+    config = ScenarioConfig(carrier=FixedCamera(), plant=Kinematic())
+    why = refusal(config)
+    assert why.startswith(
+        "carrier FixedCamera on plant Kinematic has no factory: "
+        "register CARRIERS[FixedCamera, Kinematic] ("
     )
-    with pytest.raises(ValueError, match="no carrier moves a camera"):
+    assert "(FixedCamera, Kinematic)" not in why and len(why.splitlines()) == 1
+    with pytest.raises(ValueError, match="carrier FixedCamera on plant Kinematic has no factory"):
         build_loop(config)
 
 
@@ -121,17 +139,17 @@ def test_the_fixed_camera_believes_the_same_radius_as_the_hand_held_one():
     same image y(t) as the eye-in-hand loop (Eq. 16: the laws see only the relative
     pose), to 1e-9. It did not while the fixed-camera builder handed the NF's
     kinematic law and force the true radius and y* the believed one."""
-    config = ScenarioConfig(plant="kinematic", initial=SMALL_MOVE, log_rate=10.0)
-    config.camera.radius_error = 0.2
+    config = ScenarioConfig(plant=Kinematic(), initial=SMALL_MOVE, log_rate=10.0)
+    config.sensor.radius_error = 0.2
     config.simulator.integration_scheme = "runge_kutta5"
     hand = _image_log(config, 2.0)
-    fixed = _image_log(dataclasses.replace(config, mount="fixed"), 2.0)
+    fixed = _image_log(dataclasses.replace(config, carrier=FixedCamera()), 2.0)
     np.testing.assert_allclose(fixed, hand, rtol=0, atol=1e-9)
     # The dynamic loops' force laws carry the same numbers (rho believed, k_p, B).
-    dynamic = dataclasses.replace(config, plant="dynamic")
+    dynamic = dataclasses.replace(config, plant=Dynamic())
     params = []
-    for mount in ("hand", "fixed"):
-        loop = build_loop(dataclasses.replace(dynamic, mount=mount), log=False)
+    for carrier in (FreeRig(), FixedCamera()):
+        loop = build_loop(dataclasses.replace(dynamic, carrier=carrier), log=False)
         force = loop.diagram.GetSubsystemByName("image_jacobian_force")
         params.append(force.CreateDefaultContext().get_numeric_parameter(0).CopyToVector()[:8])
     np.testing.assert_array_equal(params[0], params[1])
@@ -148,11 +166,10 @@ def test_simulate_validates_a_scenario_once(monkeypatch):
 
 
 def test_the_damping_rule_is_resolved_in_one_place():
-    """control.damping on the exact sensor, camera.damping with a camera; the force law
+    """control.damping on the exact sensor, sensor.damping with a camera; the force law
     in the diagram carries the resolved one."""
-    for sensor, expected in (("exact", "control"), ("pinhole", "camera")):
-        config = ScenarioConfig()
-        config.camera.sensor = sensor
+    for sensor, expected in ((Exact(), "control"), (Pinhole(), "sensor")):
+        config = ScenarioConfig(sensor=sensor)
         resolved = resolve(config)
         want = getattr(config, expected).damping
         assert list(resolved.damping) == want == config.damping
@@ -175,7 +192,7 @@ def test_law_variants_load_from_yaml_and_the_earlier_form_names_the_new_one():
     for text, needle in (
         ("controller: !Ibvs {depth: wrong}\n", "controller.depth must be one of"),
         ("controller: !Ibvs {dept: mean}\n", "controller.dept: unknown field"),
-        ("controller: !Lqr {}\n", "controller: expected a law's name"),
+        ("controller: !Lqr {}\n", r"controller: expected a name \(nf, ibvs, .*got .*!Lqr"),
         (
             "controller: ibvs\ncontrol: {ibvs_depth: mean}\n",
             r"control.ibvs_depth: .* write controller: !Ibvs \{depth: mean\}",
@@ -210,13 +227,15 @@ def test_the_command_line_validates_a_scenario_once(monkeypatch, run_cli):
 
 
 @pytest.mark.parametrize(
-    ("plant", "mount"), [("dynamic", "hand"), ("kinematic", "hand"), ("dynamic", "fixed")]
+    ("plant", "carrier"),
+    [(Dynamic(), FreeRig()), (Kinematic(), FreeRig()), (Dynamic(), FixedCamera())],
+    ids=variant_name,
 )
-def test_poses_in_target_is_camera_pose_in_target_row_by_row(plant, mount):
+def test_poses_in_target_is_camera_pose_in_target_row_by_row(plant, carrier):
     """The batched X_BC of a run's states equals the one-state conversion of each row."""
     from geovs_drake.loop.state import camera_pose_in_target, initial_body_states, poses_in_target
 
-    config = ScenarioConfig(plant=plant, mount=mount)
+    config = ScenarioConfig(plant=plant, carrier=carrier)
     rng = np.random.default_rng(3)
     X_BC = np.stack(
         [
@@ -230,7 +249,7 @@ def test_poses_in_target_is_camera_pose_in_target_row_by_row(plant, mount):
     states[:, :4] *= 1.7  # an unnormalised quaternion, as an integrator leaves it
     batched = poses_in_target(config, states)
     for x, X in zip(states, batched, strict=True):
-        one = camera_pose_in_target(config, x, plant == "dynamic").GetAsMatrix4()
+        one = camera_pose_in_target(config, x, config.dynamic).GetAsMatrix4()
         assert np.allclose(X, one, atol=1e-14)
     assert np.allclose(batched, X_BC, atol=1e-12)  # and both invert initial_body_states
 

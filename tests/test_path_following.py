@@ -25,7 +25,13 @@ from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.geometry.servo import path_following_velocity
 from geovs_drake.loop import build_loop
 from geovs_drake.planning import PathPlanningError, plan_for_scenario, plan_path
-from geovs_drake.scenario import PathFollowing, PoseConfig, ScenarioConfig, load_scenario
+from geovs_drake.scenario import (
+    Kinematic,
+    PathFollowing,
+    PoseConfig,
+    ScenarioConfig,
+    load_scenario,
+)
 from geovs_drake.simulation import simulate
 from geovs_drake.systems import PathFollowingController
 
@@ -218,7 +224,7 @@ def test_a_geodesic_that_leaves_D_is_reported_and_the_gradient_flow_path_stays_i
     phi = nf.value(ImageFeatures.from_vector(Y))
     assert np.all(np.diff(phi) <= 1e-12) and phi[-1] < 1e-20
     # And the loop that follows it (kinematic, feedback) stays in D: the monitor's margins.
-    config.plant = "kinematic"
+    config.plant = Kinematic()
     config.controller = PathFollowing()
     config.duration = T + 2
     result = simulate(config)
@@ -240,7 +246,7 @@ def test_open_loop_tracks_the_plan_to_integrator_accuracy_on_the_exact_model():
     """Eq. (18) as written (k = 0), kinematic plant, exact rho: the image follows y_d(t)
     within 1e-6 (every factor) along the whole path, at accuracy 1e-8."""
     config = ScenarioConfig(
-        plant="kinematic", controller=PathFollowing(feedback_gain=0.0), duration=9.0
+        plant=Kinematic(), controller=PathFollowing(feedback_gain=0.0), duration=9.0
     )
     config.simulator.accuracy = 1e-8
     result = simulate(config)
@@ -256,7 +262,7 @@ def test_feedback_shrinks_each_geodesic_error_as_exp_minus_k_t():
     initial value, while y_d moves (Drake's loggers against the plan)."""
     k = 1.5
     config = ScenarioConfig(
-        plant="kinematic", controller=PathFollowing(feedback_gain=k), duration=3.0
+        plant=Kinematic(), controller=PathFollowing(feedback_gain=k), duration=3.0
     )
     config.simulator.accuracy = 1e-10
     plan = plan_for_scenario(config)
@@ -299,7 +305,7 @@ def test_path_config_and_cli(capsys):
         ("controller: !PathFollowing {duration: 0}\n", "controller.duration"),
         ("controller: !PathFollowing {feedback_gain: -1}\n", "controller.feedback_gain"),
         ("controller: !PathFollowing {radius_scale: 0}\n", "controller.radius_scale"),
-        ("mount: ceiling\n", "mount must be one of hand, fixed"),
+        ("carrier: ceiling\n", "carrier must be one of free, fixed_camera, arm"),
     ):
         with pytest.raises(ValueError, match=needle):
             load_scenario(data=bad).validate()
@@ -316,5 +322,5 @@ def test_path_config_and_cli(capsys):
     code = main(["simulate", "--controller", "pbvs", "--path-duration", "4"])
     _, err = capsys.readouterr()
     assert code == 2 and err.strip().splitlines() == [
-        "geovs-drake: --path-duration applies to --controller path, the law here is pbvs"
+        "geovs-drake: --path-duration applies to --controller path, the controller here is pbvs"
     ]

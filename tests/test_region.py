@@ -19,10 +19,10 @@ from geovs_drake.analysis.linear.region import (
     states_of,
 )
 from geovs_drake.batch.engine import loop_parameters
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import Dynamic, Kinematic, ScenarioConfig, variant_name
 
 
-@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
 def test_near_the_goal_vdot_is_the_lyapunov_equations(plant):
     config = ScenarioConfig(plant=plant)
     region = lyapunov_region(config, rays=4)
@@ -36,7 +36,7 @@ def test_near_the_goal_vdot_is_the_lyapunov_equations(plant):
 
 
 def test_every_start_inside_the_sampled_region_converges_small():
-    config = ScenarioConfig(plant="kinematic")
+    config = ScenarioConfig(plant=Kinematic())
     region = lyapunov_region(config, rays=20)
     assert region.rho > 0 and region.failed_by in ("Vdot >= 0", "leaves D")
     batch = check_inside(config, region, 200)
@@ -44,7 +44,7 @@ def test_every_start_inside_the_sampled_region_converges_small():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
 def test_every_start_inside_the_sampled_region_converges(plant):
     """The issue's check: 10^4 starts inside the region (200 rays), all converge."""
     config = ScenarioConfig(plant=plant)

@@ -37,7 +37,7 @@ from geovs_drake.geometry.pinhole import PinholeIntrinsics
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.sensors import vtk_camera_info
 from geovs_drake.loop.state import initial_rig_state
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import Pinhole, Rendered, ScenarioConfig
 from geovs_drake.simulation import make_simulator, simulate
 from geovs_drake.systems import FeatureExtractor, PinholeFeatureSensor
 from geovs_drake.systems.feature_extractor import extract_features
@@ -86,7 +86,7 @@ def test_extracted_features_match_the_camera_map_to_a_fraction_of_a_pixel():
     result = feature_accuracy(n=20, resolution=RES, seed=11, shrink=0.9)
     ok = result.codes == 0
     assert ok.sum() >= 16, result.summary()["failures"]
-    camera = ScenarioConfig().camera.intrinsics(math.radians(35.0))
+    camera = Pinhole().intrinsics(math.radians(35.0))
     f = camera.fx
     exact, errors = result.exact[ok], {k: v[ok] for k, v in result.errors.items()}
     # lambda: the silhouette's radius r = f tan(arcsin lambda) [px] within 0.2 px.
@@ -171,8 +171,7 @@ def test_a_lost_feature_holds_the_last_y_and_stops_the_run():
     assert not np.array_equal(sensor.image_features_output.Eval(context), good)
     # In a loop the monitor stops the run and names why: an arrow mark 1.5 rad from b
     # is past the limb seen from the default start.
-    config = ScenarioConfig()
-    config.camera.sensor = "pinhole"
+    config = ScenarioConfig(sensor=Pinhole())
     loop = build_loop(config, log=False)
     diagram = loop.diagram
     simulator, monitor = make_simulator(loop)
@@ -192,10 +191,10 @@ def short_runs():
     """The default start, 1.2 s, through the rendered and the noise-free pinhole loops."""
     config = ScenarioConfig(duration=1.2)
     runs = {}
-    for sensor in ("rendered", "pinhole"):
+    for name, sensor in (("rendered", Rendered()), ("pinhole", Pinhole())):
         c = copy.deepcopy(config)
-        c.camera.sensor = sensor
-        runs[sensor] = simulate(c)
+        c.sensor = sensor
+        runs[name] = simulate(c)
     return runs
 
 
@@ -214,12 +213,7 @@ def test_the_rendered_loop_follows_the_pinhole_loop(short_runs):
 
 
 def test_the_rendered_diagram_is_named_and_wired():
-    config = ScenarioConfig()
-    config.camera.sensor, config.camera.rate, config.camera.resolution = (
-        "rendered",
-        15.0,
-        [160, 120],
-    )
+    config = ScenarioConfig(sensor=Rendered(rate=15.0, resolution=[160, 120]))
     diagram = build_loop(config).diagram
     assert diagram.get_name() == "rendered_visual_servo"
     extractor = diagram.GetSubsystemByName("feature_sensor")
@@ -260,7 +254,7 @@ def test_simulate_with_a_camera_from_the_command_line(capsys):
     assert summary["sensor"] == "pinhole" and summary["status"] == "converged"
     assert summary["camera"]["resolution"] == [320, 240] and summary["camera"]["rate_hz"] == 30
     # The camera's tolerance (2 px at the goal's 0.5 m, 5 pixel angles), not 1 mm / 1 mrad.
-    f = ScenarioConfig().camera.intrinsics(math.radians(35.0)).fx
+    f = Pinhole().intrinsics(math.radians(35.0)).fx
     assert summary["tolerance_position_m"] == pytest.approx(2 * 0.5 / f)
     assert summary["tolerance_rotation_rad"] == pytest.approx(5 / f)
     code = main(["simulate", "--sensor", "rendered", "--duration", "0.3", "--camera-rate", "20"])

@@ -6,7 +6,6 @@ closed forms of the equilibrium a calibration error moves the loop to, Drake's
 (does it leave D where the sampled linearisation says it is unstable?).
 """
 
-import copy
 import math
 
 import numpy as np
@@ -26,13 +25,13 @@ from geovs_drake.analysis.studies.robustness import (
     sampled_spectral_radius,
     summarize_robustness,
 )
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import Dynamic, ScenarioConfig, exact_twin
 from geovs_drake.simulation import simulate
 
 
 def test_stiffness_of_the_measured_loop_is_the_closed_form():
     config = ScenarioConfig()
-    K_closed = -rig_spatial_inertia(config) @ closed_form_A(config, "dynamic")[6:, :6]
+    K_closed = -rig_spatial_inertia(config) @ closed_form_A(config, Dynamic())[6:, :6]
     scale = np.max(np.abs(K_closed))
     assert np.max(np.abs(potential_stiffness(config) - K_closed)) < 1e-8 * scale
     # The pinhole sensor, noise-free, measures c(H): the same stiffness.
@@ -60,12 +59,11 @@ def test_a_wrong_focal_length_moves_the_goal_distance(error):
 
 def test_fast_sampling_tends_to_the_continuous_loop():
     config = case_config(ScenarioConfig(), "rate", 4000.0)
-    exact = copy.deepcopy(config)
-    exact.camera.sensor = "exact"
-    exact.control.damping = list(config.camera.damping)
+    exact = exact_twin(config)
+    exact.control.damping = list(config.sensor.damping)
     slowest = np.max(linearize_at_goal(exact).eigenvalues.real)
     radius = sampled_spectral_radius(config)
-    assert config.camera.rate * math.log(radius) == pytest.approx(slowest, rel=1e-2)
+    assert config.sensor.rate * math.log(radius) == pytest.approx(slowest, rel=1e-2)
 
 
 @pytest.fixture(scope="module")
@@ -80,7 +78,7 @@ def default_start_runs():
     ):
         config = case_config(ScenarioConfig(duration=2.5), "latency_frames", latency)
         if damping is not None:
-            config.camera.damping = damping
+            config.sensor.damping = damping
         runs[name] = (sampled_spectral_radius(config), simulate(config))
     return runs
 

@@ -15,7 +15,17 @@ import pytest
 from pydrake.systems.analysis import SimulatorConfig
 
 from geovs_drake.linear_model import closed_form_A
-from geovs_drake.scenario import DEFAULT_MAX_STEP, PoseConfig, ScenarioConfig, resolve
+from geovs_drake.scenario import (
+    DEFAULT_MAX_STEP,
+    Arm,
+    Dynamic,
+    FixedCamera,
+    Kinematic,
+    PoseConfig,
+    ScenarioConfig,
+    resolve,
+    variant_name,
+)
 from geovs_drake.simulation import simulate
 from geovs_drake.simulation.step_limit import STABILITY_MARGIN, step_limit
 
@@ -24,7 +34,7 @@ NEAR = PoseConfig(xyz=[0.02, -0.01, -0.52], rpy=[0.02, -0.01, 0.1])
 
 
 def test_the_stable_step_of_a_real_mode_is_rk3s_real_axis_bound():
-    config = ScenarioConfig(plant="kinematic")
+    config = ScenarioConfig(plant=Kinematic())
     limit = step_limit(resolve(config))
     eigenvalues = np.linalg.eigvals(closed_form_A(config))
     assert np.allclose(eigenvalues.imag, 0) and limit.fastest_mode == pytest.approx(
@@ -44,7 +54,7 @@ def test_the_stable_step_of_a_real_mode_is_rk3s_real_axis_bound():
 
 
 def test_a_limit_the_user_sets_is_used_as_given():
-    config = ScenarioConfig(plant="kinematic")
+    config = ScenarioConfig(plant=Kinematic())
     # Not set: None, automatic; Drake's struct gets Drake's own default for it.
     assert config.simulator.max_step_size is None and step_limit(resolve(config)).automatic
     assert config.simulator.to_drake().max_step_size == SimulatorConfig().max_step_size
@@ -59,7 +69,7 @@ def test_a_limit_the_user_sets_is_used_as_given():
     assert step_limit(resolve(config)).warning("runge_kutta3") is None
 
 
-@pytest.mark.parametrize("plant", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
 def test_both_loops_reach_the_goal_to_rounding_and_stay(plant):
     """From the small start the pose error is below 1e-12 m from 20 s on, to 40 s (the
     kinematic loop used to stall at 3e-8 m and drift to 3e-7 m with a 0.05 s limit)."""
@@ -91,19 +101,17 @@ def test_no_warning_for_the_automatic_limit(run_cli):
     assert "warning" not in run.err
 
 
-@pytest.mark.parametrize(
-    "changes", [dict(carrier="arm"), dict(mount="fixed")], ids=["arm", "fixed_camera"]
-)
-def test_the_closed_forms_readers_refuse_a_loop_it_does_not_model_alike(changes):
+@pytest.mark.parametrize("carrier", [Arm(), FixedCamera()], ids=variant_name)
+def test_the_closed_forms_readers_refuse_a_loop_it_does_not_model_alike(carrier):
     """The closed form is the eye-in-hand free rig's: linearize_at_goal, linearize and
-    design_gains refuse the arm and the fixed camera in one line naming the two fields
+    design_gains refuse the arm and the fixed camera in one line naming the carrier
     (one rule, linear_model.closed_form_refusal), and the step limit falls back on its
     cap there (no stability bound from a model that is not the loop's)."""
     from geovs_drake.analysis.linear.gain_design import design_gains
     from geovs_drake.analysis.linear.linearization import linearize, linearize_at_goal
 
-    config = ScenarioConfig(**changes)
-    fields = f"carrier = {config.carrier!r}, mount = {config.mount!r}"
+    config = ScenarioConfig(carrier=carrier)
+    got = f"(carrier FreeRig), got carrier {type(carrier).__name__}"
     for who, call in (
         ("linearize_at_goal", lambda: linearize_at_goal(config)),
         ("linearize", lambda: linearize(config)),
@@ -111,7 +119,7 @@ def test_the_closed_forms_readers_refuse_a_loop_it_does_not_model_alike(changes)
     ):
         with pytest.raises(ValueError) as error:
             call()
-        assert str(error.value) == f"{who}: the closed form is the eye-in-hand free rig's: {fields}"
+        assert str(error.value) == f"{who}: the closed form is the eye-in-hand free rig's {got}"
     limit = step_limit(resolve(config))
     assert limit.stable_step is None and limit.max_step_size == DEFAULT_MAX_STEP
 

@@ -23,7 +23,7 @@ from geovs_drake.geometry.camera import camera_map
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.state import initial_body_states
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import Arm, Kinematic, ScenarioConfig
 
 FAILED = ("left_domain", "lost_visibility", "non_finite")
 
@@ -54,7 +54,7 @@ def test_start_i_depends_on_the_seed_and_i_only():
 
 def test_starts_lie_in_D_and_below_the_energy_bound():
     config = ScenarioConfig()
-    config.rig.inertia_diagonal = [0.02, 0.03, 0.025]  # the unit twist's energy varies
+    config.carrier.inertia_diagonal = [0.02, 0.03, 0.025]  # the unit twist's energy varies
     n = 300
     X_BC, twists = sweep.sample_starts(config, n, seed=4, velocity="bounded")
     domain = config.domain.to_domain()
@@ -86,7 +86,7 @@ def test_starts_lie_in_D_and_below_the_energy_bound():
     assert np.array_equal(X_rest, X_BC[:5]) and not np.any(zero)  # the same images at rest
 
     kinematic = copy.deepcopy(config)
-    kinematic.plant = "kinematic"
+    kinematic.plant = Kinematic()
     with pytest.raises(sweep.SweepError, match="velocity 'bounded' needs the dynamic plant"):
         sweep.sample_starts(kinematic, 3, velocity="bounded")
 
@@ -287,7 +287,7 @@ def test_cli_end_to_end(tmp_path, run_cli):
         (["--starts", "100001", "--csv"], "--csv writes at most 100000 starts"),
         (["--seed=-1"], "the seed must be an integer >= 0"),
         # The batch engine integrates the free rig: an arm would silently run as one.
-        (["--carrier", "arm"], "the batch engine runs the free rig only"),
+        (["--carrier", "arm"], "the batch engine runs the eye-in-hand free rig only"),
     ],
 )
 def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, monkeypatch, run_cli):
@@ -477,7 +477,7 @@ def test_the_drake_engine_runs_the_arm_keeping_each_starts_energy_ratio():
     is none), the sampled twist carried to the joints at the kinetic energy that keeps
     E0 / k_p. The truth: the batch engine's E0 / k_p of the same starts on the free rig
     (the arm's k_p is ten times the rig's, its kinetic energy scaled alike)."""
-    arm = ScenarioConfig(carrier="arm")
+    arm = ScenarioConfig(carrier=Arm())
     starts = sweep.SampledStarts(5, seed=3, velocity="bounded")
     on_arm = sweep.run_sweep(arm, starts, 2.0, engine="drake", workers=1)
     free = sweep.run_sweep(ScenarioConfig(), starts, 2.0, workers=1)

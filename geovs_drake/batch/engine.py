@@ -52,7 +52,7 @@ from numba import njit, prange
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
 from geovs_drake.loop.state import initial_body_states
-from geovs_drake.scenario import Nf, ScenarioConfig, resolve
+from geovs_drake.scenario import Exact, FreeRig, Nf, ScenarioConfig, resolve, variant_name
 from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
 from geovs_drake.simulation.step_limit import step_limit
 from geovs_drake.systems.spherical_camera import CAMERA_OFFSET
@@ -88,7 +88,8 @@ _pose_error = kernels.pose_error.compiled
 class LoopParameters:
     """What the kernels take, read from a diagram's systems (see :func:`loop_parameters`)."""
 
-    plant: str
+    plant: str  # the plant's name, for the results
+    dynamic: bool  # the plant is Dynamic: the free body's kernels, not the kinematic ones
     camera: np.ndarray
     navigation: np.ndarray
     controller: np.ndarray  # ImageJacobianForce's vector, or KinematicController's [rho, k]
@@ -110,26 +111,22 @@ def loop_parameters(config: ScenarioConfig) -> LoopParameters:
             f"the batch engine runs the NF's loops only: controller = {config.controller!r} "
             "(use simulate() or the Drake engine for other laws)"
         )
-    if config.mount != "hand":
+    if not isinstance(config.carrier, FreeRig):
         raise ValueError(
-            f"the batch engine runs the eye-in-hand loops only: mount = {config.mount!r} "
-            "(use simulate() for the fixed camera)"
+            f"the batch engine runs the eye-in-hand free rig only: carrier = "
+            f"{type(config.carrier).__name__} (use the Drake engine, sweep --engine drake, "
+            "or simulate())"
         )
-    if config.carrier != "free":
+    if not isinstance(config.sensor, Exact):
         raise ValueError(
-            f"the batch engine runs the free rig only: carrier = {config.carrier!r} "
-            "(use the Drake engine, sweep --engine drake, or simulate())"
-        )
-    if config.camera.sensor != "exact":
-        raise ValueError(
-            f"the batch engine reads the exact y = c(H); camera.sensor "
-            f"{config.camera.sensor!r} runs through simulate()"
+            f"the batch engine reads the exact y = c(H); sensor "
+            f"{type(config.sensor).__name__} runs through simulate()"
         )
     # Here, not at the top: a sweep's workers get these parameters from the client and
     # run the kernels without importing the Drake systems (geovs_drake._lazy).
     from geovs_drake.loop.build import build_loop
 
-    dynamic = config.plant == "dynamic"
+    dynamic = config.dynamic
     diagram = build_loop(config, log=False).diagram
     root = diagram.CreateDefaultContext()
 
@@ -142,11 +139,12 @@ def loop_parameters(config: ScenarioConfig) -> LoopParameters:
     X_WC_goal = config.X_WB @ config.X_BC_goal
     goal = np.concatenate([X_WC_goal.rotation().matrix().ravel(), X_WC_goal.translation()])
     return LoopParameters(
-        plant=config.plant,
+        plant=variant_name(config.plant),
+        dynamic=dynamic,
         camera=camera,
         navigation=np.array(nav.navigation_parameters(nav.GetMyContextFromRoot(root))),
         controller=params("image_jacobian_force" if dynamic else "kinematic_controller"),
-        body=np.array([config.rig.mass, *config.rig.inertia_diagonal], dtype=float),
+        body=np.array([config.carrier.mass, *config.carrier.inertia_diagonal], dtype=float),
         pose_error=np.concatenate([camera[CAMERA_OFFSET], goal]),
         potential_gain=config.control.potential_gain if dynamic else 1.0,
         max_step_size=step_limit(resolve(config)).max_step_size,
@@ -412,7 +410,7 @@ def run_batch(
     max_step = p.max_step_size if step is None else step
     h0 = min(DEFAULT_STEP, max_step) if step is None else step
     out = _integrate(
-        p.plant != "dynamic",
+        not p.dynamic,
         X0,
         p.camera,
         p.navigation,

@@ -5,7 +5,7 @@ Examples::
 
     geovs-drake simulate --json
     geovs-drake simulate --plant kinematic --initial=-0.1,0.05,-0.7,0.1,0,1.2
-    geovs-drake simulate --scenario-text "{plant: kinematic, control: {kinematic_gain: 2}}"
+    geovs-drake simulate --scenario-text "{plant: !Kinematic {}, control: {kinematic_gain: 2}}"
     geovs-drake simulate --initial-velocity=-0.2,0,0.3,0.05,-0.1,0
     geovs-drake simulate --sensor rendered --camera-rate 30 --resolution 320x240
     geovs-drake demo --out results
@@ -19,7 +19,8 @@ Examples::
     geovs-drake linearize --at=0.02,-0.01,-0.52,0.02,-0.01,0.1
 
 A scenario is read once, in layers: ``--config FILE``, then ``--scenario-text YAML``,
-then each option that sets a field (``--plant kinematic`` is ``{plant: kinematic}``),
+then each option that sets a field (``--plant kinematic`` is ``{plant: kinematic}``, the
+bare name of ``!Kinematic {}``),
 with :func:`~geovs_drake.scenario.load_scenario`'s ``overrides``.
 
 Exit codes: see ``EXIT_CODES`` (shown by ``geovs-drake --help``). A command that

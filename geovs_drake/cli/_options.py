@@ -5,8 +5,9 @@ A flag that sets a scenario field (:func:`add_field`) is a config layer: parsing
 appends ``(flag, {field: value})`` to ``args.layers``, and :func:`load_config` layers
 ``--config``, then ``--scenario-text``, then the flags in command-line order, with
 :func:`~geovs_drake.scenario.load_scenario`. Its help shows the dataclass default.
-A flag that sets a field of one law (:func:`add_law_field`, e.g. ``--ibvs-depth``)
-applies to the law the layers chose, last; with another law it is one line's error.
+A flag that sets a field of one variant (:func:`add_variant_field`, e.g. ``--ibvs-depth``
+of ``!Ibvs``, ``--camera-rate`` of a camera sensor) applies to the variant the layers
+chose, last; with another variant it is one line's error.
 """
 
 from __future__ import annotations
@@ -20,13 +21,12 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from geovs_drake.scenario import (
-    LAW_VARIANTS,
-    PLANTS,
+    AXES,
     ResolvedScenario,
     ScenarioConfig,
-    law_name,
     load_scenario,
     resolve,
+    variant_name,
 )
 
 EXIT_CONVERGED = 0
@@ -176,8 +176,8 @@ def _shown(value: Any) -> str:
         return numbers(list(value.xyz) + list(value.rpy))
     if isinstance(value, list):
         return numbers(value)
-    if type(value) in LAW_VARIANTS.values():
-        return law_name(value)
+    if any(type(value) in variants.values() for variants in AXES.values()):
+        return variant_name(value)
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
@@ -223,46 +223,84 @@ def add_field(
     )
 
 
-class _LawField(argparse.Action):
-    """Appends ``(flag, law name, field, value)`` to ``args.law_fields``."""
+class _VariantField(argparse.Action):
+    """Appends ``(flag, apply, value)`` to ``args.variant_fields``, in command-line order."""
 
-    def __init__(self, *args: Any, law: str, field: str, **kwargs: Any):
-        self.law, self.field = law, field
+    def __init__(self, *args: Any, apply: Any, positive: str | None = None, **kwargs: Any):
+        self.apply, self.positive = apply, positive
         super().__init__(*args, **kwargs)
 
     def __call__(self, parser, namespace, value, option_string=None) -> None:
-        entry = (option_string, self.law, self.field, value)
-        namespace.law_fields = [*(getattr(namespace, "law_fields", None) or []), entry]
+        if self.positive is not None and not (math.isfinite(value) and value > 0):
+            parser.error(f"{option_string} must be finite and > 0 [{self.positive}]: {value}")
+        entry = (option_string, self.apply, value)
+        namespace.variant_fields = [*(getattr(namespace, "variant_fields", None) or []), entry]
 
 
-def add_law_field(
-    p: argparse.ArgumentParser, flag: str, law: str, field: str, help: str, **kwargs: Any
+def _set_variant_field(axis: str, names: tuple[str, ...], field: str):
+    """How a variant flag applies: ``field`` of the ``axis`` variant the layers chose, if
+    it is one of ``names`` (ValueError in one line where it is another)."""
+    kinds = tuple(AXES[axis][name] for name in names)
+
+    def apply(config: ScenarioConfig, flag: str, value: Any) -> None:
+        variant = getattr(config, axis)
+        if not isinstance(variant, kinds):
+            raise ValueError(
+                f"{flag} applies to --{axis} {'|'.join(names)}, the {axis} here is "
+                f"{variant_name(variant)}"
+            )
+        setattr(config, axis, dataclasses.replace(variant, **{field: value}))
+
+    return apply
+
+
+def add_variant_field(
+    p: argparse.ArgumentParser,
+    flag: str,
+    axis: str,
+    names: tuple[str, ...],
+    field: str,
+    help: str,
+    **kwargs: Any,
 ) -> None:
-    """``flag`` sets the field ``field`` of the law named ``law`` (a
-    :data:`~geovs_drake.scenario.LAW_VARIANTS` name), whichever layer chose that law;
-    its help ends with the variant's default."""
-    default = _shown(getattr(LAW_VARIANTS[law](), field))
+    """``flag`` sets the field ``field`` of the ``axis`` variant (``carrier``, ``sensor``,
+    ``controller``) whichever layer chose it, if it is one of ``names``
+    (:data:`~geovs_drake.scenario.AXES`' names, e.g. ``("pinhole", "rendered")``); its
+    help ends with the first variant's default."""
+    default = kwargs.pop("shown", None) or _shown(getattr(AXES[axis][names[0]](), field))
     p.add_argument(
         flag,
-        action=_LawField,
-        law=law,
-        field=field,
+        action=_VariantField,
+        apply=_set_variant_field(axis, names, field),
         dest=flag,
         default=argparse.SUPPRESS,
-        help=f"with --controller {law}: {help} (default: the config's, else {default})",
+        help=f"with --{axis} {'|'.join(names)}: {help} (default: the config's, else {default})",
         **kwargs,
     )
 
 
-def _apply_law_fields(config: ScenarioConfig, fields: Sequence[tuple]) -> None:
-    """Each law flag on the law the layers chose (ValueError where it is another law)."""
-    for flag, law, field, value in fields:
-        if not isinstance(config.controller, LAW_VARIANTS[law]):
-            raise ValueError(
-                f"{flag} applies to --controller {law}, the law here is "
-                f"{law_name(config.controller)}"
-            )
-        config.controller = dataclasses.replace(config.controller, **{field: value})
+def add_variant_flag(
+    p: argparse.ArgumentParser, flag: str, apply: Any, help: str, **kwargs: Any
+) -> None:
+    """``flag`` runs ``apply(config, flag, value)`` on the loaded scenario, after the
+    layers and in command-line order among such flags (a flag that maps onto a union in
+    its own way, as ``--mount`` does)."""
+    p.add_argument(
+        flag,
+        action=_VariantField,
+        apply=apply,
+        dest=flag,
+        default=argparse.SUPPRESS,
+        help=help,
+        **kwargs,
+    )
+
+
+def _apply_variant_fields(config: ScenarioConfig, fields: Sequence[tuple]) -> None:
+    """Each variant flag on the loaded scenario (ValueError in one line where its variant
+    is not the scenario's)."""
+    for flag, apply, value in fields:
+        apply(config, flag, value)
 
 
 def add_config(p: argparse.ArgumentParser) -> None:
@@ -277,10 +315,10 @@ def add_config(p: argparse.ArgumentParser) -> None:
         "--scenario-text",
         metavar="YAML",
         help="a YAML mapping of ScenarioConfig fields layered over --config and under the "
-        'options, e.g. --scenario-text "{plant: kinematic, control: {kinematic_gain: 2}}" '
+        'options, e.g. --scenario-text "{plant: !Kinematic {}, control: {kinematic_gain: 2}}" '
         "(default: none)",
     )
-    p.set_defaults(layers=None, law_fields=None)
+    p.set_defaults(layers=None, variant_fields=None)
 
 
 def load_resolved(args: argparse.Namespace) -> ResolvedScenario:
@@ -292,7 +330,7 @@ def load_resolved(args: argparse.Namespace) -> ResolvedScenario:
         layers.append(("--scenario-text", args.scenario_text))
     layers += args.layers or []
     config = load_scenario(args.config, overrides=layers)
-    _apply_law_fields(config, args.law_fields or [])
+    _apply_variant_fields(config, args.variant_fields or [])
     return resolve(config)
 
 
@@ -309,7 +347,7 @@ def add_plant(p: argparse.ArgumentParser, dynamic_detail: str = "") -> None:
         ("plant",),
         f"dynamic: the MultibodyPlant free body driven by a wrench{dynamic_detail}; "
         "kinematic: the camera's twist is commanded",
-        choices=PLANTS,
+        choices=tuple(AXES["plant"]),
     )
 
 

@@ -11,7 +11,7 @@ from geovs_drake.cli._options import (
     exit_code_of,
     field_default,
 )
-from geovs_drake.scenario import CARRIER_NAMES
+from geovs_drake.scenario import CARRIER_VARIANTS
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -30,7 +30,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_duration(p, "simulated time", None, f"{field_default(('duration',)):g}")
     p.add_argument(
         "--carrier",
-        choices=CARRIER_NAMES,
+        choices=("free", "arm"),
         default="free",
         help="free: the paper's free rig; arm: the camera on the arm shipped in the "
         "package, IK from the same start (default: free)",
@@ -59,6 +59,6 @@ def run(args: argparse.Namespace) -> int:
         args.duration,
         meshcat=not args.no_meshcat,
         rendered=not args.no_rendered,
-        carrier=args.carrier,
+        carrier=CARRIER_VARIANTS[args.carrier](),
     )
     return exit_code_of(result.status)

@@ -89,7 +89,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--camera-rate",
         type=float,
         metavar="HZ",
-        help="the camera's rate for --latency (default: camera.rate)",
+        help="the camera's rate for --latency (default: the sensor's rate, or the default "
+        "camera's 30 Hz with the exact sensor)",
     )
     p.add_argument(
         "--region",
@@ -123,74 +124,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def summary(lin) -> dict:
-    """The JSON object of a
-    :class:`~geovs_drake.analysis.linear.linearization.LoopLinearization`."""
-    lam = lin.eigenvalues
-
-    def finite_or_none(values: np.ndarray) -> list[float | None]:
-        return [float(v) if np.isfinite(v) else None for v in values]
-
-    return {
-        "plant": lin.plant,
-        "at_equilibrium": lin.at_equilibrium,
-        "A": lin.A.tolist(),
-        "eigenvalues": [[float(v.real), float(v.imag)] for v in lam],
-        "max_real_part": lin.max_real_part,
-        "damping_ratios": finite_or_none(lin.damping_ratios),
-        "time_constants": finite_or_none(lin.time_constants),
-        "stable": bool(lin.max_real_part < 0),
-    }
-
-
 def _design(config, args) -> dict:
     from geovs_drake.analysis.linear.gain_design import design_gains
 
     zeta = args.damping_ratio
-    if zeta is None and config.plant == "dynamic":
+    if zeta is None and config.dynamic:
         zeta = DEFAULT_DAMPING_RATIO
-    d = design_gains(config, args.settling_time, zeta)
-    out = {
-        "settling_time": d.settling_time,
-        "damping_ratio": d.damping_ratio,
-        "slowest": [d.slowest.real, d.slowest.imag],
-        "achieved_damping_ratio": d.achieved_damping_ratio,
-        "achieved_settling_time": d.achieved_settling_time,
-        "run_status": d.run_status,
-    }
-    if config.plant == "dynamic":
-        out |= {
-            "potential_gain": d.potential_gain,
-            "damping": d.damping.tolist(),
-            "energy_bound": d.potential_gain,
-            "peak_torque_Nm": d.peak_torque,
-            "peak_force_N": d.peak_force,
-        }
-    else:
-        out |= {
-            "kinematic_gain": d.kinematic_gain,
-            "peak_rate_rad_s": d.peak_rate,
-            "peak_speed_m_s": d.peak_speed,
-        }
-    return out
+    return design_gains(config, args.settling_time, zeta).summary()
 
 
 def _camera(config, args) -> dict:
-    from geovs_drake.analysis.linear.latency import check_camera, sampled_model
+    from geovs_drake.analysis.linear.latency import camera_of, check_camera, sampled_model
 
-    rate = config.camera.rate if args.camera_rate is None else args.camera_rate
+    own_rate = camera_of(config).rate
+    rate = own_rate if args.camera_rate is None else args.camera_rate
     check_camera(rate, args.latency)
-    model = sampled_model(config)  # one linearisation serves every figure below
-    rho = model.spectral_radius(rate, args.latency)
-    slowest = model.slowest_stable_rate(args.latency, rate) if rate == config.camera.rate else None
-    return {
-        "rate": rate,
-        "latency_frames": args.latency,
-        "spectral_radius": rho,
-        "stable": bool(rho < 1),
-        "latency_margin_frames": model.latency_margin(rate),
-        "slowest_stable_rate_hz": None if slowest is None or slowest != slowest else slowest,
-    }
+    return sampled_model(config).summary(rate, args.latency, own_rate)
 
 
 def _region(config, certify: bool, solver: str) -> dict:
@@ -198,24 +147,9 @@ def _region(config, certify: bool, solver: str) -> dict:
     from geovs_drake.analysis.linear.region import lyapunov_region
 
     r = lyapunov_region(config)
-    out = {
-        "level": r.rho,
-        "rays": r.rays,
-        "failed_by": r.failed_by,
-        "largest_distance_m": r.largest_distance_m,
-        "largest_roll_rad": r.largest_roll_rad,
-    }
+    out = r.summary()
     if certify:
-        c = certify_region(config, sampled=r, solver=solver)
-        out["certified"] = {
-            "level": c.rho,
-            "degree": c.degree,
-            "solver": c.solver,
-            "seconds": c.seconds,
-            "largest_distance_m": c.largest_distance_m,
-            "largest_roll_rad": c.largest_roll_rad,
-            "nonlinear_check": c.nonlinear_check,
-        }
+        out["certified"] = certify_region(config, sampled=r, solver=solver).summary()
     return out
 
 
@@ -269,15 +203,15 @@ def _locus(config, lin, path: Path) -> None:
     from geovs_drake.analysis.linear.gain_design import root_locus
     from geovs_drake.plotting import plot_root_locus
 
-    name = "potential_gain" if config.plant == "dynamic" else "kinematic_gain"
+    name = config.plant.gain_field  # the gain that scales the NF's loop on this plant
     own = float(getattr(config.control, name))
     gains = own * np.geomspace(0.1, 10.0, 41)
     plot_root_locus(
         gains,
         root_locus(config, gains, name),
         current=lin.eigenvalues,
-        damping_ratio=DEFAULT_DAMPING_RATIO if config.plant == "dynamic" else None,
-        gain_label="k_p" if config.plant == "dynamic" else "k",
+        damping_ratio=DEFAULT_DAMPING_RATIO if config.dynamic else None,
+        gain_label=config.plant.gain_symbol,
         path=path,
     )
 
@@ -318,7 +252,7 @@ def run(args: argparse.Namespace) -> int:
             return EXIT_BAD_INPUT
         state = state_at(config, config.X_BC_initial)
     lin = linearize(config, state)
-    out = summary(lin)
+    out = lin.summary()
     # Every study runs before anything is written: bad input leaves no output behind.
     try:
         if args.settling_time is not None or args.damping_ratio is not None:

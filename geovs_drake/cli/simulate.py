@@ -12,8 +12,9 @@ from geovs_drake.cli._options import (
     add_config,
     add_field,
     add_json,
-    add_law_field,
     add_plant,
+    add_variant_field,
+    add_variant_flag,
     exit_code_of,
     field_default,
     joints_arg,
@@ -24,7 +25,14 @@ from geovs_drake.cli._options import (
     twist_arg,
 )
 from geovs_drake.progress import HorizonProgress
-from geovs_drake.scenario import CARRIER_NAMES, CONTROLLERS, IBVS_DEPTHS, MOUNTS, SENSOR_NAMES
+from geovs_drake.scenario import (
+    AXES,
+    CONTROLLERS,
+    IBVS_DEPTHS,
+    FixedCamera,
+    FreeRig,
+    ScenarioConfig,
+)
 
 
 def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None:
@@ -49,10 +57,11 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         "features)",
         choices=CONTROLLERS,
     )
-    add_law_field(
+    add_variant_field(
         p,
         "--ibvs-depth",
-        "ibvs",
+        "controller",
+        ("ibvs",),
         "depth",
         "the depth estimate: true (the current interaction matrix with the true depths, "
         "from c^-1(y)), desired (the matrix at the goal) or mean (their mean)",
@@ -94,69 +103,82 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         ("carrier",),
         "what carries the camera: free (the rigid body of Appendix C) or arm (a robot arm, "
         "eye-in-hand: joint torques with --plant dynamic, joint velocities with kinematic)",
-        choices=CARRIER_NAMES,
+        choices=("free", "arm"),
     )
-    add_field(
+    add_variant_field(
         p,
         "--arm",
-        ("arm", "model"),
-        "with --carrier arm: default (the UR5-like arm shipped in the package), panda (the "
+        "carrier",
+        ("arm",),
+        "model",
+        "default (the UR5-like arm shipped in the package), panda (the "
         '7-axis Franka Panda of example-robot-data: pip install "geovs-drake[panda]") or '
-        "the path of a URDF or SDFormat file (with arm.end_effector_frame in the scenario)",
+        "the path of a URDF or SDFormat file (with the carrier's end_effector_frame in the "
+        "scenario)",
         metavar="default|panda|PATH",
     )
-    add_field(
+    add_variant_field(
         p,
         "--initial-joints",
-        ("arm", "initial_joints"),
-        "with --carrier arm: the arm's initial joint positions [rad], in place of "
+        "carrier",
+        ("arm",),
+        "initial_joints",
+        "the arm's initial joint positions [rad], in place of "
         "--initial solved by inverse kinematics (none: solve it)",
         shown="none",
         type=joints_arg,
         metavar="q1,q2,...",
     )
-    add_field(
+    add_variant_field(
         p,
         "--initial-joint-velocity",
-        ("arm", "initial_joint_velocity"),
-        "with --carrier arm --plant dynamic: the arm's initial joint velocities [rad/s] "
+        "carrier",
+        ("arm",),
+        "initial_joint_velocity",
+        "with --plant dynamic: the arm's initial joint velocities [rad/s] "
         "(in place of --initial-velocity)",
         shown="at rest none",
         type=joints_arg,
         metavar="v1,v2,...",
     )
-    add_field(
+    add_variant_field(
         p,
         "--joint-barrier",
-        ("arm", "joint_barrier_width"),
-        "with --carrier arm --plant dynamic (the NF): the width [rad] of the barrier that "
+        "carrier",
+        ("arm",),
+        "joint_barrier_width",
+        "with --plant dynamic (the NF): the width [rad] of the barrier that "
         "puts the joint limits inside the energy guarantee, phi_total = 1 - (1 - phi)(1 - "
         "phi_q) (0: off)",
         type=float,
         metavar="RAD",
     )
     # Path following (--controller path) and the fixed camera (--mount): issue 12.
-    add_field(
+    add_variant_flag(
         p,
         "--mount",
-        ("mount",),
-        "hand: the camera rides on the driven body (eye-in-hand); fixed: the camera is "
-        "fixed in the world and the target sphere is driven (eye-to-hand, G = H^-1 of Eq. 16)",
-        choices=MOUNTS,
+        _mount,
+        "hand: the camera rides on the driven body (eye-in-hand, carrier !FreeRig or "
+        "!Arm); fixed: the camera is fixed in the world and the target sphere is driven "
+        "(eye-to-hand, G = H^-1 of Eq. 16: carrier !FixedCamera) (default: the config's, "
+        "else hand)",
+        choices=("hand", "fixed"),
     )
-    add_law_field(
+    add_variant_field(
         p,
         "--path-duration",
-        "path",
+        "controller",
+        ("path",),
         "duration",
         "the planned image path's duration [s]",
         type=float,
         metavar="T",
     )
-    add_law_field(
+    add_variant_field(
         p,
         "--path-feedback",
-        "path",
+        "controller",
+        ("path",),
         "feedback_gain",
         "the gain k [1/s] of the log-map feedback added to the feed-forward of Eq. (18); "
         "0 is Eq. (18) as written, open loop",
@@ -167,32 +189,52 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
     add_field(
         p,
         "--sensor",
-        ("camera", "sensor"),
+        ("sensor",),
         "exact: the controller reads y = c(H); rendered: Drake renders the target "
         "(RgbdSensor, VTK) and y is extracted from each frame; pinhole: that measurement "
         "on exact image points, without rendering (dynamic plant only for the last two)",
-        choices=SENSOR_NAMES,
+        choices=tuple(AXES["sensor"]),
     )
-    add_field(
+    add_variant_field(
         p,
         "--camera-rate",
-        ("camera", "rate"),
+        "sensor",
+        ("pinhole", "rendered"),
+        "rate",
         "frames per second of the camera",
         type=float,
         metavar="HZ",
         positive="Hz",
     )
-    add_field(
+    add_variant_field(
         p,
         "--resolution",
-        ("camera", "resolution"),
+        "sensor",
+        ("pinhole", "rendered"),
+        "resolution",
         "image size [px]; the focal length makes the inscribed cone the field of view",
-        shown="x".join(str(v) for v in field_default(("camera", "resolution"))),
+        shown="x".join(str(v) for v in AXES["sensor"]["pinhole"]().resolution),
         type=resolution_arg,
         metavar="WxH",
     )
     add_json(p)
     p.set_defaults(func=run, progress_delay_s=progress_delay_s)
+
+
+def _mount(config: ScenarioConfig, flag: str, mount: str) -> None:
+    """``--mount`` on the carrier the layers chose: ``fixed`` makes a free rig the fixed
+    camera (the same mass model, now the target's), ``hand`` the other way round; the
+    arm carries its camera in its hand."""
+    carrier = config.carrier
+    if mount == "fixed" and isinstance(carrier, FreeRig):
+        config.carrier = FixedCamera(carrier.mass, list(carrier.inertia_diagonal))
+    elif mount == "hand" and isinstance(carrier, FixedCamera):
+        config.carrier = FreeRig(carrier.mass, list(carrier.inertia_diagonal))
+    elif mount == "fixed" and not isinstance(carrier, FixedCamera):
+        raise ValueError(
+            f"{flag} fixed needs the free body (--carrier free): the carrier here is "
+            f"{type(carrier).__name__}, which carries the camera in its hand"
+        )
 
 
 def simulate(resolved, progress=None):

@@ -23,7 +23,6 @@ from geovs_drake.cli._options import (
     load_config,
 )
 from geovs_drake.progress import Progress
-from geovs_drake.scenario import CARRIER_NAMES
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -49,7 +48,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "free: the paper's free rig; arm: the camera on the arm shipped in the package "
         "(with --engine drake: each start's joints by IK, its twist carried to the joints "
         "at the same E0 / k_p)",
-        choices=CARRIER_NAMES,
+        choices=("free", "arm"),
     )
     p.add_argument(
         "--starts", type=int, default=1000, metavar="N", help="number of starts (default: 1000)"
@@ -118,7 +117,7 @@ def _checked_config(args: argparse.Namespace):
     if args.config and not Path(args.config).is_file():
         raise ValueError(f"--config {args.config}: no such file")
     config = load_config(args)
-    if args.velocity in ("bounded", "above") and config.plant == "kinematic":
+    if args.velocity in ("bounded", "above") and not config.dynamic:
         raise ValueError(
             f"--velocity {args.velocity} needs --plant dynamic (the kinematic loop is first order "
             "and starts at rest)"
@@ -141,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
     from geovs_drake.analysis import sweep
 
     config = _checked_config(args)
-    velocity = args.velocity or ("bounded" if config.plant == "dynamic" else "none")
+    velocity = args.velocity or ("bounded" if config.dynamic else "none")
     out = Path(args.out)
     progress = Progress(args.starts, "starts", "geovs-drake sweep")
     code = 0
@@ -181,7 +180,7 @@ def run(args: argparse.Namespace) -> int:
         g = summary["guarantee"]
         # The guarantee's condition: the energy below k_p (Appendix C), or for the
         # kinematic loop, which has no energy, phi below 1 (every start in D).
-        covered = "E0 < k_p" if result.plant == "dynamic" else "phi0 < 1"
+        covered = "E0 < k_p" if config.dynamic else "phi0 < 1"
         resumed = f", {result.resumed_parts} parts resumed" if result.resumed_parts else ""
         # The arm's joint limit, only where the arm ran (a free rig has none).
         limit = f", joint limit {g['joint_limit']}" if "joint_limit" in summary["counts"] else ""

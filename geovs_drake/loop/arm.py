@@ -81,7 +81,7 @@ def arm_model(config: ScenarioConfig) -> ArmModel:
     """The scenario's arm as the systems load it: a named arm (:data:`ARMS`) with its own
     frame, base and camera where the scenario leaves them unset, or a model file, its
     base and camera at the origin unless given."""
-    arm = config.arm
+    arm = config.carrier  # an Arm
     base = None if arm.base_pose is None else _xyz_rpy(arm.base_pose)
     camera = None if arm.camera_offset is None else _xyz_rpy(arm.camera_offset)
     packages = tuple(sorted(arm.packages.items()))
@@ -273,15 +273,15 @@ def _describe(X: RigidTransform) -> str:
 
 
 def initial_joints(config: ScenarioConfig) -> np.ndarray:
-    """The arm's start: ``arm.initial_joints``, else X_BC(0) solved by IK (ValueError
+    """The arm's start: ``carrier.initial_joints``, else X_BC(0) solved by IK (ValueError
     for a wrong number of joints, :class:`Unreachable` for a pose out of reach)."""
     model = arm_model(config)
     nq = arm_plant(model).num_positions()
-    given = config.arm.initial_joints
+    given = config.carrier.initial_joints
     if given:
         if len(given) != nq:
             raise ValueError(
-                f"arm.initial_joints must give the arm's {nq} joints, got {len(given)}: {given}"
+                f"carrier.initial_joints must give the arm's {nq} joints, got {len(given)}: {given}"
             )
         return np.asarray(given, dtype=float)
     return solve_joints(model, config.X_WB @ config.X_BC_initial)

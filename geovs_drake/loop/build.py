@@ -5,9 +5,9 @@ The parts come from three registries: :data:`~geovs_drake.loop.carriers.CARRIERS
 sees the target) and :data:`~geovs_drake.loop.laws.LAWS` (what it does with y).
 The builder is a straight line::
 
-    carrier  = CARRIERS[(carrier, mount, plant)](builder, resolved, draws_marks)
-    camera   = SphericalCamera(...)            # the truth: exact y of the true pose
-    y        = SENSORS[camera.sensor].add(...)  # the y the law acts on
+    carrier  = CARRIERS[type(carrier), type(plant)](builder, resolved, draws_marks)
+    camera   = SphericalCamera(...)             # the truth: exact y of the true pose
+    y        = SENSORS[type(sensor)].add(...)   # the y the law acts on
     nav      = NavigationController(...)       # phi on D, reported for every law
     command  = LAWS[type(law)].add(...)        # a twist, or a force system
     drive the carrier with it                  # velocity-tracking force if it needs one
@@ -45,7 +45,14 @@ from pydrake.systems.primitives import Adder, LogVectorOutput
 from geovs_drake.loop.carriers import CARRIERS, CarrierParts, carrier_key
 from geovs_drake.loop.laws import LAWS
 from geovs_drake.loop.sensors import SENSORS, add_feature_loggers
-from geovs_drake.scenario import ResolvedScenario, ScenarioConfig, resolve
+from geovs_drake.scenario import (
+    Exact,
+    FixedCamera,
+    ResolvedScenario,
+    ScenarioConfig,
+    resolve,
+    variant_name,
+)
 from geovs_drake.systems import NavigationController, SphericalCamera, VelocityTrackingForce
 
 __all__ = ["DISTURBANCES", "FEATURE_SIZE", "Loop", "build_loop", "refusal"]
@@ -90,25 +97,31 @@ class Loop:
 def refusal(config: ScenarioConfig) -> str | None:
     """Why the parts of ``config`` make no loop, in one line, or None if they do."""
     if carrier_key(config) not in CARRIERS:
-        carrier, mount, plant = carrier_key(config)
+        carrier, plant = (kind.__name__ for kind in carrier_key(config))
+        known = ", ".join(f"({c.__name__}, {p.__name__})" for c, p in CARRIERS)
         return (
-            f"no carrier moves a camera with carrier {carrier!r}, mount {mount!r}, plant {plant!r}"
+            f"carrier {carrier} on plant {plant} has no factory: register "
+            f"CARRIERS[{carrier}, {plant}] ({known})"
         )
-    if config.camera.sensor not in SENSORS:
-        return f"no sensor {config.camera.sensor!r} (registered: {', '.join(SENSORS)})"
-    law = type(config.controller)
-    if law not in LAWS:
-        known = ", ".join(variant.__name__ for variant in LAWS)
-        return f"controller {law.__name__} has no law: register LAWS[{law.__name__}] ({known})"
+    for axis, name, registry, part in (
+        ("sensor", "SENSORS", SENSORS, "sensor"),
+        ("controller", "LAWS", LAWS, "law"),
+    ):
+        kind = type(getattr(config, axis))
+        if kind not in registry:
+            known = ", ".join(variant.__name__ for variant in registry)
+            return (
+                f"{axis} {kind.__name__} has no {part}: register {name}[{kind.__name__}] ({known})"
+            )
     return None
 
 
 def _diagram_name(config: ScenarioConfig) -> str:
-    if config.camera.sensor != "exact":
-        return f"{config.camera.sensor}_visual_servo"
-    if config.mount == "fixed":
-        return f"fixed_camera_{config.plant}_visual_servo"
-    return f"{config.plant}_visual_servo"
+    """``<sensor>_visual_servo`` with a camera, else ``[fixed_camera_]<plant>_visual_servo``."""
+    if not isinstance(config.sensor, Exact):
+        return f"{variant_name(config.sensor)}_visual_servo"
+    mount = "fixed_camera_" if isinstance(config.carrier, FixedCamera) else ""
+    return f"{mount}{variant_name(config.plant)}_visual_servo"
 
 
 def build_loop(
@@ -131,12 +144,13 @@ def build_loop(
     why = refusal(config)
     if why is not None:
         raise ValueError(why)
-    sensor = SENSORS[config.camera.sensor]
+    sensor = SENSORS[type(config.sensor)]
     builder = DiagramBuilder()
     carrier = CARRIERS[carrier_key(config)](builder, resolved, sensor.draws_marks)
     if meshcat is not None and carrier.add_meshcat is None:
         raise ValueError(
-            f"meshcat needs the dynamic plant (the {config.plant} one has no geometry)"
+            f"meshcat needs a carrier with geometry (the {variant_name(config.plant)} "
+            f"{type(config.carrier).__name__} has none)"
         )
     camera = builder.AddNamedSystem(
         "spherical_camera",
@@ -194,7 +208,7 @@ def _drive(
     through ``VelocityTrackingForce`` (F = B (nu_cmd - nu)). With ``disturbed``, a
     ``disturbance`` input is added to the command where the carrier takes it; returns
     its :data:`DISTURBANCES` key (None without)."""
-    if not isinstance(command, LeafSystem) and carrier.drive == "wrench":
+    if not isinstance(command, LeafSystem) and carrier.takes_wrench:
         adapter = builder.AddNamedSystem(
             "velocity_tracking_force",
             VelocityTrackingForce(gains=resolved.config.control.tracking_gains, X_RC=carrier.X_RC),

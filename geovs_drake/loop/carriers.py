@@ -4,8 +4,9 @@ A carrier adds its bodies to the builder and returns :class:`CarrierParts`:
 what it *offers* (the pose the camera system reads, the body state a force law
 damps, its own state for the loggers) and what it *takes* (a wrench through
 :attr:`CarrierParts.connect_force`, or a twist at :attr:`CarrierParts.twist_input`).
-:data:`CARRIERS` registers one factory per ``(carrier, mount, plant)``; adding a
-carrier is one factory and one entry.
+:data:`CARRIERS` registers one factory per carrier variant and plant
+(:func:`carrier_key`: the types of ``config.carrier`` and ``config.plant``); adding a
+carrier is one variant (:mod:`geovs_drake.scenario.carriers`), one factory and its entries.
 """
 
 from __future__ import annotations
@@ -34,7 +35,15 @@ from geovs_drake.geometry._ops import MATH, NUMPY
 from geovs_drake.geometry.rigid import fixed_camera_relative_pose
 from geovs_drake.loop.arm import arm_model, initial_joints
 from geovs_drake.loop.state import POSE, fixed_camera_pose, initial_rig_pose, initial_rig_state
-from geovs_drake.scenario import ResolvedScenario, ScenarioConfig
+from geovs_drake.scenario import (
+    Arm,
+    Dynamic,
+    FixedCamera,
+    FreeRig,
+    Kinematic,
+    ResolvedScenario,
+    ScenarioConfig,
+)
 from geovs_drake.systems import (
     ArmCamera,
     FixedCameraKinematicMount,
@@ -56,6 +65,8 @@ __all__ = [
     "TARGET_BODY_NAME",
     "CarrierParts",
     "carrier_key",
+    "leading_pose",
+    "no_initial_state",
 ]
 
 RIG_BODY_NAME = "camera_rig"
@@ -72,9 +83,9 @@ class CarrierParts:
     the camera system's world, where the target stands at ``X_WB`` and the camera
     at ``X_RC`` on the body; ``body_state`` (13, a free body's layout), what a
     force law's damping reads; ``state``, the carrier's own state for the loggers
-    (logged as ``state_log_name``). Takes, by ``drive``: "wrench", a force system
-    (``ImageJacobianForce`` or ``VelocityTrackingForce``) that ``connect_force``
-    wires in; or "twist", the camera's body twist (Omega, V) at ``twist_input``.
+    (logged as ``state_log_name``). Takes either a force system
+    (``ImageJacobianForce`` or ``VelocityTrackingForce``) that ``connect_force`` wires
+    in (:attr:`takes_wrench`), or the camera's body twist (Omega, V) at ``twist_input``.
 
     ``pose_of_states`` maps the loop's continuous states (n,) or (N, n) to the
     components of ``body_pose`` without evaluating the diagram (the monitor's and
@@ -83,7 +94,6 @@ class CarrierParts:
     the rendered sensor) are None for a carrier without geometry.
     """
 
-    drive: str
     body_pose: OutputPort
     state: OutputPort
     state_log_name: str
@@ -110,6 +120,11 @@ class CarrierParts:
     #: breaks (the monitor stops the run with status ``joint_limit``), else None.
     limit_check: Callable[[np.ndarray], str | None] | None = None
 
+    @property
+    def takes_wrench(self) -> bool:
+        """Whether the carrier is driven by a wrench (``connect_force``), not a twist."""
+        return self.connect_force is not None
+
     def camera_poses(self, states: np.ndarray) -> np.ndarray:
         """X_BC (N, 4, 4) for the loop's continuous states (N, n): the body pose the
         carrier offers, then ``X_WB^-1 X_W,body X_RC``."""
@@ -129,18 +144,19 @@ class CarrierParts:
 CarrierFactory = Callable[[DiagramBuilder, ResolvedScenario, bool], CarrierParts]
 
 
-def carrier_key(config: ScenarioConfig) -> tuple[str, str, str]:
-    """The :data:`CARRIERS` key of a scenario: ``(carrier, mount, plant)``."""
-    return config.carrier, config.mount, config.plant
+def carrier_key(config: ScenarioConfig) -> tuple[type, type]:
+    """The :data:`CARRIERS` key of a scenario: the types of its carrier and its plant."""
+    return type(config.carrier), type(config.plant)
 
 
-def _leading_pose(states: np.ndarray, ops: object) -> tuple:
-    """The pose at the head of a state (the body the camera system reads)."""
+def leading_pose(states: np.ndarray, ops: object) -> tuple:
+    """The pose at the head of a state (the body the camera system reads): the
+    ``pose_of_states`` of a carrier whose state starts with the body's ``[q, p]``."""
     x = np.asarray(states, dtype=float)
     return tuple(x[..., POSE].T) if x.ndim > 1 else x[POSE]
 
 
-def _no_initial_state(context: Context) -> None:
+def no_initial_state(context: Context) -> None:
     """The carrier's system holds its start as its default state."""
 
 
@@ -151,7 +167,7 @@ def _free_body(builder: DiagramBuilder, config: ScenarioConfig, name: str):
     body = plant.AddRigidBody(
         name,
         SpatialInertia.MakeFromCentralInertia(
-            config.rig.mass, np.zeros(3), RotationalInertia(*config.rig.inertia_diagonal)
+            config.carrier.mass, np.zeros(3), RotationalInertia(*config.carrier.inertia_diagonal)
         ),
     )
     plant.mutable_gravity_field().set_gravity_vector(np.zeros(3))
@@ -224,13 +240,12 @@ def _free_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: 
         )
 
     return CarrierParts(
-        drive="wrench",
         body_pose=body_pose,
         state=plant.get_state_output_port(),
         state_log_name="log_body_state",
         X_WB=config.X_WB,
         X_RC=config.X_RC,
-        pose_of_states=_leading_pose,
+        pose_of_states=leading_pose,
         set_initial_state=_set_plant_state(plant, config),
         body_state=plant.get_state_output_port(),
         connect_force=connect_force,
@@ -249,14 +264,13 @@ def _kinematic_body(builder: DiagramBuilder, resolved: ResolvedScenario, draws_m
         "kinematic_rigid_body", KinematicRigidBody(X_WC0=config.X_WB @ config.X_BC_initial)
     )
     return CarrierParts(
-        drive="twist",
         body_pose=body.body_pose_output,
         state=body.body_pose_output,
         state_log_name="log_body_pose",
         X_WB=config.X_WB,
         X_RC=RigidTransform(),
-        pose_of_states=_leading_pose,
-        set_initial_state=_no_initial_state,
+        pose_of_states=leading_pose,
+        set_initial_state=no_initial_state,
         twist_input=body.camera_velocity_input,
     )
 
@@ -304,7 +318,6 @@ def _fixed_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
         )
 
     return CarrierParts(
-        drive="wrench",
         body_pose=body_pose,
         state=plant.get_state_output_port(),
         state_log_name="log_body_state",
@@ -334,14 +347,13 @@ def _fixed_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_
     builder.Connect(body.body_pose_output, mount.target_pose_input)
     builder.Connect(mount.target_velocity_output, body.camera_velocity_input)
     return CarrierParts(
-        drive="twist",
         body_pose=mount.camera_pose_output,
         state=body.body_pose_output,
         state_log_name="log_body_pose",
         X_WB=RigidTransform(),
         X_RC=RigidTransform(),
         pose_of_states=_relative_pose(X_WC),
-        set_initial_state=_no_initial_state,
+        set_initial_state=no_initial_state,
         twist_input=mount.camera_velocity_input,
     )
 
@@ -453,21 +465,21 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
     config = resolved.config
     model, plant, scene_graph, link, X_LinkC = _add_arm_scene(builder, resolved, draws_marks, True)
     q0 = initial_joints(config)
-    v0 = np.asarray(config.arm.initial_joint_velocity or np.zeros(plant.num_velocities()))
+    v0 = np.asarray(config.carrier.initial_joint_velocity or np.zeros(plant.num_velocities()))
     if len(v0) != plant.num_velocities():
         raise ValueError(
-            f"arm.initial_joint_velocity must give the arm's {plant.num_velocities()} joints, "
+            f"carrier.initial_joint_velocity must give the arm's {plant.num_velocities()} joints, "
             f"got {len(v0)}"
         )
     plant.SetDefaultPositions(q0)
-    barrier = config.arm.joint_barrier_width
+    barrier = config.carrier.joint_barrier_width
     arm = builder.AddNamedSystem(
         "arm_camera",
         ArmCamera(
             model=model,
-            joint_damping=config.arm.joint_damping,
+            joint_damping=config.carrier.joint_damping,
             joint_barrier_width=barrier,
-            null_space_damping=config.arm.null_space_damping,
+            null_space_damping=config.carrier.null_space_damping,
         ),
     )
     builder.Connect(plant.get_state_output_port(), arm.arm_state_input)
@@ -488,7 +500,6 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
     return _arm_parts(
         config,
         (model, plant, scene_graph, link, X_LinkC),
-        drive="wrench",
         body_pose=body_pose,
         state=plant.get_state_output_port(),
         state_log_name="log_arm_state",
@@ -511,8 +522,8 @@ def _arm_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_ma
         KinematicArm(
             model=model,
             q0=q0,
-            null_space_gain=config.arm.null_space_gain,
-            singularity_damping=config.arm.singularity_damping,
+            null_space_gain=config.carrier.null_space_gain,
+            singularity_damping=config.carrier.singularity_damping,
         ),
     )
     # The drawing follows q: the plant's positions from the arm's state, as Drake's
@@ -525,21 +536,20 @@ def _arm_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_ma
     return _arm_parts(
         config,
         (model, plant, scene_graph, link, X_LinkC),
-        drive="twist",
         body_pose=arm.camera_pose_output,
         state=arm.arm_position_output,
         state_log_name="log_arm_position",
-        set_initial_state=_no_initial_state,
+        set_initial_state=no_initial_state,
         twist_input=arm.camera_velocity_input,
     )
 
 
-#: The carriers, by ``(carrier, mount, plant)`` (:func:`carrier_key`).
-CARRIERS: dict[tuple[str, str, str], CarrierFactory] = {
-    ("free", "hand", "dynamic"): _free_rig,
-    ("free", "hand", "kinematic"): _kinematic_body,
-    ("free", "fixed", "dynamic"): _fixed_rig,
-    ("free", "fixed", "kinematic"): _fixed_kinematic,
-    ("arm", "hand", "dynamic"): _arm_dynamic,
-    ("arm", "hand", "kinematic"): _arm_kinematic,
+#: The carriers, by the carrier variant's and the plant's types (:func:`carrier_key`).
+CARRIERS: dict[tuple[type, type], CarrierFactory] = {
+    (FreeRig, Dynamic): _free_rig,
+    (FreeRig, Kinematic): _kinematic_body,
+    (FixedCamera, Dynamic): _fixed_rig,
+    (FixedCamera, Kinematic): _fixed_kinematic,
+    (Arm, Dynamic): _arm_dynamic,
+    (Arm, Kinematic): _arm_kinematic,
 }

@@ -70,7 +70,7 @@ class Law:
 
 def _nf(builder, resolved, y, nav, carrier) -> LawOutput:
     config = resolved.config
-    if carrier.drive == "wrench":
+    if carrier.takes_wrench:
         force = builder.AddNamedSystem(
             "image_jacobian_force",
             ImageJacobianForce(
@@ -90,7 +90,7 @@ def _nf(builder, resolved, y, nav, carrier) -> LawOutput:
         )
     builder.Connect(y, law.image_features_input)
     builder.Connect(nav.dphi_output, law.dphi_input)
-    return law if carrier.drive == "wrench" else law.camera_velocity_output
+    return law if carrier.takes_wrench else law.camera_velocity_output
 
 
 def twist_law(make: Callable[[DiagramBuilder, ResolvedScenario], LeafSystem]) -> Law:

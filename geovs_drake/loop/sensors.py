@@ -7,7 +7,8 @@ model's measurement, sampled at the camera's rate and held
 (``pinhole``: :class:`~geovs_drake.systems.PinholeFeatureSensor` on projected
 points; ``rendered``: Drake's ``RgbdSensor`` through RenderEngineVtk into
 :class:`~geovs_drake.systems.FeatureExtractor`). A camera model is the
-subsystem ``feature_sensor``. :data:`SENSORS` registers one entry each.
+subsystem ``feature_sensor``. :data:`SENSORS` registers one entry per sensor
+variant (:mod:`geovs_drake.scenario.sensors`), keyed by its type.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from pydrake.systems.sensors import CameraInfo, RgbdSensor
 
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
 from geovs_drake.loop.carriers import CarrierParts
-from geovs_drake.scenario import ResolvedScenario
+from geovs_drake.scenario import Exact, Pinhole, Rendered, ResolvedScenario
 from geovs_drake.systems import FeatureExtractor, PinholeFeatureSensor
 from geovs_drake.systems.feature_extractor import SCENE_COLOURS
 
@@ -70,7 +71,7 @@ def _exact(builder, resolved, carrier, camera) -> OutputPort:
 
 def _sampled_settings(resolved: ResolvedScenario) -> dict:
     """The frame timing, noise and loss tolerance every camera model shares."""
-    cam = resolved.config.camera
+    cam = resolved.config.sensor  # a CameraModel
     return dict(
         period=1.0 / cam.rate,
         latency_frames=int(cam.latency_frames),
@@ -89,8 +90,8 @@ def _pinhole(builder, resolved, carrier, camera) -> OutputPort:
         "feature_sensor",
         PinholeFeatureSensor(
             radius=config.radius,
-            intrinsics=config.camera.intrinsics(theta),
-            believed=config.camera.believed_intrinsics(theta),
+            intrinsics=config.sensor.intrinsics(theta),
+            believed=config.sensor.believed_intrinsics(theta),
             X_WB=carrier.X_WB,
             X_RC=carrier.X_RC,
             **_sampled_settings(resolved),
@@ -131,12 +132,12 @@ def scene_lights() -> list[LightParameter]:
 
 def _rendered(builder, resolved, carrier, camera) -> OutputPort:
     """SceneGraph -> ``RgbdSensor`` (RenderEngineVtk, EGL backend: headless) -> the
-    extractor, a frame every ``1 / camera.rate`` s. The camera's intrinsics are
-    :meth:`~geovs_drake.scenario.CameraConfig.intrinsics` (its inscribed cone is D's
+    extractor, a frame every ``1 / sensor.rate`` s. The camera's intrinsics are
+    :meth:`~geovs_drake.scenario.CameraModel.intrinsics` (its inscribed cone is D's
     field of view, so no pose of D cuts the sphere), the extractor's those times
-    ``1 + camera.focal_error``. Double only (``RgbdSensor`` does not convert)."""
+    ``1 + sensor.focal_error``. Double only (``RgbdSensor`` does not convert)."""
     config = resolved.config
-    cam = config.camera
+    cam = config.sensor
     theta = resolved.domain.fov_half_angle
     intrinsics = cam.intrinsics(theta)
     carrier.scene_graph.AddRenderer(
@@ -174,11 +175,11 @@ def _rendered(builder, resolved, carrier, camera) -> OutputPort:
     return sensor.image_features_output
 
 
-#: The sensors, by ``camera.sensor``.
-SENSORS: dict[str, Sensor] = {
-    "exact": Sensor(_exact),
-    "pinhole": Sensor(_pinhole, draws_marks=True),
-    "rendered": Sensor(_rendered, draws_marks=True),
+#: The sensors, by the type of ``config.sensor``.
+SENSORS: dict[type, Sensor] = {
+    Exact: Sensor(_exact),
+    Pinhole: Sensor(_pinhole, draws_marks=True),
+    Rendered: Sensor(_rendered, draws_marks=True),
 }
 
 

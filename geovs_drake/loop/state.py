@@ -2,10 +2,10 @@
 
 A loop's continuous state is its carrier's: a free body's 13 numbers
 ``[qw, qx, qy, qz, x, y, z, wx, wy, wz, vx, vy, vz]`` (pose first), or a
-kinematic body's 7. What the state is the pose *of* depends on the mount: the
+kinematic body's 7. What the state is the pose *of* depends on the carrier: the
 rig R (eye-in-hand; the camera sits at X_RC on it), the camera C itself
 (kinematic eye-in-hand), or the target B (fixed camera, G = H^-1 of Eq. 16).
-These functions turn camera poses X_BC into states and back, for every mount.
+These functions turn camera poses X_BC into states and back, for every free carrier.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from geovs_drake.geometry.rigid import (
     rig_velocity,
     target_twist_from_camera,
 )
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import FixedCamera, ScenarioConfig
 
 __all__ = [
     "POSE",
@@ -50,9 +50,9 @@ def initial_rig_pose(config: ScenarioConfig) -> RigidTransform:
 
 
 def fixed_camera_pose(config: ScenarioConfig) -> RigidTransform:
-    """X_WC of the fixed camera (``mount: fixed``): where the eye-in-hand camera's goal is,
-    ``X_WB X_BC*``, so the target comes to rest at ``config.X_WB``, where it stands
-    in the eye-in-hand scene."""
+    """X_WC of the fixed camera (carrier :class:`~geovs_drake.scenario.FixedCamera`): where
+    the eye-in-hand camera's goal is, ``X_WB X_BC*``, so the target comes to rest at
+    ``config.X_WB``, where it stands in the eye-in-hand scene."""
     return config.X_WB @ config.X_BC_goal
 
 
@@ -73,12 +73,12 @@ def initial_body_states(
     """
     X_BC = np.asarray(X_BC, dtype=float).reshape(-1, 4, 4)
     n = len(X_BC)
-    dynamic = config.plant == "dynamic"
+    dynamic = config.dynamic
     if twists is not None and not dynamic and np.any(np.asarray(twists) != 0):
         raise ValueError(
             "an initial twist applies to the dynamic loop only (first-order kinematic)"
         )
-    if config.mount == "fixed":
+    if isinstance(config.carrier, FixedCamera):
         return _initial_target_states(config, X_BC, twists)
     X_RC = config.X_RC if dynamic else RigidTransform()
     X_RC_inv = X_RC.inverse()
@@ -108,7 +108,7 @@ def _initial_target_states(
     the target's twist is ``-Ad_G (Omega, V)`` in B (Eq. 16), then expressed in W
     as the plant's ``(w_WB_W, v_WBo_W)``.
     """
-    dynamic = config.plant == "dynamic"
+    dynamic = config.dynamic
     X_WC = fixed_camera_pose(config)
     R_WC = tuple(X_WC.rotation().matrix().ravel())
     p_WC = tuple(X_WC.translation())
@@ -140,10 +140,10 @@ def initial_rig_state(config: ScenarioConfig) -> np.ndarray:
 
 def camera_pose_in_target(config: ScenarioConfig, x: np.ndarray, dynamic: bool) -> RigidTransform:
     """X_BC from a state whose first 7 entries are X_WR (dynamic) or X_WC (kinematic),
-    or, for ``mount: fixed``, the target's X_WB (then X_BC = X_WB^-1 X_WC)."""
+    or, for the fixed camera, the target's X_WB (then X_BC = X_WB^-1 X_WC)."""
     q = np.asarray(x[QUATERNION], dtype=float)
     X_W = RigidTransform(RotationMatrix(Quaternion(q / np.linalg.norm(q))), x[POSITION])
-    if config.mount == "fixed":
+    if isinstance(config.carrier, FixedCamera):
         return X_W.inverse() @ fixed_camera_pose(config)
     X_RC = config.X_RC if dynamic else RigidTransform()
     return config.X_WB.inverse() @ X_W @ X_RC
@@ -152,7 +152,7 @@ def camera_pose_in_target(config: ScenarioConfig, x: np.ndarray, dynamic: bool) 
 def poses_in_target(config: ScenarioConfig, states: np.ndarray) -> np.ndarray:
     """X_BC (N, 4, 4) for states (N, n) of ``config``'s loop: :func:`camera_pose_in_target`
     for every row at once (the quaternions normalised, then numpy on the batch)."""
-    dynamic = config.plant == "dynamic"
+    dynamic = config.dynamic
     states = np.asarray(states, dtype=float).reshape(-1, np.shape(states)[-1])
     q = states[:, QUATERNION]
     w, x, y, z = (q / np.linalg.norm(q, axis=1, keepdims=True)).T
@@ -168,7 +168,7 @@ def poses_in_target(config: ScenarioConfig, states: np.ndarray) -> np.ndarray:
     )
     X_W[:, :3, 3] = states[:, POSITION]
     X_W[:, 3, 3] = 1.0
-    if config.mount == "fixed":  # X_BC = X_WB^-1 X_WC with the target's state X_WB
+    if isinstance(config.carrier, FixedCamera):  # X_BC = X_WB^-1 X_WC with the target's state X_WB
         R_T = np.swapaxes(X_W[:, :3, :3], 1, 2)
         inverse = np.zeros_like(X_W)
         inverse[:, :3, :3] = R_T

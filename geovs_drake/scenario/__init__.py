@@ -2,10 +2,14 @@
 
 One file per job, each importing only the ones above it in this list:
 
-* :mod:`~geovs_drake.scenario.laws`: the control laws, one variant each
-  (``controller: !Ibvs {depth: mean}``);
-* :mod:`~geovs_drake.scenario.schema`: :class:`ScenarioConfig` and its parts, each
-  with its own checks (``validate``), and the quantities derived from them;
+* :mod:`~geovs_drake.scenario.pose`: :class:`PoseConfig`, a pose in a file;
+* the four axes of a loop, one variant each, in YAML tagged with the class name:
+  :mod:`~geovs_drake.scenario.carriers` (``carrier: !Arm {model: panda}``),
+  :mod:`~geovs_drake.scenario.plants` (``plant: !Kinematic {}``),
+  :mod:`~geovs_drake.scenario.sensors` (``sensor: !Pinhole {rate: 15}``),
+  :mod:`~geovs_drake.scenario.laws` (``controller: !Ibvs {depth: mean}``);
+* :mod:`~geovs_drake.scenario.schema`: :class:`ScenarioConfig` and its other parts,
+  the checks of what no union can say, and the quantities derived from them;
 * :mod:`~geovs_drake.scenario.resolution`: :class:`ResolvedScenario`, the validated
   scenario with what follows from it (:func:`resolve`);
 * :mod:`~geovs_drake.scenario.load`: YAML files and fragments in layers
@@ -17,6 +21,14 @@ the objects say they live here (their ``__module__``), so that the reference doc
 them on this page and pickles name this path.
 """
 
+from geovs_drake.scenario.carriers import (
+    CARRIER_VARIANTS,
+    Arm,
+    CarrierConfig,
+    FixedCamera,
+    FreeRig,
+    RigidBodyConfig,
+)
 from geovs_drake.scenario.laws import (
     CONTROLLERS,
     IBVS_DEPTHS,
@@ -27,52 +39,67 @@ from geovs_drake.scenario.laws import (
     PathFollowing,
     Pbvs,
     Spherical,
-    law_name,
 )
 from geovs_drake.scenario.load import load_scenario
+from geovs_drake.scenario.plants import PLANT_VARIANTS, Dynamic, Kinematic, PlantConfig
+from geovs_drake.scenario.pose import PoseConfig
 from geovs_drake.scenario.resolution import ResolvedScenario, exact_twin, free_twin, resolve
 from geovs_drake.scenario.schema import (
-    CARRIER_NAMES,
+    AXES,
     DEFAULT_MAX_STEP,
-    MOUNTS,
-    PLANTS,
-    SENSOR_NAMES,
-    ArmConfig,
-    CameraConfig,
     ControlConfig,
     DomainConfig,
     NavigationGainsConfig,
-    PoseConfig,
-    RigConfig,
     ScenarioConfig,
     SimulatorSettings,
     damping_of,
+    variant_name,
+)
+from geovs_drake.scenario.sensors import (
+    SENSOR_VARIANTS,
+    CameraModel,
+    Exact,
+    Pinhole,
+    Rendered,
+    SensorConfig,
+    camera_like,
+    radius_error_of,
 )
 from geovs_drake.scenario.suite import SuiteConfig, SuiteScenario, default_suite_path, load_suite
 
 __all__ = [
-    "CARRIER_NAMES",
+    "AXES",
+    "CARRIER_VARIANTS",
     "CONTROLLERS",
     "DEFAULT_MAX_STEP",
     "IBVS_DEPTHS",
     "LAW_VARIANTS",
-    "MOUNTS",
-    "PLANTS",
-    "SENSOR_NAMES",
-    "ArmConfig",
-    "CameraConfig",
+    "PLANT_VARIANTS",
+    "SENSOR_VARIANTS",
+    "Arm",
+    "CameraModel",
+    "CarrierConfig",
     "ControlConfig",
     "DomainConfig",
+    "Dynamic",
+    "Exact",
+    "FixedCamera",
+    "FreeRig",
     "Ibvs",
+    "Kinematic",
     "LawConfig",
     "NavigationGainsConfig",
     "Nf",
     "PathFollowing",
     "Pbvs",
+    "Pinhole",
+    "PlantConfig",
     "PoseConfig",
+    "Rendered",
     "ResolvedScenario",
-    "RigConfig",
+    "RigidBodyConfig",
     "ScenarioConfig",
+    "SensorConfig",
     "SimulatorSettings",
     "Spherical",
     "SuiteConfig",
@@ -81,10 +108,12 @@ __all__ = [
     "default_suite_path",
     "exact_twin",
     "free_twin",
-    "law_name",
     "load_scenario",
     "load_suite",
     "resolve",
+    "camera_like",
+    "radius_error_of",
+    "variant_name",
 ]
 
 for _name in __all__:

@@ -24,7 +24,6 @@ __all__ = [
     "Pbvs",
     "Spherical",
     "check_law",
-    "law_name",
 ]
 
 #: The control laws (``ScenarioConfig.controller``): the navigation function
@@ -87,16 +86,6 @@ LAW_VARIANTS: dict[str, type] = {
     "spherical": Spherical,
     "path": PathFollowing,
 }
-
-
-def law_name(law: object) -> str:
-    """A law variant's name: its :data:`CONTROLLERS` name (the command line's
-    ``--controller``), or its class's name for a law a user registered
-    (:data:`geovs_drake.loop.laws.LAWS`)."""
-    for name, variant in LAW_VARIANTS.items():
-        if type(law) is variant:
-            return name
-    return type(law).__name__
 
 
 def check_law(law: object) -> None:

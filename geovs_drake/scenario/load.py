@@ -10,8 +10,7 @@ from typing import Any
 import yaml
 from pydrake.common.yaml import yaml_load_typed
 
-from geovs_drake.scenario.laws import CONTROLLERS, LAW_VARIANTS, LawConfig
-from geovs_drake.scenario.schema import ScenarioConfig, _law_by_name
+from geovs_drake.scenario.schema import AXES, ScenarioConfig, variant_by_name
 
 __all__ = ["load_scenario"]
 
@@ -52,10 +51,14 @@ def _schema_fields(default: Any) -> dict[str, Any] | None:
     return None
 
 
-#: The YAML tag of each law variant (``controller: !Ibvs {depth: mean}``).
-_LAW_TAGS = {f"!{variant.__name__}": variant for variant in LAW_VARIANTS.values()}
-#: The tag of the union's first variant, which Drake's YAML leaves out.
-_FIRST_LAW_TAG = f"!{typing.get_args(LawConfig)[0].__name__}"
+#: The YAML tags of each axis's variants (``carrier: !Arm {...}``): axis -> tag -> class.
+_TAGS: dict[str, dict[str, type]] = {
+    axis: {f"!{kind.__name__}": kind for kind in typing.get_args(hint)}
+    for axis, hint in typing.get_type_hints(ScenarioConfig).items()
+    if axis in AXES
+}
+#: The tag of each union's first variant, which Drake's YAML leaves out.
+_FIRST_TAG = {axis: next(iter(tags)) for axis, tags in _TAGS.items()}
 #: The key under which a tagged mapping keeps its tag once read (as pydrake's loader does).
 _TAG = "_tag"
 
@@ -120,17 +123,18 @@ def _check_fields(value: Any, default: Any, where: str) -> None:
 def _check_node(value: Any, default: Any, where: str) -> None:
     """Raise ValueError ``where: expected ..., got ...`` if ``value`` cannot fill a field
     whose default is ``default`` (the defaults have the shapes the fields need)."""
-    if where == "controller":
-        # A law variant, by its tag; its fields are checked against the variant. An
-        # untagged mapping is the union's first variant, the NF, as Drake reads and
-        # writes it (yaml_dump_typed leaves the default variant's tag out).
-        tag = value.get(_TAG, _FIRST_LAW_TAG) if isinstance(value, dict) else None
-        if tag not in _LAW_TAGS:
+    if where in _TAGS:
+        # A variant, by its tag; its fields are checked against the variant. An
+        # untagged mapping is the union's first variant, as Drake reads and writes it
+        # (yaml_dump_typed leaves the default variant's tag out).
+        tags = _TAGS[where]
+        tag = value.get(_TAG, _FIRST_TAG[where]) if isinstance(value, dict) else None
+        if tag not in tags:
             raise ValueError(
-                f"controller: expected a law's name ({', '.join(CONTROLLERS)}) or a tagged "
-                f"variant ({', '.join(_LAW_TAGS)}), got {_describe(value)}"
+                f"{where}: expected a name ({', '.join(AXES[where])}) or a tagged "
+                f"variant ({', '.join(tags)}), got {_describe(value)}"
             )
-        _check_fields({k: v for k, v in value.items() if k != _TAG}, _LAW_TAGS[tag](), where)
+        _check_fields({k: v for k, v in value.items() if k != _TAG}, tags[tag](), where)
         return
     if _schema_fields(default) is not None:
         _check_fields(value, default, where)
@@ -159,9 +163,8 @@ _POSE_FIELDS = (
     ("target",),
     ("goal",),
     ("initial",),
-    ("rig", "camera_offset"),
-    ("arm", "base_pose"),
-    ("arm", "camera_offset"),
+    ("carrier", "camera_offset"),
+    ("carrier", "base_pose"),
 )
 
 
@@ -181,36 +184,63 @@ def _complete_pose(tree: dict, path: tuple[str, ...]) -> None:
         node.setdefault("rpy", [0.0, 0.0, 0.0])
 
 
-#: The earlier spellings of a law's fields, outside the law, and what to write now.
-_EARLIER_LAW_FIELDS = {
-    ("control", "ibvs_depth"): "controller: !Ibvs {{depth: {value}}}",
-    ("path",): "controller: !PathFollowing {value}",
-}
+def _flow(value: Any) -> str:
+    """A value as one line of flow YAML, or ``...`` if it is too odd to quote there."""
+    shown = yaml.safe_dump(value, default_flow_style=True, width=10**6)
+    shown = shown.strip().removesuffix("...").strip()
+    return "..." if "\n" in shown or len(shown) > 80 else shown
 
 
-def _read_law(tree: dict) -> None:
-    """A file's ``controller`` as a tagged variant: a bare name (``controller: ibvs``)
-    is that law with its defaults. The law's fields outside the law, the earlier
-    spelling, are refused in one line that gives the new one."""
-    for path, spelling in _EARLIER_LAW_FIELDS.items():
-        node = tree
-        for key in path[:-1]:
-            node = node.get(key) if isinstance(node, dict) else None
-        if isinstance(node, dict) and path[-1] in node:
-            value = node[path[-1]]
-            shown = yaml.safe_dump(value, default_flow_style=True, width=10**6)
-            shown = shown.strip().removesuffix("...").strip()
-            if "\n" in shown or len(shown) > 60:  # a value too odd to quote in the line
-                shown = "..." if isinstance(value, str) else "{duration: ..., ...}"
-            new = spelling.format(value=shown)
-            raise ValueError(
-                f"{'.'.join(path)}: the law's fields are the law's own now: write {new}"
-            )
-    law = tree.get("controller")
-    if isinstance(law, str):
-        if law not in LAW_VARIANTS:
-            raise ValueError(_law_by_name(law))
-        tree["controller"] = {_TAG: f"!{LAW_VARIANTS[law].__name__}"}
+def _tagged(kind: str, fields: Any) -> str:
+    """``!Kind {fields}`` as a file writes it."""
+    body = _flow(fields) if isinstance(fields, dict) and fields else "{}"
+    return f"!{kind} {body}"
+
+
+def _refuse_earlier_spelling(tree: dict) -> None:
+    """The flat fields that the variants hold now (``camera``, ``arm``, ``rig``,
+    ``mount``, ``control.ibvs_depth``, ``path``): refused in one line that writes the new
+    spelling with the file's own values."""
+    control = tree.get("control")
+    if isinstance(control, dict) and "ibvs_depth" in control:
+        new = _tagged("Ibvs", {"depth": control["ibvs_depth"]})
+        raise ValueError(
+            f"control.ibvs_depth: the law's fields are the law's own now: write controller: {new}"
+        )
+    if "path" in tree:
+        new = _tagged("PathFollowing", tree["path"])
+        raise ValueError(f"path: the law's fields are the law's own now: write controller: {new}")
+    if "camera" in tree:
+        camera = dict(tree["camera"]) if isinstance(tree["camera"], dict) else {}
+        name = camera.pop("sensor", "exact")
+        kind = AXES["sensor"].get(name, AXES["sensor"]["exact"]).__name__
+        new = _tagged(kind, camera)
+        raise ValueError(f"camera: the camera is the sensor's variant now: write sensor: {new}")
+    for key, kind in (("arm", "Arm"), ("rig", None)):
+        if key in tree:
+            fixed = tree.get("mount") == "fixed"
+            kind = kind or ("FixedCamera" if fixed else "FreeRig")
+            fields = tree[key]
+            if kind == "FixedCamera" and isinstance(fields, dict):
+                fields = {k: v for k, v in fields.items() if k != "camera_offset"}
+            new = _tagged(kind, fields)
+            raise ValueError(f"{key}: its fields are the carrier's own now: write carrier: {new}")
+    if "mount" in tree:
+        new = "!FixedCamera {}" if tree["mount"] == "fixed" else "!FreeRig {} (or !Arm {...})"
+        raise ValueError(f"mount: the mount is the carrier's variant now: write carrier: {new}")
+
+
+def _read_variants(tree: dict) -> None:
+    """A file's carrier, plant, sensor and controller as tagged variants: a bare name
+    (``plant: kinematic``) is that variant with its defaults. The earlier, flat
+    spelling is refused (:func:`_refuse_earlier_spelling`)."""
+    _refuse_earlier_spelling(tree)
+    for axis, variants in AXES.items():
+        name = tree.get(axis)
+        if isinstance(name, str):
+            if name not in variants:
+                raise ValueError(variant_by_name(axis, name))
+            tree[axis] = {_TAG: f"!{variants[name].__name__}"}
 
 
 def _layer_tree(name: str, fragment: str | Mapping[str, Any]) -> dict:
@@ -232,7 +262,7 @@ def _layer_tree(name: str, fragment: str | Mapping[str, Any]) -> dict:
         )
     tree = _plain(tree)  # a copy: the poses are completed in place
     try:
-        _read_law(tree)
+        _read_variants(tree)
         _check_node(tree, ScenarioConfig(), "")
     except ValueError as e:
         raise ValueError(f"{name}: {e}") from None
@@ -277,7 +307,8 @@ def load_scenario(
     with; else ``overrides[k]``): mappings merge key by key, anything else replaces.
     The command line passes ``--scenario-text`` and then each flag this way.
 
-    A pose (``target``, ``goal``, ``initial``, ``rig.camera_offset``) that the file or
+    A pose (``target``, ``goal``, ``initial``, a carrier's ``camera_offset`` or
+    ``base_pose``) that the file or
     a layer gives is complete: its ``xyz`` or ``rpy``, if left out, is zero, not the
     default pose's nor a lower layer's.
 

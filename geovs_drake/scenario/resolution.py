@@ -7,28 +7,28 @@ from dataclasses import dataclass
 from geovs_drake.geometry.camera import ImageFeatures
 from geovs_drake.geometry.domain import SafeDomain
 from geovs_drake.geometry.navigation import NavigationGains
-from geovs_drake.scenario.laws import LawConfig, law_name
-from geovs_drake.scenario.schema import ScenarioConfig, damping_of
+from geovs_drake.scenario.carriers import Arm, FreeRig
+from geovs_drake.scenario.laws import LawConfig
+from geovs_drake.scenario.schema import ScenarioConfig, damping_of, variant_name
+from geovs_drake.scenario.sensors import Exact, radius_error_of
 
 __all__ = ["ResolvedScenario", "exact_twin", "free_twin", "resolve"]
 
 
 def free_twin(config: ScenarioConfig) -> ScenarioConfig:
-    """The same scenario on the free rig (``carrier: free``): the camera, domain, NF and
-    law the batch engine's kernels and the sweep's start sampler read, for a loop whose
-    own carrier (the arm) they do not integrate."""
-    return dataclasses.replace(config, carrier="free")
+    """The same scenario on the default free rig (:class:`FreeRig`): the camera, domain,
+    NF and law the batch engine's kernels and the sweep's start sampler read, for a loop
+    whose own carrier (the arm) they do not integrate."""
+    return dataclasses.replace(config, carrier=FreeRig())
 
 
 def exact_twin(config: ScenarioConfig) -> ScenarioConfig:
     """The same scenario with the exact sensor, y = c(H): a camera model's own errors
     (noise, focal error, latency) dropped, since they need a camera, and the radius the
-    controller believes (``camera.radius_error``) kept. What a study of the continuous
+    controller believes (``sensor.radius_error``) kept. What a study of the continuous
     loop (Drake's ``Linearize``, the batch engine's parameters) builds."""
     twin = copy.deepcopy(config)  # a copy of its own: callers vary it further
-    twin.camera = dataclasses.replace(
-        twin.camera, sensor="exact", pixel_noise=0.0, focal_error=0.0, latency_frames=0
-    )
+    twin.sensor = Exact(radius_error=radius_error_of(config.sensor))
     return twin
 
 
@@ -52,8 +52,8 @@ class ResolvedScenario:
 
     @property
     def controller(self) -> str:
-        """The law's name (:func:`law_name`)."""
-        return law_name(self.law)
+        """The law's name (:func:`variant_name`)."""
+        return variant_name(self.law)
 
 
 def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> ResolvedScenario:
@@ -63,15 +63,15 @@ def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> Resolved
         return config
     config = ScenarioConfig() if config is None else config
     config.validate()
-    if config.carrier == "arm" and config.plant == "dynamic" and config.arm.gain_scale != 1:
-        # The arm's gains (ArmConfig.gain_scale): a scaled copy, so that every part of
+    if isinstance(config.carrier, Arm) and config.dynamic and config.carrier.gain_scale != 1:
+        # The arm's gains (Arm.gain_scale): a scaled copy, so that every part of
         # the loop, the energy bound included, reads one k_p and one B.
         config = copy.deepcopy(config)
-        scale = config.arm.gain_scale
+        scale = config.carrier.gain_scale
         config.control.potential_gain *= scale
         config.control.damping = [scale * v for v in config.control.damping]
         config.control.tracking_gains = [scale * v for v in config.control.tracking_gains]
-        config.arm.gain_scale = 1.0
+        config.carrier.gain_scale = 1.0
     return ResolvedScenario(
         config=config,
         law=config.controller,

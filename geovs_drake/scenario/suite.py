@@ -9,7 +9,7 @@ import yaml
 from pydrake.common.yaml import yaml_load_typed
 
 from geovs_drake.scenario.load import _describe
-from geovs_drake.scenario.schema import PoseConfig, _finite_numbers
+from geovs_drake.scenario.pose import PoseConfig, finite_numbers
 
 __all__ = ["SuiteConfig", "SuiteScenario", "default_suite_path", "load_suite"]
 
@@ -51,7 +51,7 @@ class SuiteConfig:
             if names.count(s.name) > 1:
                 raise ValueError(f"scenarios[{i}].name {s.name!r} is not unique")
             for key in ("xyz", "rpy_deg"):
-                if _finite_numbers(getattr(s, key), 3) is None:
+                if finite_numbers(getattr(s, key), 3) is None:
                     raise ValueError(
                         f"scenarios[{i}].{key} ({s.name}) must be 3 finite numbers, "
                         f"got {getattr(s, key)!r}"

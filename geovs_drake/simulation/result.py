@@ -10,7 +10,14 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from geovs_drake.geometry.domain import DomainMargins
-from geovs_drake.scenario import Ibvs, ScenarioConfig, law_name
+from geovs_drake.scenario import (
+    CameraModel,
+    FixedCamera,
+    Ibvs,
+    ScenarioConfig,
+    radius_error_of,
+    variant_name,
+)
 
 __all__ = [
     "CONVERGENCE_POSITION_M",
@@ -76,9 +83,9 @@ def convergence_tolerance(config: ScenarioConfig) -> tuple[float, float]:
     8.5 px apart at 320x240 at the goal, so a tenth of a pixel on their
     centroids is 2 pixel angles of roll.
     """
-    if config.camera.sensor == "exact":
+    if not isinstance(config.sensor, CameraModel):
         return CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
-    f = config.camera.intrinsics(config.domain.to_domain().fov_half_angle).fx
+    f = config.sensor.intrinsics(config.domain.to_domain().fov_half_angle).fx
     distance = float(np.linalg.norm(config.X_BC_goal.translation()))
     return (
         max(CONVERGENCE_POSITION_M, CAMERA_TOLERANCE_PX * distance / f),
@@ -103,7 +110,7 @@ class ArmTrace:
     inside; ``jacobian_singular_value``: sigma_min of J_C; ``velocity_scale`` (the
     kinematic arm): the factor its joint velocities were scaled by to respect the
     velocity limits (1: not limited), else None; ``joint_barrier``: phi_q, the joints'
-    barrier (``arm.joint_barrier_width`` > 0), else None; ``self_motion_speed``: the
+    barrier (the arm's ``joint_barrier_width`` > 0), else None; ``self_motion_speed``: the
     speed of a redundant arm's self-motion, the part of its joint velocity that leaves
     the camera still [rad/s] (the dynamic arm with more than 6 joints), else None.
     """
@@ -231,11 +238,11 @@ class SimulationResult:
     def one_line(self) -> str:
         """The run in one line: status, final errors, minimum margins, timing."""
         s = self.summary()
-        cam = self.config.camera
+        cam = self.config.sensor
         sensor = ""
-        if cam.sensor != "exact":
+        if isinstance(cam, CameraModel):
             width, height = (int(v) for v in cam.resolution)
-            sensor = f", {cam.sensor} camera {width}x{height} at {cam.rate:g} Hz"
+            sensor = f", {s['sensor']} camera {width}x{height} at {cam.rate:g} Hz"
         energy = ""
         if self.energy is not None:
             energy = f" | {energy_note(self.initial_energy, self.energy_bound)}"
@@ -267,12 +274,12 @@ class SimulationResult:
         tol_p, tol_r = convergence_tolerance(self.config)
         law = self.config.controller
         out = {
-            "plant": self.config.plant,
-            "carrier": self.config.carrier,
-            "controller": law_name(law),
-            "mount": self.config.mount,
+            "plant": variant_name(self.config.plant),
+            "carrier": variant_name(self.config.carrier),
+            "controller": variant_name(law),
+            "mount": "fixed" if isinstance(self.config.carrier, FixedCamera) else "hand",
             "ibvs_depth": law.depth if isinstance(law, Ibvs) else None,
-            "sensor": self.config.camera.sensor,
+            "sensor": variant_name(self.config.sensor),
             "converged": self.converged,
             "status": self.status,
             "message": self.message,
@@ -297,8 +304,8 @@ class SimulationResult:
             "energy_guarantee": self.energy_guarantee,
             "max_energy": None if self.energy is None else float(np.max(self.energy)),
         }
-        if self.config.camera.sensor != "exact":
-            cam = self.config.camera
+        cam = self.config.sensor
+        if isinstance(cam, CameraModel):
             out["camera"] = {
                 "rate_hz": cam.rate,
                 "resolution": [int(v) for v in cam.resolution],
@@ -306,7 +313,7 @@ class SimulationResult:
                 "focal_error": cam.focal_error,
                 "latency_frames": int(cam.latency_frames),
             }
-        out["radius_error"] = self.config.camera.radius_error
+        out["radius_error"] = radius_error_of(cam)
         if self.arm is not None:
             out.update(self.arm.summary())
         limit = self.step_limit

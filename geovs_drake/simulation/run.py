@@ -78,7 +78,7 @@ def arm_trace(loop: Loop, root, states: np.ndarray) -> ArmTrace:
         for k, x in enumerate(states):
             context.SetContinuousState(x)
             scale[k] = arm.velocity_scale_output.Eval(arm.GetMyContextFromRoot(context))[0]
-    barrier = loop.resolved.config.arm.joint_barrier_width
+    barrier = loop.resolved.config.carrier.joint_barrier_width
     # A redundant torque-driven arm: its state carries v, whose self-motion is shown.
     redundant = nq > 6 and states.shape[1] == 2 * nq
     return ArmTrace(
@@ -96,7 +96,8 @@ def simulate(
     meshcat=None,
     progress: Callable[[float], None] | None = None,
 ) -> SimulationResult:
-    """Simulate the configured loop (``config.plant``, ``config.camera.sensor``) for
+    """Simulate the configured loop (``config.carrier``, ``config.plant``, ``config.sensor``,
+    ``config.controller``) for
     ``config.duration``.
 
     Raises StartOutsideDomain if the start is not in D. A run that leaves D
@@ -163,7 +164,7 @@ def simulate(
     energy = None
     arm = arm_trace(loop, root, states) if loop.carrier.arm is not None else None
     nf_law = isinstance(resolved.law, Nf)
-    if loop.carrier.plant is not None and loop.carrier.drive == "wrench" and nf_law:
+    if loop.carrier.plant is not None and loop.carrier.takes_wrench and nf_law:
         # Drake's own kinetic energy of the free body (or of the arm, 1/2 v^T M(q) v),
         # plus the potential k_p phi.
         plant = loop.carrier.plant

@@ -5,7 +5,7 @@ camera sits on which frame; :func:`add_arm` puts it into a plant (the
 simulated one, with a SceneGraph, or a system's own model for its Jacobians);
 :func:`arm_plant` builds and caches the model alone, Finalized, of any scalar
 type (a TemplateSystem's conversion gets the plant of its own T). :data:`ARMS`
-holds the arms known by name (``arm.model``: ``default``, ``panda``), each with
+holds the arms known by name (``Arm.model``: ``default``, ``panda``), each with
 the scene that suits it.
 """
 
@@ -100,7 +100,7 @@ def default_arm_model() -> ArmModel:
 
 @dataclass(frozen=True)
 class NamedArm:
-    """An arm known by name in ``arm.model``: where its file is, how it is made ready for
+    """An arm known by name in ``Arm.model``: where its file is, how it is made ready for
     the loop, and the scene that suits it (the scenario's ``arm`` fields left unset take
     these)."""
 
@@ -161,7 +161,7 @@ def _robot_data_panda() -> tuple[str, tuple[tuple[str, str], ...]]:
     return str(path), (("example-robot-data", str(root)),)
 
 
-#: The arms known by name: ``arm.model`` is one of these or a model file's path.
+#: The arms known by name: ``Arm.model`` is one of these or a model file's path.
 ARMS: dict[str, NamedArm] = {
     "default": NamedArm(
         locate=_shipped_ur5,
@@ -216,12 +216,12 @@ def add_arm(plant: MultibodyPlant, model: ArmModel) -> tuple[ModelInstanceIndex,
     except (RuntimeError, ValueError, ET.ParseError) as e:
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         if "unknown package" in first:  # a package:// URI: the user can name its folder
-            first += " (name its folder in arm.packages)"
-        raise ArmError(f"arm.model {model.path}: Drake cannot load it: {first}") from e
+            first += " (name its folder in carrier.packages)"
+        raise ArmError(f"carrier.model {model.path}: Drake cannot load it: {first}") from e
     names = [plant.get_frame(i).name() for i in plant.GetFrameIndices(instance)]
     if model.end_effector_frame not in names:
         raise ArmError(
-            f"arm.end_effector_frame {model.end_effector_frame!r} is not a frame of "
+            f"carrier.end_effector_frame {model.end_effector_frame!r} is not a frame of "
             f"{model.path} (frames: {', '.join(names)})"
         )
     # The first body of the model is its root: the base, welded where the scenario puts it.
@@ -246,7 +246,7 @@ def _prepared_urdf(model: ArmModel) -> str:
     joints = {joint.get("name"): joint for joint in robot.iter("joint")}
     for name in (*model.welded_joints, *(joint for joint, _ in model.added_actuators)):
         if name not in joints:
-            raise ArmError(f"arm.model {model.path}: it has no joint {name!r}")
+            raise ArmError(f"carrier.model {model.path}: it has no joint {name!r}")
     for joint in joints.values():  # ROS's tag, which Drake ignores with a warning each
         for child in joint.findall("safety_controller"):
             joint.remove(child)
@@ -272,7 +272,7 @@ def _float_plant(model: ArmModel) -> MultibodyPlant:
     add_arm(plant, model)
     plant.Finalize()
     if plant.num_actuators() == 0:
-        raise ArmError(f"arm.model {model.path}: no actuated joint (add <transmission>s)")
+        raise ArmError(f"carrier.model {model.path}: no actuated joint (add <transmission>s)")
     return plant
 
 

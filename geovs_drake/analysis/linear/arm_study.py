@@ -33,7 +33,7 @@ from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.linear_model import chart_jacobian, navigation_hessian
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.arm import arm_model, solve_joints
-from geovs_drake.scenario import ScenarioConfig, resolve
+from geovs_drake.scenario import Arm, Dynamic, Rendered, ScenarioConfig, camera_like, resolve
 from geovs_drake.spectrum import canonical_eigenvalues
 from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 from geovs_drake.systems.arm_camera import null_space_projector
@@ -69,16 +69,16 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
     """Drake's ``Linearize`` of the dynamic arm loop at rest at the goal (the joints by
     IK of the goal pose), and the closed form (module docstring)."""
     config = copy.deepcopy(config)
-    if config.carrier != "arm" or config.plant != "dynamic":
+    if not (isinstance(config.carrier, Arm) and config.dynamic):
         raise ValueError(
-            f"linearize_arm_at_goal needs carrier 'arm' and plant 'dynamic', got "
-            f"{config.carrier!r} and {config.plant!r}"
+            f"linearize_arm_at_goal needs carrier Arm and plant Dynamic, got "
+            f"{type(config.carrier).__name__} and {type(config.plant).__name__}"
         )
     model = arm_model(config)
     q_goal = solve_joints(model, config.X_WB @ config.X_BC_goal)
     config.initial = copy.deepcopy(config.goal)
-    config.arm.initial_joints = q_goal.tolist()
-    config.arm.initial_joint_velocity = []
+    config.carrier.initial_joints = q_goal.tolist()
+    config.carrier.initial_joint_velocity = []
     resolved = resolve(config)
     loop = build_loop(resolved, log=False)
     context = loop.diagram.CreateDefaultContext()
@@ -89,7 +89,7 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
         output_port_index=OutputPortSelection.kNoOutput,
     ).A()
 
-    c = resolved.config  # the arm's gains (ArmConfig.gain_scale applied)
+    c = resolved.config  # the arm's gains (Arm.gain_scale applied)
     y = resolved.y_goal
     H = navigation_hessian(NavigationFunction(resolved.domain, y, resolved.gains), y)
     Cc = chart_jacobian(y, resolved.believed_radius)
@@ -102,10 +102,10 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
     M = plant.CalcMassMatrix(pc)
     nv = len(q_goal)
     K_q = J.T @ K @ J
-    D_q = J.T @ np.diag(resolved.damping) @ J + c.arm.joint_damping * np.eye(nv)
+    D_q = J.T @ np.diag(resolved.damping) @ J + c.carrier.joint_damping * np.eye(nv)
     D_q = D_q + np.diag(_model_joint_damping(plant))
     if nv > 6:  # a redundant arm's self-motion damping (ArmCamera)
-        D_q = D_q + c.arm.null_space_damping * null_space_projector(J)
+        D_q = D_q + c.carrier.null_space_damping * null_space_projector(J)
     A_closed = np.zeros((2 * nv, 2 * nv))
     A_closed[:nv, nv:] = np.eye(nv)
     A_closed[nv:, :nv] = -np.linalg.solve(M, K_q)
@@ -186,8 +186,8 @@ def arm_pixels(config: ScenarioConfig, joint_positions: np.ndarray) -> np.ndarra
     the feature extractor sees the arm too (and a part of the arm in front of the
     sphere would hide it)."""
     config = copy.deepcopy(config)
-    config.camera.sensor = "rendered"
-    config.plant = "dynamic"  # the rendered camera's loop; the drawing is the same arm
+    config.sensor = camera_like(config.sensor, Rendered)
+    config.plant = Dynamic()  # the rendered camera's loop; the drawing is the same arm
     loop = build_loop(resolve(config), log=False)
     rgbd = loop.diagram.GetSubsystemByName("rgbd_sensor")
     plant = loop.carrier.plant

@@ -47,6 +47,7 @@ from pydrake.solvers import ClarabelSolver, CsdpSolver, ScsSolver
 from pydrake.systems.analysis import RegionOfAttraction, RegionOfAttractionOptions
 from pydrake.systems.primitives import SymbolicVectorSystem
 
+from geovs_drake._json import json_ready
 from geovs_drake.analysis.linear.region import (
     LyapunovRegion,
     _vdot,
@@ -68,7 +69,7 @@ from geovs_drake.geometry.rigid import (
     rig_velocity,
 )
 from geovs_drake.geometry.taylor import monomials, variables
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import Dynamic, Kinematic, ScenarioConfig, variant_name
 
 __all__ = [
     "DEFAULT_DEGREE",
@@ -85,7 +86,7 @@ __all__ = [
 #: S-procedure needs to certify more than the odd degree-2 model does; on the dynamic
 #: loop's 12 variables Drake's degree-3 program (SCS) had grown past 14 GB after 225 s
 #: and was stopped, so the dynamic default is 2 (213 s, 0.7 GB).
-DEFAULT_DEGREE = {"kinematic": 3, "dynamic": 2}
+DEFAULT_DEGREE = {Kinematic: 3, Dynamic: 2}
 #: The SDP solvers that ship with the drake wheel, by name (one registry; the CLI's
 #: choices). SCS is the default (module docstring).
 SOLVERS = {"scs": ScsSolver.id(), "clarabel": ClarabelSolver.id(), "csdp": CsdpSolver.id()}
@@ -109,7 +110,7 @@ def minimal_field(config: ScenarioConfig, x, p: LoopParameters | None = None) ->
     twist ``(Omega, V)`` the camera's body twist.
     """
     p = loop_parameters(config) if p is None else p
-    dynamic = config.plant == "dynamic"
+    dynamic = config.dynamic
     X_RC = config.X_RC if dynamic else RigidTransform()
     X_WC_goal = config.X_WB @ config.X_BC_goal
     x = np.asarray(x, dtype=object)
@@ -193,7 +194,7 @@ def taylor_field(
     (T = I when None; ``p``: the loop's parameters, built when None). Raises ValueError
     if the goal is not an equilibrium."""
     p = loop_parameters(config) if p is None else p
-    n = 12 if config.plant == "dynamic" else 6
+    n = 12 if config.dynamic else 6
     T = np.eye(n) if T is None else np.asarray(T, dtype=float)
     w = variables(np.zeros(n), degree)
     wdot = np.linalg.inv(T) @ minimal_field(config, T @ w, p)
@@ -246,6 +247,21 @@ class CertifiedRegion:
         g_z = self.sampled.largest_offset(2) * math.sqrt(self.rho / self.sampled.rho)
         return 2.0 * math.atan(g_z / 2.0)
 
+    def summary(self) -> dict:
+        """The certificate as JSON values (``linearize --certify --json``'s
+        ``region.certified``)."""
+        return json_ready(
+            {
+                "level": self.rho,
+                "degree": self.degree,
+                "solver": self.solver,
+                "seconds": self.seconds,
+                "largest_distance_m": self.largest_distance_m,
+                "largest_roll_rad": self.largest_roll_rad,
+                "nonlinear_check": self.nonlinear_check,
+            }
+        )
+
     def as_region(self) -> LyapunovRegion:
         """The certified set as a :class:`LyapunovRegion` (for
         :func:`~geovs_drake.analysis.linear.region.sample_inside` and ``check_inside``)."""
@@ -273,7 +289,7 @@ def certify_region(
     level the scale of w. ``degree`` defaults to :data:`DEFAULT_DEGREE` of the plant.
     """
     check_solver(solver)
-    degree = DEFAULT_DEGREE[config.plant] if degree is None else degree
+    degree = DEFAULT_DEGREE[type(config.plant)] if degree is None else degree
     if degree < 2:
         raise ValueError(
             f"the Taylor degree must be >= 2 (degree 1 is the linearisation): {degree}"
@@ -307,7 +323,7 @@ def certify_region(
     if np.any(inside):
         vdot[inside] = _vdot(config, sampled.P, states[inside], p)
     return CertifiedRegion(
-        plant=config.plant,
+        plant=variant_name(config.plant),
         degree=degree,
         solver=solver,
         sampled=sampled,

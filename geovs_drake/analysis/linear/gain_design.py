@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from geovs_drake._json import json_ready
 from geovs_drake.batch.engine import run_batch
 from geovs_drake.geometry.so3 import so3_exp
 from geovs_drake.linear_model import (
@@ -45,7 +46,7 @@ from geovs_drake.linear_model import (
     second_order_A,
 )
 from geovs_drake.loop import build_loop
-from geovs_drake.scenario import ScenarioConfig, exact_twin
+from geovs_drake.scenario import Kinematic, PlantConfig, ScenarioConfig, exact_twin, variant_name
 from geovs_drake.simulation import simulate
 from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
 from geovs_drake.spectrum import canonical_eigenvalues
@@ -74,10 +75,10 @@ def settling_rate(settling_time: float) -> float:
     return -math.log(SETTLING_FRACTION) / settling_time
 
 
-def _check_request(plant: str, settling_time: float, damping_ratio: float | None) -> None:
+def _check_request(plant: PlantConfig, settling_time: float, damping_ratio: float | None) -> None:
     if not (math.isfinite(settling_time) and settling_time > 0):
         raise ValueError(f"settling_time must be finite and > 0: settling_time = {settling_time}")
-    if plant == "kinematic":
+    if isinstance(plant, Kinematic):
         if damping_ratio is not None:
             raise ValueError(
                 f"the kinematic loop's modes are all real (damping ratio 1): leave "
@@ -122,8 +123,8 @@ class GainDesign:
 
     @property
     def plant(self) -> str:
-        """``"dynamic"`` or ``"kinematic"``."""
-        return self.config.plant
+        """The plant's name, ``"dynamic"`` or ``"kinematic"``."""
+        return variant_name(self.config.plant)
 
     @property
     def potential_gain(self) -> float:
@@ -146,6 +147,35 @@ class GainDesign:
         lam = self.eigenvalues
         top = lam[np.isclose(lam.real, lam.real.max(), rtol=1e-9, atol=0)]
         return complex(top[np.argmax(top.imag)])
+
+    def summary(self) -> dict:
+        """The design as JSON values (``linearize --settling-time --json``'s ``design``):
+        the request, the slowest mode ``[re, im]``, what is achieved, the run's status, and
+        the gains with their cost: k_p (the energy bound), B and the peak torque and force
+        on the dynamic plant; k and the peak rate and speed on the kinematic one."""
+        out = {
+            "settling_time": self.settling_time,
+            "damping_ratio": self.damping_ratio,
+            "slowest": self.slowest,
+            "achieved_damping_ratio": self.achieved_damping_ratio,
+            "achieved_settling_time": self.achieved_settling_time,
+            "run_status": self.run_status,
+        }
+        if self.config.dynamic:
+            out |= {
+                "potential_gain": self.potential_gain,
+                "damping": self.damping,
+                "energy_bound": self.potential_gain,
+                "peak_torque_Nm": self.peak_torque,
+                "peak_force_N": self.peak_force,
+            }
+        else:
+            out |= {
+                "kinematic_gain": self.kinematic_gain,
+                "peak_rate_rad_s": self.peak_rate,
+                "peak_speed_m_s": self.peak_speed,
+            }
+        return json_ready(out)
 
     @property
     def achieved_damping_ratio(self) -> float:
@@ -202,7 +232,7 @@ def design_gains(
     designed = copy.deepcopy(config)
     M = rig_spatial_inertia(config)
     K1, KC = goal_stiffness(config)
-    if plant == "kinematic":
+    if isinstance(plant, Kinematic):
         lam_min = float(np.min(np.linalg.eigvals(KC).real))
         designed.control.kinematic_gain = sigma / lam_min
         stiffness = designed.control.kinematic_gain * KC
@@ -264,7 +294,7 @@ def _peaks(design: GainDesign) -> None:
     design.run_status = result.status
     loop = build_loop(config, log=False)
     context = loop.diagram.CreateDefaultContext()
-    if config.plant == "dynamic":
+    if config.dynamic:
         law = loop.diagram.GetSubsystemByName("image_jacobian_force")
         port = law.wrench_C_output
     else:
@@ -276,7 +306,7 @@ def _peaks(design: GainDesign) -> None:
         context.SetContinuousState(x)
         w = port.Eval(sub)
         top = np.maximum(top, [np.linalg.norm(w[0:3]), np.linalg.norm(w[3:6])])
-    if config.plant == "dynamic":
+    if config.dynamic:
         design.peak_torque, design.peak_force = top
     else:
         design.peak_rate, design.peak_speed = top
@@ -299,7 +329,7 @@ def root_locus(
     d0 = np.asarray(control.damping, dtype=float)
     rows = []
     for g in np.asarray(gains, dtype=float):
-        if gain == "kinematic_gain" or config.plant == "kinematic":
+        if gain == "kinematic_gain" or not config.dynamic:
             A = -(g if gain == "kinematic_gain" else control.kinematic_gain) * KC
         else:
             k_p = g if gain == "potential_gain" else control.potential_gain

@@ -1,7 +1,7 @@
 """What the camera's rate and latency do to the loop, predicted from its linearisation and
 checked against the pinhole-sensor loop.
 
-A camera gives y every ``T = 1 / camera.rate`` seconds, ``camera.latency_frames`` (L)
+A camera gives y every ``T = 1 / sensor.rate`` seconds, ``sensor.latency_frames`` (L)
 frames late, and the law holds it between frames
 (:class:`~geovs_drake.systems.PinholeFeatureSensor`). The loop's linearisation at the
 goal (:func:`~geovs_drake.analysis.linear.linearization.linearize`, Drake's ``Linearize``)
@@ -28,13 +28,15 @@ import numpy as np
 from pydrake.systems.analysis import DiscreteTimeApproximation
 from pydrake.systems.primitives import LinearSystem
 
+from geovs_drake._json import json_ready
 from geovs_drake.analysis.linear.linearization import INPUTS, OUTPUTS, linearize, noise_directions
-from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.scenario import CameraModel, Pinhole, PoseConfig, ScenarioConfig, camera_like
 from geovs_drake.simulation import simulate
 
 __all__ = [
     "LatencyCase",
     "SampledModel",
+    "camera_of",
     "latency_margin",
     "latency_study",
     "sampled_model",
@@ -82,6 +84,26 @@ class SampledModel:
             best = L
         return best
 
+    def summary(self, rate: float, latency_frames: int, own_rate: float | None = None) -> dict:
+        """The camera at ``rate`` [Hz], ``latency_frames`` late, as JSON values
+        (``linearize --latency --json``'s ``camera``): the spectral radius, whether it is
+        stable, the latency margin at that rate and, where ``rate`` is the camera's own
+        (``own_rate``), the slowest stable rate (None where none is stable)."""
+        rho = self.spectral_radius(rate, latency_frames)
+        own = own_rate is not None and rate == own_rate
+        return json_ready(
+            {
+                "rate": rate,
+                "latency_frames": latency_frames,
+                "spectral_radius": rho,
+                "stable": rho < 1,
+                "latency_margin_frames": self.latency_margin(rate),
+                "slowest_stable_rate_hz": (
+                    self.slowest_stable_rate(latency_frames, rate) if own else None
+                ),
+            }
+        )
+
     def slowest_stable_rate(self, latency_frames: int, rate: float) -> float:
         """The slowest camera rate [Hz] with a spectral radius below 1 at
         ``latency_frames``: bisection on log(rate) between :data:`MIN_RATE_HZ` and
@@ -113,12 +135,22 @@ def check_camera(rate: float, latency_frames: int) -> None:
         )
 
 
+def camera_of(config: ScenarioConfig) -> CameraModel:
+    """The camera whose rate and latency the sampled model takes: the scenario's sensor
+    where it is a camera, else the default :class:`~geovs_drake.scenario.Pinhole` (with
+    the sensor's ``radius_error``), the camera an exact loop would get."""
+    sensor = config.sensor
+    return sensor if isinstance(sensor, CameraModel) else camera_like(sensor, Pinhole)
+
+
 def _camera_gains(config: ScenarioConfig) -> ScenarioConfig:
-    """The loop a camera closes runs with ``camera.damping`` (ResolvedScenario.damping);
-    the linearisation is of the exact-y loop, so it gets that damping as its own."""
+    """The loop a camera closes runs with the camera's ``damping``
+    (ResolvedScenario.damping); the linearisation is of the exact-y loop, so it gets that
+    damping as its own."""
     c = copy.deepcopy(config)
-    c.control.damping = list(config.camera.damping)
-    c.camera.latency_frames = 0  # the model adds it (and the exact y has none)
+    c.control.damping = list(camera_of(config).damping)
+    if isinstance(c.sensor, CameraModel):
+        c.sensor.latency_frames = 0  # the model adds it (and the exact y has none)
     return c
 
 
@@ -135,23 +167,23 @@ def sampled_model(config: ScenarioConfig) -> SampledModel:
 def spectral_radius(config: ScenarioConfig, rate: float | None = None, latency_frames=None):
     """The spectral radius at ``rate`` [Hz] and ``latency_frames`` (default: the
     scenario's camera)."""
-    rate = config.camera.rate if rate is None else rate
-    L = config.camera.latency_frames if latency_frames is None else latency_frames
+    rate = camera_of(config).rate if rate is None else rate
+    L = camera_of(config).latency_frames if latency_frames is None else latency_frames
     return sampled_model(config).spectral_radius(rate, L)
 
 
 def latency_margin(config: ScenarioConfig, rate: float | None = None, max_frames: int = 30) -> int:
     """:meth:`SampledModel.latency_margin` of ``config``'s loop at ``rate`` (default: the
     scenario's camera rate)."""
-    rate = config.camera.rate if rate is None else rate
+    rate = camera_of(config).rate if rate is None else rate
     return sampled_model(config).latency_margin(rate, max_frames)
 
 
 def slowest_stable_rate(config: ScenarioConfig, latency_frames: int | None = None) -> float:
     """:meth:`SampledModel.slowest_stable_rate` of ``config``'s loop below the scenario's
     camera rate, at ``latency_frames`` (default: the scenario's)."""
-    L = config.camera.latency_frames if latency_frames is None else latency_frames
-    return sampled_model(config).slowest_stable_rate(L, config.camera.rate)
+    L = camera_of(config).latency_frames if latency_frames is None else latency_frames
+    return sampled_model(config).slowest_stable_rate(L, camera_of(config).rate)
 
 
 @dataclass
@@ -191,9 +223,9 @@ def latency_study(
         for rate in rates:
             for L in latencies:
                 c = copy.deepcopy(config)
-                c.camera.sensor = "pinhole"
-                c.camera.rate, c.camera.latency_frames = float(rate), int(L)
-                c.camera.pixel_noise = 0.0
+                c.sensor = camera_like(
+                    c.sensor, Pinhole, rate=float(rate), latency_frames=int(L), pixel_noise=0.0
+                )
                 c.initial, c.duration = copy.deepcopy(start), duration
                 result = simulate(c)
                 rho = model.spectral_radius(rate, L)

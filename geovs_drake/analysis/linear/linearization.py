@@ -45,6 +45,7 @@ from pydrake.systems.primitives import (
     Multiplexer,
 )
 
+from geovs_drake._json import json_ready
 from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.camera import ImageFeatures
 from geovs_drake.geometry.navigation import image_chart
@@ -60,7 +61,14 @@ from geovs_drake.linear_model import (
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.build import FEATURE_SIZE
 from geovs_drake.loop.state import initial_body_states
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, exact_twin
+from geovs_drake.scenario import (
+    Dynamic,
+    PlantConfig,
+    PoseConfig,
+    ScenarioConfig,
+    exact_twin,
+    variant_name,
+)
 from geovs_drake.spectrum import canonical_eigenvalues
 
 __all__ = [
@@ -129,11 +137,11 @@ def config_at_goal(config: ScenarioConfig) -> ScenarioConfig:
 
 
 def linearize_at_goal(
-    config: ScenarioConfig | None = None, plant: str | None = None
+    config: ScenarioConfig | None = None, plant: PlantConfig | None = None
 ) -> LinearizationResult:
     """Drake's ``Linearize`` of the whole closed loop at the goal, reduced to minimal form."""
     config = config_at_goal(config or ScenarioConfig())
-    plant = plant or config.plant
+    plant = config.plant if plant is None else plant
     refusal = closed_form_refusal(config, "linearize_at_goal")
     if refusal is not None:
         raise ValueError(refusal)
@@ -191,7 +199,7 @@ class LoopLinearization:
     """The closed loop linearised at a state x0 (:func:`linearize`).
 
     Attributes:
-        plant: ``"dynamic"`` or ``"kinematic"``.
+        plant: the plant's name, ``"dynamic"`` or ``"kinematic"``.
         state: x0, Drake's continuous state (13 dynamic, 7 kinematic).
         system: Drake's model there, of the loop with one input (the disturbance, then
             the noise, in the loop's own conventions) and one output (the body pose
@@ -246,6 +254,24 @@ class LoopLinearization:
         """x0 is an equilibrium (``|xdot|`` <= :data:`EQUILIBRIUM_TOLERANCE`)."""
         return bool(np.linalg.norm(self.f0) <= EQUILIBRIUM_TOLERANCE)
 
+    def summary(self) -> dict:
+        """The model as JSON values (``geovs-drake linearize --json``): ``plant``,
+        ``at_equilibrium``, the minimal ``A``, ``eigenvalues`` as ``[re, im]`` pairs,
+        ``max_real_part``, ``damping_ratios`` and ``time_constants`` (None where not
+        finite) and ``stable``."""
+        return json_ready(
+            {
+                "plant": self.plant,
+                "at_equilibrium": self.at_equilibrium,
+                "A": self.A,
+                "eigenvalues": self.eigenvalues,
+                "max_real_part": self.max_real_part,
+                "damping_ratios": self.damping_ratios,
+                "time_constants": self.time_constants,
+                "stable": self.max_real_part < 0,
+            }
+        )
+
     @property
     def damping_ratios(self) -> np.ndarray:
         """``-Re(lambda) / |lambda|`` per eigenvalue (1 for a real stable mode; NaN at 0)."""
@@ -261,7 +287,9 @@ class LoopLinearization:
             return -1.0 / self.eigenvalues.real
 
 
-def tangent_map(config: ScenarioConfig, state: np.ndarray, plant: str | None = None) -> np.ndarray:
+def tangent_map(
+    config: ScenarioConfig, state: np.ndarray, plant: PlantConfig | None = None
+) -> np.ndarray:
     """T: the camera's right perturbation ``eps = (dtheta, dp)`` (and, dynamic, its body
     twist ``nu``) to the perturbation of Drake's state at ``state``.
 
@@ -271,11 +299,11 @@ def tangent_map(config: ScenarioConfig, state: np.ndarray, plant: str | None = N
     Drake velocity is ``(R_WR w_R, R_WR v_R)``, whose derivative along ``dtheta_R`` is
     ``-R_WR hat(w_R)``, ``-R_WR hat(v_R)`` (zero at rest, as in :func:`linearize_at_goal`).
     """
-    plant = plant or config.plant
+    plant = config.plant if plant is None else plant
     x = np.asarray(state, dtype=float)
     q = x[0:4] / np.linalg.norm(x[0:4])
     R_W = RotationMatrix(Quaternion(q)).matrix()
-    if plant != "dynamic":
+    if not isinstance(plant, Dynamic):
         T = np.zeros((7, 6))
         T[0:4, 0:3] = _quaternion_tangent(q)
         T[4:7, 3:6] = R_W
@@ -295,12 +323,12 @@ def state_at(
     config: ScenarioConfig,
     X_BC: RigidTransform | None = None,
     twist: np.ndarray | None = None,
-    plant: str | None = None,
+    plant: PlantConfig | None = None,
 ) -> np.ndarray:
     """Drake's continuous state for the camera pose X_BC (default: the goal) and, dynamic
     loop, the camera's body twist ``(Omega, V)`` (default: at rest)."""
     c = copy.deepcopy(config)
-    c.plant = plant or config.plant
+    c.plant = config.plant if plant is None else plant
     X = (X_BC or config.X_BC_goal).GetAsMatrix4()[None]
     twists = None if twist is None else np.asarray(twist, dtype=float)[None]
     return initial_body_states(c, X, twists)[0]
@@ -368,7 +396,7 @@ def _pose_error_jacobian(X_WC_goal: RigidTransform, body_pose: np.ndarray, X_RC)
 def linearize(
     config: ScenarioConfig | None = None,
     state: np.ndarray | None = None,
-    plant: str | None = None,
+    plant: PlantConfig | None = None,
 ) -> LoopLinearization:
     """The closed loop's linear model at ``state`` (Drake's continuous state; default: at
     rest at the goal), as a Drake system and in minimal coordinates, with its inputs
@@ -389,7 +417,7 @@ def linearize(
     of the wrong size.
     """
     config = copy.deepcopy(config or ScenarioConfig())
-    config.plant = plant or config.plant
+    config.plant = config.plant if plant is None else plant
     refusal = closed_form_refusal(config, "linearize")
     if refusal is not None:
         raise ValueError(refusal)
@@ -399,7 +427,9 @@ def linearize(
     x0 = state_at(config) if state is None else np.asarray(state, dtype=float)
     n = diagram.num_continuous_states()
     if x0.shape != (n,):
-        raise ValueError(f"state must have {n} entries for the {config.plant} loop: {x0.shape}")
+        raise ValueError(
+            f"state must have {n} entries for the {variant_name(config.plant)} loop: {x0.shape}"
+        )
     context = diagram.CreateDefaultContext()
     context.SetContinuousState(x0)
     diagram.get_input_port().FixValue(context, np.zeros(6 + FEATURE_SIZE))
@@ -438,7 +468,7 @@ def linearize(
     else:
         minimal = AffineSystem(A, B, f0, C, D, np.concatenate([e0, z_drake[_POSE_SIZE:]]))
     return LoopLinearization(
-        plant=config.plant,
+        plant=variant_name(config.plant),
         state=x0,
         system=system,
         minimal=minimal,

@@ -29,6 +29,7 @@ import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RealContinuousLyapunovEquation, RigidTransform, RotationMatrix
 
+from geovs_drake._json import json_ready
 from geovs_drake.analysis.linear.linearization import linearize, pose_error
 from geovs_drake.batch.engine import _rhs, loop_parameters, run_batch
 from geovs_drake.geometry._ops import MATH, NUMPY
@@ -36,7 +37,7 @@ from geovs_drake.geometry.camera import camera_map, visibility
 from geovs_drake.geometry.domain import domain_margins
 from geovs_drake.geometry.rigid import gibbs_quaternion, quaternion_to_rotation
 from geovs_drake.loop.state import initial_body_states
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import ScenarioConfig, variant_name
 
 __all__ = [
     "LEVEL_MARGIN",
@@ -75,7 +76,7 @@ def states_of(config: ScenarioConfig, x: np.ndarray) -> tuple[np.ndarray, np.nda
 
 def _minimal(config: ScenarioConfig, s: np.ndarray) -> np.ndarray:
     """x of Drake states s (N, n): the inverse of :func:`states_of`."""
-    dynamic = config.plant == "dynamic"
+    dynamic = config.dynamic
     X_RC = config.X_RC if dynamic else RigidTransform()
     X_goal = config.X_WB @ config.X_BC_goal
     out = np.empty((len(s), 12 if dynamic else 6))
@@ -135,6 +136,18 @@ class LyapunovRegion:
         e[coordinate] = 1.0
         return math.sqrt(self.rho / float(e @ self.P @ e))
 
+    def summary(self) -> dict:
+        """The region as JSON values (``linearize --region --json``'s ``region``)."""
+        return json_ready(
+            {
+                "level": self.rho,
+                "rays": self.rays,
+                "failed_by": self.failed_by,
+                "largest_distance_m": self.largest_distance_m,
+                "largest_roll_rad": self.largest_roll_rad,
+            }
+        )
+
     @property
     def largest_distance_m(self) -> float:
         """The largest position offset from the goal at rest, any direction [m]:
@@ -150,7 +163,7 @@ class LyapunovRegion:
 
 
 def _vdot(config: ScenarioConfig, P: np.ndarray, s: np.ndarray, p) -> np.ndarray:
-    kinematic = config.plant != "dynamic"
+    kinematic = not config.dynamic
     out = np.empty(len(s))
     for i, row in enumerate(s):
         f = np.zeros(len(row))
@@ -186,7 +199,7 @@ def lyapunov_region(config: ScenarioConfig, rays: int = 200, seed: int = 0) -> L
             if _SCALES[k] ** 2 < worst:
                 worst, why = float(_SCALES[k] ** 2), "leaves D" if not inside[k] else "Vdot >= 0"
     return LyapunovRegion(
-        plant=config.plant,
+        plant=variant_name(config.plant),
         A=A,
         P=P,
         rho=LEVEL_MARGIN * worst,
@@ -211,5 +224,5 @@ def check_inside(config: ScenarioConfig, region: LyapunovRegion, n: int, seed: i
     """The batch engine from n starts inside the region: its :class:`BatchResult`."""
     x = sample_inside(region, n, seed)
     X_BC, _ = states_of(config, x)
-    twists = x[:, 6:12] if config.plant == "dynamic" else None
+    twists = x[:, 6:12] if config.dynamic else None
     return run_batch(config, X_BC, twists)

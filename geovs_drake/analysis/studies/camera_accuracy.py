@@ -2,7 +2,7 @@
 
 :func:`feature_accuracy` draws poses in D (images uniform in D's model chart),
 renders each with the rendered loop's own ``RgbdSensor`` (the diagram of
-:func:`~geovs_drake.loop.build_loop` with ``camera.sensor: rendered``), extracts y with
+:func:`~geovs_drake.loop.build_loop` with ``sensor: !Rendered {}``), extracts y with
 :func:`~geovs_drake.systems.feature_extractor.extract_features` and compares it
 with the exact y = c(H) of the same pose: the error of lambda (absolute and
 relative) and the angles between the measured and exact s, q1 and q2. A pose
@@ -24,7 +24,7 @@ from geovs_drake.geometry.features import FEATURE_FAILURES, TargetMarks
 from geovs_drake.loop.build import build_loop
 from geovs_drake.loop.state import initial_body_states
 from geovs_drake.sampling import random_features_in_domain
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import Rendered, ScenarioConfig, camera_like
 from geovs_drake.systems.feature_extractor import extract_features
 
 __all__ = ["AccuracyResult", "feature_accuracy", "render_frames"]
@@ -72,10 +72,8 @@ class AccuracyResult:
 def render_frames(config: ScenarioConfig, X_BC: np.ndarray, resolution: tuple[int, int]):
     """Colour images (N, H, W, 4) of the rendered loop's camera at camera poses X_BC (N, 4, 4),
     with the extractor's believed intrinsics and the wall time per frame [ms]."""
-    camera = dataclasses.replace(
-        config.camera, sensor="rendered", resolution=[int(v) for v in resolution]
-    )
-    diagram = build_loop(dataclasses.replace(config, camera=camera), log=False).diagram
+    camera = camera_like(config.sensor, Rendered, resolution=[int(v) for v in resolution])
+    diagram = build_loop(dataclasses.replace(config, sensor=camera), log=False).diagram
     root = diagram.CreateDefaultContext()
     plant = diagram.GetSubsystemByName("plant")
     rgbd = diagram.GetSubsystemByName("rgbd_sensor")
@@ -103,12 +101,12 @@ def feature_accuracy(
     """Extract y from ``n`` rendered frames at poses in D and compare with c(H).
 
     Poses: images uniform in D's model chart scaled by ``shrink`` (1: all of D),
-    from ``seed``. The camera is the rendered loop's (``config.camera`` with
+    from ``seed``. The camera is the rendered loop's (``config.sensor``'s camera with
     ``resolution``); the extractor believes its intrinsics exactly (no
     ``focal_error``, no noise): this measures rendering and extraction alone.
     """
     config = copy.deepcopy(config or ScenarioConfig())
-    config.camera.sensor, config.camera.focal_error, config.camera.pixel_noise = "rendered", 0, 0
+    config.sensor = camera_like(config.sensor, Rendered, focal_error=0.0, pixel_noise=0.0)
     domain = config.domain.to_domain()
     y = random_features_in_domain(np.random.default_rng(seed), n, domain, shrink)
     X_CB = camera_map_inverse(y, config.radius)

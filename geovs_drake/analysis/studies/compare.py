@@ -44,16 +44,18 @@ from geovs_drake.geometry.baselines import (
     target_points,
 )
 from geovs_drake.scenario import (
-    PLANTS,
+    Dynamic,
     Ibvs,
+    Kinematic,
     LawConfig,
     Nf,
     Pbvs,
+    PlantConfig,
     ScenarioConfig,
     Spherical,
     SuiteConfig,
-    law_name,
     load_suite,
+    variant_name,
 )
 from geovs_drake.simulation import simulate
 
@@ -108,7 +110,7 @@ ROW_FIELDS = (
 
 def law_label(law: LawConfig) -> str:
     """``nf``, ``ibvs-true``, ``ibvs-desired``, ``ibvs-mean``, ``pbvs``, ``spherical``."""
-    name = law_name(law)
+    name = variant_name(law)
     return f"{name}-{law.depth}" if isinstance(law, Ibvs) else name
 
 
@@ -129,7 +131,7 @@ class Run:
 
 @dataclass
 class CompareResult:
-    """Every law's run on every scenario of ``suite``, on ``plant``."""
+    """Every law's run on every scenario of ``suite``, on the plant named ``plant``."""
 
     suite: SuiteConfig
     plant: str
@@ -144,20 +146,23 @@ class CompareResult:
 
 def suite_cases(
     suite: SuiteConfig,
-    plant: str,
+    plant: PlantConfig | None = None,
     duration: float | None = None,
     base: ScenarioConfig | None = None,
 ) -> list[tuple[str, str, ScenarioConfig]]:
-    """``(scenario, law, config)`` for every scenario and law, in table order."""
-    if plant not in PLANTS:
-        raise ValueError(f"plant must be one of {', '.join(PLANTS)}, got {plant!r}")
+    """``(scenario, law, config)`` for every scenario and law, in table order, on
+    ``plant`` (default: ``base``'s)."""
+    if plant is not None and not isinstance(plant, Dynamic | Kinematic):
+        raise ValueError(f"plant must be Dynamic() or Kinematic(), got {plant!r}")
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be finite and > 0 [s]: duration = {duration}")
     cases = []
     for scenario in suite.scenarios:
         for law in COMPARED_LAWS:
             config = copy.deepcopy(base) if base is not None else ScenarioConfig()
-            config.plant, config.controller = plant, copy.deepcopy(law)
+            config.controller = copy.deepcopy(law)
+            if plant is not None:
+                config.plant = copy.deepcopy(plant)
             config.initial = scenario.initial()
             config.initial_velocity = [0.0] * 6
             config.duration = suite.duration if duration is None else duration
@@ -192,7 +197,7 @@ def run_case(scenario: str, law: str, config: ScenarioConfig) -> Run:
     row = {
         "scenario": scenario,
         "law": law,
-        "plant": config.plant,
+        "plant": variant_name(config.plant),
         "status": result.status,
         "t_converged_s": result.convergence_time,
         "path_length_m": float(np.sum(np.linalg.norm(np.diff(X_BC[:, :3, 3], axis=0), axis=1))),
@@ -221,13 +226,14 @@ def _run_case(config: ScenarioConfig, scenario: str, law: str) -> Run:
 
 def run_compare(
     suite: SuiteConfig,
-    plant: str = "dynamic",
+    plant: PlantConfig | None = None,
     workers: int = 2,
     duration: float | None = None,
     base: ScenarioConfig | None = None,
     on_run: Callable[[Run], None] | None = None,
 ) -> CompareResult:
-    """Every law of :data:`COMPARED_LAWS` on every scenario of ``suite`` on ``plant``.
+    """Every law of :data:`COMPARED_LAWS` on every scenario of ``suite`` on ``plant``
+    (default: ``base``'s).
 
     ``workers`` processes (1: in this process; more use multiprocessing's
     spawn, so a script that calls this needs the ``if __name__ == "__main__":``
@@ -247,7 +253,8 @@ def run_compare(
         runs[i] = run
         if on_run:
             on_run(run)
-    return CompareResult(suite, plant, list(runs), time.perf_counter() - start)
+    name = variant_name(cases[0][2].plant) if cases else variant_name(plant or Dynamic())
+    return CompareResult(suite, name, list(runs), time.perf_counter() - start)
 
 
 # --------------------------------------------------------------------------
@@ -484,7 +491,7 @@ def summarize(result: CompareResult, files: Sequence[Path] = ()) -> dict:
 
 def compare(
     suite_path: str | Path | None = None,
-    plant: str = "dynamic",
+    plant: PlantConfig | None = None,
     out_dir: str | Path = "results/compare",
     workers: int = 2,
     duration: float | None = None,

@@ -27,7 +27,7 @@ from geovs_drake.analysis._pool import map_scenarios
 from geovs_drake.geometry.camera import camera_map_inverse
 from geovs_drake.loop.build import build_loop
 from geovs_drake.sampling import random_features_in_domain
-from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.scenario import PlantConfig, PoseConfig, ScenarioConfig
 from geovs_drake.simulation import camera_pose_in_target, make_simulator, pose_error, simulate
 
 __all__ = [
@@ -48,7 +48,7 @@ def random_initial_poses(
 
 
 def scenarios_from_starts(
-    config: ScenarioConfig, starts: Iterable[PoseConfig], plant: str | None = None
+    config: ScenarioConfig, starts: Iterable[PoseConfig], plant: PlantConfig | None = None
 ) -> list[ScenarioConfig]:
     """A copy of ``config`` per start pose X_BC (and ``plant`` if given), in order."""
     out = []
@@ -56,7 +56,7 @@ def scenarios_from_starts(
         c = copy.deepcopy(config)
         c.initial = pose
         if plant is not None:
-            c.plant = plant
+            c.plant = copy.deepcopy(plant)
         out.append(c)
     return out
 
@@ -101,7 +101,7 @@ def drake_monte_carlo(
         ctx = camera.GetMyContextFromRoot(context)
         margins = camera.domain_margins_output.Eval(ctx)
         x = context.get_continuous_state_vector().CopyToVector()
-        X_BC = camera_pose_in_target(config, x, config.plant == "dynamic")
+        X_BC = camera_pose_in_target(config, x, config.dynamic)
         dp, dr = pose_error(X_BC, config.X_BC_goal)
         outputs.append(
             dict(position_error_m=dp, rotation_error_rad=dr, min_margin=float(min(margins)))

@@ -18,7 +18,13 @@ import numpy as np
 from geovs_drake.geometry.camera import ImageFeatures
 from geovs_drake.geometry.image_path import image_distance
 from geovs_drake.planning import PathPlan, plan_for_scenario
-from geovs_drake.scenario import PathFollowing, ScenarioConfig, law_name
+from geovs_drake.scenario import (
+    Dynamic,
+    Kinematic,
+    PathFollowing,
+    ScenarioConfig,
+    variant_name,
+)
 from geovs_drake.simulation import SimulationResult, simulate
 
 __all__ = ["ERROR_NAMES", "TrackingRun", "follow_path", "model_error_study", "tracking_errors"]
@@ -75,11 +81,13 @@ def follow_path(config: ScenarioConfig, label: str = "") -> TrackingRun:
     plan."""
     if not isinstance(config.controller, PathFollowing):
         raise ValueError(
-            f"follow_path needs controller PathFollowing, got {law_name(config.controller)}"
+            f"follow_path needs controller PathFollowing, got {variant_name(config.controller)}"
         )
     result = simulate(config)
     plan = plan_for_scenario(config)
-    return TrackingRun(label or config.plant, result, plan, tracking_errors(result, plan))
+    return TrackingRun(
+        label or variant_name(config.plant), result, plan, tracking_errors(result, plan)
+    )
 
 
 def model_error_study(
@@ -102,11 +110,11 @@ def model_error_study(
         base.controller = PathFollowing()
     runs: dict[str, TrackingRun] = {}
     cases = [
-        ("kinematic", 1.0, 0.0, "kinematic, exact, open loop"),
-        ("kinematic", radius_scale, 0.0, f"kinematic, rho x{radius_scale:g}, open loop"),
-        ("kinematic", radius_scale, gain, f"kinematic, rho x{radius_scale:g}, feedback k={gain:g}"),
-        ("dynamic", 1.0, 0.0, "dynamic, open loop"),
-        ("dynamic", 1.0, gain, f"dynamic, feedback k={gain:g}"),
+        (Kinematic(), 1.0, 0.0, "kinematic, exact, open loop"),
+        (Kinematic(), radius_scale, 0.0, f"kinematic, rho x{radius_scale:g}, open loop"),
+        (Kinematic(), radius_scale, gain, f"kinematic, rho x{radius_scale:g}, feedback k={gain:g}"),
+        (Dynamic(), 1.0, 0.0, "dynamic, open loop"),
+        (Dynamic(), 1.0, gain, f"dynamic, feedback k={gain:g}"),
     ]
     for plant, scale, k, label in cases:
         c = copy.deepcopy(base)

@@ -53,7 +53,15 @@ from geovs_drake.geometry.features import FEATURE_FAILURES, TargetMarks, pinhole
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.geometry.so3 import so3_exp
 from geovs_drake.sampling import random_features_in_domain
-from geovs_drake.scenario import PoseConfig, ScenarioConfig
+from geovs_drake.scenario import (
+    SENSOR_VARIANTS,
+    CameraModel,
+    Pinhole,
+    PoseConfig,
+    ScenarioConfig,
+    camera_like,
+    variant_name,
+)
 from geovs_drake.simulation import (
     StartOutsideDomain,
     convergence_tolerance,
@@ -80,7 +88,7 @@ __all__ = [
 SETTLE_WINDOW_S = 1.0
 #: Gains that tolerate 3 frames of latency at 30 Hz (:func:`sampled_spectral_radius`
 #: 0.990 against 1.27 with the default camera gains), found on a grid of potential gain
-#: x rotational x translational damping: ``(k_p, camera.damping)``. A quarter of the
+#: x rotational x translational damping: ``(k_p, sensor.damping)``. A quarter of the
 #: stiffness: the loop's slowest mode has a time constant of about 3.3 s instead of 0.7 s.
 SOFT_GAINS = (1.0, [1.0, 1.0, 1.0, 2.0, 2.0, 2.0])
 
@@ -88,21 +96,27 @@ SOFT_GAINS = (1.0, [1.0, 1.0, 1.0, 2.0, 2.0, 2.0])
 def soft_gains(config: ScenarioConfig) -> ScenarioConfig:
     """``config`` with :data:`SOFT_GAINS`."""
     c = copy.deepcopy(config)
-    c.control.potential_gain, c.camera.damping = SOFT_GAINS[0], list(SOFT_GAINS[1])
+    kind = type(c.sensor) if isinstance(c.sensor, CameraModel) else Pinhole
+    c.control.potential_gain = SOFT_GAINS[0]
+    c.sensor = camera_like(c.sensor, kind, damping=list(SOFT_GAINS[1]))
     return c
 
 
 def case_config(
     config: ScenarioConfig, parameter: str | None, level: float, sensor: str = "pinhole"
 ) -> ScenarioConfig:
-    """``config`` with a camera (``sensor``) and one setting changed: ``camera.<parameter> =
-    level`` (``None``: the nominal case)."""
+    """``config`` with a camera (``sensor``, a camera's name in
+    :data:`~geovs_drake.scenario.SENSOR_VARIANTS`, its fields the config's sensor's) and one
+    setting changed: ``sensor.<parameter> = level`` (``None``: the nominal case)."""
+    kind = SENSOR_VARIANTS.get(sensor)
+    if kind is None or not issubclass(kind, CameraModel):
+        raise ValueError(f"sensor must be pinhole or rendered, got {sensor!r}")
     c = copy.deepcopy(config)
-    c.camera.sensor = sensor
+    c.sensor = camera_like(c.sensor, kind)
     if parameter is not None:
         if parameter not in LEVELS:
             raise ValueError(f"parameter must be one of {', '.join(LEVELS)}, got {parameter!r}")
-        setattr(c.camera, parameter, int(level) if parameter == "latency_frames" else level)
+        setattr(c.sensor, parameter, int(level) if parameter == "latency_frames" else level)
     c.validate()
     return c
 
@@ -111,15 +125,16 @@ def _measured(config: ScenarioConfig, X_BC: RigidTransform) -> np.ndarray:
     """The noise-free y the loop's sensor gives at camera pose X_BC (the exact c(H) for the
     exact sensor)."""
     X_CB = X_BC.inverse().GetAsMatrix4()
-    if config.camera.sensor == "exact":
+    camera = config.sensor
+    if not isinstance(camera, CameraModel):
         return camera_map(X_CB, config.radius).to_vector()
     theta = config.domain.to_domain().fov_half_angle
     y, code = pinhole_measurement(
         X_CB,
         config.radius,
         TargetMarks(),
-        config.camera.intrinsics(theta),
-        config.camera.believed_intrinsics(theta),
+        camera.intrinsics(theta),
+        camera.believed_intrinsics(theta),
     )
     if y is None:
         raise ValueError(f"no measurement at this pose: {FEATURE_FAILURES[code]}")
@@ -184,7 +199,7 @@ def sampled_spectral_radius(config: ScenarioConfig) -> float:
     B_n = np.vstack([np.zeros((6, 6)), np.linalg.inv(M)])
     C_xi = np.hstack([-K, np.zeros((6, 6))])
     model = SampledModel(A_c=A_d, B_n=B_n, C_xi=C_xi)
-    return model.spectral_radius(config.camera.rate, int(config.camera.latency_frames))
+    return model.spectral_radius(config.sensor.rate, int(config.sensor.latency_frames))
 
 
 def predicted_equilibrium(config: ScenarioConfig) -> dict:
@@ -269,7 +284,7 @@ def _run_one(
         parameter=parameter,
         level=float(level),
         start=int(start),
-        sensor=config.camera.sensor,
+        sensor=variant_name(config.sensor),
         gains=gains,
         status=result.status,
         settled=bool(settled),
@@ -328,7 +343,7 @@ def robustness_sweep(
             for k in range(starts):
                 c = case_config(base, None if nominal else parameter, level, sensor)
                 c.initial = PoseConfig.from_rigid_transform(RigidTransform(X_BC[k]))
-                c.camera.seed = k
+                c.sensor.seed = k
                 tasks.append((c, key[0], key[1], k, gains))
     rows: list[RobustnessRow] = []
     for row in map_scenarios(_run_one, tasks, workers):

@@ -33,7 +33,14 @@ from geovs_drake.analysis.sweep.starts import sample_starts
 from geovs_drake.analysis.sweep.summary import SweepSummary
 from geovs_drake.batch import STATUS_NAMES, LoopParameters, loop_parameters, run_batch
 from geovs_drake.loop.state import poses_in_target
-from geovs_drake.scenario import PoseConfig, ScenarioConfig, free_twin, load_scenario, resolve
+from geovs_drake.scenario import (
+    Arm,
+    PoseConfig,
+    ScenarioConfig,
+    free_twin,
+    load_scenario,
+    resolve,
+)
 
 if TYPE_CHECKING:  # the Drake loop stays out of the batch engine's workers
     from geovs_drake.systems._arm_model import ArmModel
@@ -176,7 +183,7 @@ def _batch_columns(
     config: ScenarioConfig, p: LoopParameters, X_BC, twists, duration: float
 ) -> dict[str, np.ndarray]:
     """The result columns of the batch engine's run."""
-    dynamic = p.plant == "dynamic"
+    dynamic = p.dynamic
     r = run_batch(config, X_BC, twists if dynamic else None, duration=duration, parameters=p)
     finite = np.all(np.isfinite(r.final_states), axis=1)
     final = np.full((len(X_BC), 4, 4), math.nan)
@@ -204,13 +211,13 @@ def _drake_columns(
     and the only engine of the arm). Margins and energies are those of simulate()'s logs
     (``config.log_rate``), not of every step as in the batch engine.
 
-    On the arm (``carrier: arm``) each start's joints come from IK (a start the arm
+    On the arm (``carrier: !Arm``) each start's joints come from IK (a start the arm
     cannot reach gets the status ``unreachable``), and a start's twist becomes a joint
     velocity along ``J_C^+ (Omega, V)`` whose kinetic energy is the free rig's for that
     twist times the ratio of the loops' k_p, so that E0 / k_p keeps the sampler's
     distribution (``velocity bounded``: E0 < k_p on the arm too)."""
-    dynamic = config.plant == "dynamic"
-    arm = _ArmStarts.of(config, p) if config.carrier == "arm" else None  # once per part
+    dynamic = config.dynamic
+    arm = _ArmStarts.of(config, p) if isinstance(config.carrier, Arm) else None  # once per part
     rows = []
     for X, twist in zip(X_BC, twists, strict=True):
         c = copy.deepcopy(config)
@@ -259,11 +266,11 @@ class _ArmStarts:
         except Unreachable:
             return _stopped_row("unreachable")
         config.initial_velocity = [0.0] * 6
-        if config.plant == "dynamic" and np.any(np.asarray(twist) != 0):
+        if config.dynamic and np.any(np.asarray(twist) != 0):
             twist = np.asarray(twist, dtype=float)
             free = kinetic_energy(self.free, self.parameters, X[None], twist[None])[0]
             v = joint_velocity_for(self.model, q, twist, free * self.gain_ratio)
-            config.arm.initial_joint_velocity = [float(x) for x in v]
+            config.carrier.initial_joint_velocity = [float(x) for x in v]
         return _drake_row(config)
 
 

@@ -40,7 +40,7 @@ from geovs_drake.analysis.sweep.parts import (
 from geovs_drake.analysis.sweep.starts import SampledStarts, SweepError
 from geovs_drake.analysis.sweep.summary import SweepSummary, plot_summary
 from geovs_drake.batch import loop_parameters
-from geovs_drake.scenario import ScenarioConfig, free_twin, resolve
+from geovs_drake.scenario import ScenarioConfig, free_twin, resolve, variant_name
 
 __all__ = [
     "CSV_LIMIT",
@@ -383,7 +383,7 @@ def run_sweep(
     """
     config.validate()
     n, source = _check_settings(starts, duration, engine, workers, chunk)
-    dynamic = config.plant == "dynamic"
+    dynamic = config.dynamic
     if isinstance(source, SampledStarts):
         source.check(config)
     elif not dynamic and np.any(source[1] != 0):
@@ -396,7 +396,7 @@ def run_sweep(
     out = None if out is None else Path(out)
     if resume and out is None:
         raise SweepError("resume needs the sweep's folder (out)")
-    manifest = _manifest(text, n, source, duration, chunk, engine, config.plant)
+    manifest = _manifest(text, n, source, duration, chunk, engine, variant_name(config.plant))
     if resume:  # before anything else: a different sweep in the folder is the first thing to say
         _check_record(out, manifest)
     try:  # read once here from the built diagram, and shipped with every part
@@ -465,7 +465,7 @@ def run_sweep(
             cluster.close()
     result = SweepResult(
         summary=summary,
-        plant=config.plant,
+        plant=variant_name(config.plant),
         engine=engine,
         workers=int(workers),
         chunk=int(chunk),

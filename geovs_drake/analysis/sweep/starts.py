@@ -79,10 +79,10 @@ class SampledStarts:
             raise SweepError(f"the seed must be an integer >= 0: seed = {self.seed!r}")
         if self.velocity not in VELOCITIES:
             raise SweepError(f"velocity must be one of {VELOCITIES}: velocity = {self.velocity!r}")
-        if self.velocity != "none" and config.plant != "dynamic":
+        if self.velocity != "none" and not config.dynamic:
             raise SweepError(
                 f"velocity {self.velocity!r} needs the dynamic plant (the kinematic loop is "
-                f"first order and starts at rest): plant = {config.plant!r}"
+                f"first order and starts at rest): plant = {type(config.plant).__name__}()"
             )
 
 

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from geovs_drake.batch import STATUS_NAMES
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.scenario import Arm, ScenarioConfig
 
 __all__ = [
     "ARM_STATUSES",
@@ -114,7 +114,7 @@ class SweepSummary:
         n = len(status)
         s.finished = n
         # The arm's statuses on the arm (joint_limit, unreachable), and any other present.
-        arm = config.carrier == "arm"
+        arm = isinstance(config.carrier, Arm)
         names = [*STATUS_NAMES, *(ARM_STATUSES if arm else ())]
         for name in (*names, *sorted(set(status) - set(names))):
             s.counts[name] = int(np.sum(status == name))

@@ -1,0 +1,153 @@
+"""The carrier, one variant each (``ScenarioConfig.carrier``): what moves the camera.
+
+In YAML a carrier is tagged with its class name, ``carrier: !Arm {model: panda}``; a
+scenario file's bare name (``carrier: arm``, ``carrier: free``) reads as that variant
+with its defaults. The loop takes each carrier's systems from
+:data:`geovs_drake.loop.carriers.CARRIERS`, keyed by the variant's and the plant's types.
+"""
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from geovs_drake.scenario.pose import PoseConfig, check_at_least, finite_numbers
+
+__all__ = [
+    "CARRIER_VARIANTS",
+    "Arm",
+    "CarrierConfig",
+    "FixedCamera",
+    "FreeRig",
+    "RigidBodyConfig",
+    "check_carrier",
+]
+
+
+@dataclass
+class RigidBodyConfig:
+    """The driven free body's mass model: ``mass`` [kg] and principal inertia about its
+    centre of mass [kg m^2] (what :class:`FreeRig` and :class:`FixedCamera` share)."""
+
+    mass: float = 1.0
+    inertia_diagonal: list[float] = field(default_factory=lambda: [0.02, 0.02, 0.02])
+
+
+@dataclass
+class FreeRig(RigidBodyConfig):
+    """The free camera rig of Appendix C, eye-in-hand: the camera rides at
+    ``camera_offset`` (X_RC, the camera frame's pose in the rig's body frame, whose origin
+    is the centre of mass) on a rigid body of ``mass`` and ``inertia_diagonal``."""
+
+    camera_offset: PoseConfig = field(default_factory=PoseConfig)
+
+
+@dataclass
+class FixedCamera(RigidBodyConfig):
+    """Eye-to-hand: the camera is fixed in the world where the eye-in-hand camera's goal
+    is (``X_WB X_BC*``), and the target sphere is the driven body, of ``mass`` and
+    ``inertia_diagonal`` about its centre; the laws see G = H^-1 (Eq. 16)."""
+
+
+@dataclass
+class Arm:
+    """A robot arm that carries the camera in its hand.
+
+    ``model``: an arm known by name, "default" (the 6-axis arm shipped in the package,
+    a UR5's published parameters, ``geovs_drake/models/ur5.urdf``) or "panda" (the
+    7-axis Franka Panda of example-robot-data, the ``panda`` extra), or the path of a
+    URDF or SDFormat file. Its first body is welded to the world at ``base_pose``; the
+    camera frame C sits at ``camera_offset`` (X_EC, the optical axis along z_C) on
+    ``end_effector_frame``. Left unset, these three are the named arm's own
+    (:data:`geovs_drake.loop.arm.ARMS`: a scene where the goal, the default start and
+    the comparison suite's starts are all reachable); a model file needs
+    ``end_effector_frame``, and its base and camera default to the world's origin and
+    the frame itself. The start is ``initial_joints`` [rad] if given, else the
+    scenario's ``initial`` (X_BC(0)) solved by Drake's InverseKinematics within the
+    joint limits; ``initial_joint_velocity`` [rad/s] (dynamic plant; empty: at rest).
+    ``joint_damping`` B_q [N m s/rad] adds ``-B_q qdot`` to the torque;
+    ``null_space_damping`` [N m s/rad] adds ``-d N qdot``, N the projector on J_C's
+    null space, which damps a redundant arm's self-motion (dynamic arm);
+    ``joint_barrier_width`` [rad] > 0 puts the joint limits inside the NF's guarantee
+    (the dynamic arm under the NF: :mod:`geovs_drake.geometry.joint_barrier`, 0: off);
+    the kinematic arm's ``null_space_gain`` [1/s] centres a redundant arm's
+    self-motion, and its ``singularity_damping`` m damps its pseudo-inverse where
+    sigma_min(J_C) < m (:class:`~geovs_drake.systems.KinematicArm`; 0: off).
+    """
+
+    model: str = "default"
+    end_effector_frame: str = ""
+    base_pose: PoseConfig | None = None
+    camera_offset: PoseConfig | None = None
+    #: The ``package://`` names a model file's meshes use, and their folders (Drake's
+    #: package map), e.g. ``{my_robot_description: /path/to/my_robot_description}``.
+    packages: dict[str, str] = field(default_factory=dict)
+    initial_joints: list[float] = field(default_factory=list)
+    initial_joint_velocity: list[float] = field(default_factory=list)
+    joint_damping: float = 0.5
+    null_space_damping: float = 2.0
+    joint_barrier_width: float = 0.0
+    null_space_gain: float = 1.0
+    singularity_damping: float = 0.05
+    #: The arm's inertia at the camera is about ten times the default rig's (1 kg): the
+    #: dynamic arm runs the NF with k_p and B, and the twist laws' velocity tracking
+    #: with its gains, multiplied by this factor, which keeps the free rig's time
+    #: constants. :func:`~geovs_drake.scenario.resolve` applies it, once; the loop's
+    #: energy bound is the scaled k_p.
+    gain_scale: float = 10.0
+
+
+#: A carrier's configuration: one of the variants above.
+CarrierConfig = FreeRig | FixedCamera | Arm
+#: The carrier of each name, as ``--carrier`` and a file's bare name give it.
+CARRIER_VARIANTS: dict[str, type] = {"free": FreeRig, "fixed_camera": FixedCamera, "arm": Arm}
+
+#: The arm's scalar fields with a lower bound: name -> (bound, strict, unit).
+_ARM_BOUNDS: dict[str, tuple[float, bool, str]] = {
+    "joint_damping": (0.0, False, " [N m s/rad]"),
+    "null_space_damping": (0.0, False, " [N m s/rad]"),
+    "joint_barrier_width": (0.0, False, " [rad]"),
+    "null_space_gain": (0.0, False, " [1/s]"),
+    "singularity_damping": (0.0, False, ""),
+    "gain_scale": (0.0, True, ""),
+}
+
+
+def check_carrier(carrier: object) -> None:
+    """The carrier variant's own fields: ValueError naming the first bad one,
+    ``carrier.<field>``, and its value."""
+    if isinstance(carrier, RigidBodyConfig):
+        check_at_least("carrier.mass", carrier.mass, 0.0, True, " [kg]")
+        inertia = finite_numbers(carrier.inertia_diagonal, 3)
+        if inertia is None or not all(v > 0 for v in inertia):
+            raise ValueError(
+                "carrier.inertia_diagonal must be exactly 3 positive numbers [kg m^2], "
+                f"got {carrier.inertia_diagonal!r}"
+            )
+        if isinstance(carrier, FreeRig):
+            carrier.camera_offset.to_rigid_transform()
+        return
+    if not isinstance(carrier, Arm):
+        return
+    for name, (low, strict, unit) in _ARM_BOUNDS.items():
+        check_at_least(f"carrier.{name}", getattr(carrier, name), low, strict, unit)
+    # Here, not at the top: the command line starts without the loop's modules.
+    from geovs_drake.systems._arm_model import ARMS
+
+    if carrier.model in ARMS:
+        ARMS[carrier.model].locate()  # its package installed (MissingExtra names the extra)
+    elif not Path(carrier.model).is_file():
+        raise ValueError(
+            f"carrier.model must be {', '.join(repr(name) for name in ARMS)} or a model "
+            f"file's path, got {carrier.model!r}"
+        )
+    for name, folder in carrier.packages.items():
+        if not Path(folder).is_dir():
+            raise ValueError(f"carrier.packages.{name} must be a folder, got {folder!r}")
+    if carrier.model not in ARMS and not carrier.end_effector_frame:
+        raise ValueError(
+            f"carrier.end_effector_frame must name the frame the camera rides on in "
+            f"{carrier.model} (a model file has no default), got {carrier.end_effector_frame!r}"
+        )
+    for name in ("initial_joints", "initial_joint_velocity"):
+        values = getattr(carrier, name)
+        if finite_numbers(values, len(values)) is None:
+            raise ValueError(f"carrier.{name} must be finite numbers [rad, rad/s], got {values!r}")
