@@ -35,7 +35,7 @@ def _imports() -> dict[str, set[str]]:
 
 #: Below every layer: modules that import nothing of ours (the optional-import helper,
 #: the canonical order of spectra).
-BASE = ("geovs_drake._optional", "geovs_drake._lazy", "geovs_drake.spectrum")
+BASE = ("geovs_drake._optional", "geovs_drake._lazy", "geovs_drake._json", "geovs_drake.spectrum")
 
 
 def test_geometry_and_systems_import_only_the_layers_below():
@@ -70,3 +70,45 @@ def test_no_import_cycles():
     for name in sorted(graph):
         if name not in state:
             visit(name, [name])
+
+
+#: The layers from the bottom up (as docs/python.md lists them): a module imports its own
+#: layer's and the layers' below, never one above. Each entry is a module or a package
+#: (its modules with it).
+LAYERS: tuple[tuple[str, ...], ...] = (
+    BASE,
+    ("geovs_drake.geometry", "geovs_drake.sampling", "geovs_drake.progress"),
+    ("geovs_drake.systems",),
+    ("geovs_drake.scenario", "geovs_drake.scenarios", "geovs_drake.models"),
+    ("geovs_drake.linear_model", "geovs_drake.planning", "geovs_drake.visualization"),
+    ("geovs_drake.loop",),
+    ("geovs_drake.simulation",),
+    ("geovs_drake.batch", "geovs_drake.plotting"),
+    ("geovs_drake.analysis._pool", "geovs_drake.analysis.linear"),
+    ("geovs_drake.analysis.studies", "geovs_drake.analysis.sweep", "geovs_drake.analysis"),
+    ("geovs_drake.demo",),
+    ("geovs_drake.cli",),
+)
+
+
+def _layer_of(module: str) -> int:
+    """The index in LAYERS of the longest entry that is ``module`` or holds it."""
+    best, where = -1, None
+    for index, entries in enumerate(LAYERS):
+        for entry in entries:
+            if (module == entry or module.startswith(entry + ".")) and len(entry) > best:
+                best, where = len(entry), index
+    assert where is not None, f"{module} is in no layer: add it to LAYERS"
+    return where
+
+
+def test_every_module_imports_only_its_layer_and_the_layers_below():
+    graph = _imports()
+    upward = [
+        (name, dep, _layer_of(name), _layer_of(dep))
+        for name, deps in graph.items()
+        if name != "geovs_drake"  # the package's root, which re-exports the version
+        for dep in deps
+        if dep != "geovs_drake" and _layer_of(dep) > _layer_of(name)
+    ]
+    assert not upward, "imports that go up a layer (module, import, layers): " + repr(upward)
