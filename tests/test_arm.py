@@ -252,10 +252,10 @@ def test_cli_runs_the_arm_and_its_json_reports_the_arm(run_cli):
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (
-            ["--arm", "/no/such/arm.urdf"],
-            "carrier.model must be 'default', 'panda' or a model file",
-        ),
+        (["--arm", "/no/such/arm.urdf"], "carrier.model /no/such/arm.urdf: no such file"),
+        (["--arm", "my_arm.sdf"], "carrier.model my_arm.sdf: no such file"),
+        (["--arm", "/"], "carrier.model /: is a folder, not a model file"),
+        (["--arm", "ur10"], "carrier.model must be 'default', 'panda' or a model file's path"),
         (["--mount", "fixed"], "the carrier here is Arm, which carries the camera in its hand"),
         (["--initial-velocity", "0,0,0,0.1,0,0"], "give carrier.initial_joint_velocity instead"),
         (["--plant", "kinematic", "--initial-joint-velocity", "0,0,0,0,0,1"], "dynamic arm only"),

@@ -135,6 +135,12 @@ def check_carrier(carrier: object) -> None:
     if carrier.model in ARMS:
         ARMS[carrier.model].locate()  # its package installed (MissingExtra names the extra)
     elif not Path(carrier.model).is_file():
+        path = Path(carrier.model)
+        # A name the way a path is written (a suffix or a folder) is a file the user
+        # meant: say it is missing, not that the name is unknown.
+        if path.suffix or path.is_absolute() or len(path.parts) > 1:
+            what = "is a folder, not a model file" if path.is_dir() else "no such file"
+            raise ValueError(f"carrier.model {carrier.model}: {what}")
         raise ValueError(
             f"carrier.model must be {', '.join(repr(name) for name in ARMS)} or a model "
             f"file's path, got {carrier.model!r}"
