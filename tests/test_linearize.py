@@ -403,9 +403,43 @@ def test_cli_studies_in_the_json_and_the_root_locus_written(run_cli, tmp_path):
     assert design["achieved_damping_ratio"] == pytest.approx(0.6, abs=1e-9)
     assert design["achieved_settling_time"] == pytest.approx(2.0, rel=1e-9)
     assert design["energy_bound"] == design["potential_gain"] > 0
-    # The robustness study's finding, predicted: one frame at 30 Hz is beyond the margin.
-    assert out["camera"]["latency_margin_frames"] == 0 and not out["camera"]["stable"]
+    # The camera study is of the gains the command reports, the designed ones (issue 31):
+    # the sampled-data model of the designed loop, the camera damping with the designed B.
+    from geovs_drake.analysis.linear.gain_design import design_gains
+    from geovs_drake.analysis.linear.latency import sampled_model
+
+    designed = design_gains(ScenarioConfig(), 2.0, 0.6, run_start=False).config
+    designed.sensor = Pinhole(damping=list(designed.control.damping))
+    model = sampled_model(designed)
+    camera = out["camera"]
+    assert camera["gains"] == "designed"
+    assert camera["spectral_radius"] == pytest.approx(model.spectral_radius(30.0, 1), rel=1e-9)
+    # Not stable even without latency: the margin says so (-1), and the rate it needs is
+    # the boundary of the model's stable rates.
+    assert not camera["stable"] and camera["latency_margin_frames"] == -1
+    needed = camera["slowest_stable_rate_hz"]
+    assert needed > 30.0
+    assert model.spectral_radius(needed * 1.001, 1) < 1 <= model.spectral_radius(needed / 1.001, 1)
+    assert "warning: the designed gains are not stable with a 30 Hz camera" in run.err
+    assert f"at least {needed:.3g} Hz" in run.err and run.err.count("\n") == 1
     assert (tmp_path / "root_locus.png").stat().st_size > 0
+
+
+def test_cli_camera_study_of_the_scenarios_gains_at_another_rate(run_cli):
+    """Without a design the camera study is of the scenario's gains, and the slowest
+    stable rate is reported at any --camera-rate (it was dropped away from 30 Hz)."""
+    from geovs_drake.analysis.linear.latency import sampled_model
+
+    run = run_cli("linearize", "--latency", "0", "--camera-rate", "60", "--json")
+    assert run.code == 0 and run.err == "", run.err
+    camera = json.loads(run.out)["camera"]
+    model = sampled_model(ScenarioConfig())
+    assert camera["gains"] == "scenario" and camera["stable"]
+    slowest = camera["slowest_stable_rate_hz"]
+    assert slowest is not None and slowest < 60.0
+    assert (
+        model.spectral_radius(slowest * 1.001, 0) < 1 <= model.spectral_radius(slowest / 1.001, 0)
+    )
 
 
 @pytest.mark.parametrize(

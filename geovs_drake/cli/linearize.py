@@ -8,6 +8,7 @@ for a response (:mod:`~geovs_drake.analysis.linear.gain_design`), a camera's rat
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import sys
 from pathlib import Path
@@ -124,22 +125,31 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _design(config, args) -> dict:
+def _design(config, args):
+    """The gains ``--settling-time`` (and ``--damping-ratio``) ask for: a ``GainDesign``."""
     from geovs_drake.analysis.linear.gain_design import design_gains
 
     zeta = args.damping_ratio
     if zeta is None and config.dynamic:
         zeta = DEFAULT_DAMPING_RATIO
-    return design_gains(config, args.settling_time, zeta).summary()
+    return design_gains(config, args.settling_time, zeta)
 
 
-def _camera(config, args) -> dict:
+def _camera(config, args, design) -> dict:
+    """The camera study of the gains the command reports: the designed ones where it
+    designs (the camera then damps with the designed B), else the scenario's."""
     from geovs_drake.analysis.linear.latency import camera_of, check_camera, sampled_model
+    from geovs_drake.scenario import camera_like
 
-    own_rate = camera_of(config).rate
-    rate = own_rate if args.camera_rate is None else args.camera_rate
+    camera = camera_of(config)
+    rate = camera.rate if args.camera_rate is None else args.camera_rate
     check_camera(rate, args.latency)
-    return sampled_model(config).summary(rate, args.latency, own_rate)
+    studied = config
+    if design is not None:
+        studied = copy.deepcopy(design.config)
+        studied.sensor = camera_like(camera, type(camera), damping=list(studied.control.damping))
+    out = sampled_model(studied).summary(rate, args.latency)
+    return {"gains": "designed" if design is not None else "scenario", **out}
 
 
 def _region(config, certify: bool, solver: str) -> dict:
@@ -174,12 +184,21 @@ def _studies_table(out: dict) -> list[str]:
         )
     if "camera" in out:
         c = out["camera"]
-        slowest = c["slowest_stable_rate_hz"]
+        slowest, margin = c["slowest_stable_rate_hz"], c["latency_margin_frames"]
+        latency = (
+            f"stable up to {margin} frames late"
+            if margin >= 0
+            else "not stable at this rate even without latency"
+        )
+        needs = (
+            "no rate up to 10 kHz is stable"
+            if slowest is None
+            else f"slowest stable rate {slowest:.3g} Hz"
+        )
         lines.append(
-            f"camera at {c['rate']:g} Hz, {c['latency_frames']} frames late: spectral radius "
-            f"{c['spectral_radius']:.4g} ({'stable' if c['stable'] else 'not stable'}); stable "
-            f"up to {c['latency_margin_frames']} frames"
-            + ("" if slowest is None else f"; slowest stable rate {slowest:.3g} Hz")
+            f"camera at {c['rate']:g} Hz, {c['latency_frames']} frames late, with the "
+            f"{c['gains']} gains: spectral radius {c['spectral_radius']:.4g} "
+            f"({'stable' if c['stable'] else 'not stable'}); {latency}; {needs}"
         )
     if "region" in out:
         r = out["region"]
@@ -253,15 +272,17 @@ def run(args: argparse.Namespace) -> int:
         state = state_at(config, config.X_BC_initial)
     lin = linearize(config, state)
     out = lin.summary()
+    design = None
     # Every study runs before anything is written: bad input leaves no output behind.
     try:
         if args.settling_time is not None or args.damping_ratio is not None:
             if args.settling_time is None:
                 raise ValueError("--damping-ratio needs --settling-time")
-            out["design"] = _design(config, args)
+            design = _design(config, args)
+            out["design"] = design.summary()
         if args.latency is not None or args.camera_rate is not None:
             args.latency = 0 if args.latency is None else args.latency
-            out["camera"] = _camera(config, args)
+            out["camera"] = _camera(config, args, design)
         if args.certify:
             from geovs_drake.analysis.linear.certified_region import check_solver
 
@@ -279,4 +300,19 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(out))
     else:
         print("\n".join([_table(lin, where), *_studies_table(out)]))
+    camera = out.get("camera")
+    if camera is not None and camera["gains"] == "designed" and not camera["stable"]:
+        # The design is for continuous feedback (Eq. 45); say where the camera breaks it.
+        slowest = camera["slowest_stable_rate_hz"]
+        print(
+            f"geovs-drake: warning: the designed gains are not stable with a "
+            f"{camera['rate']:g} Hz camera {camera['latency_frames']} frames late (spectral "
+            f"radius {camera['spectral_radius']:.3g}): "
+            + (
+                "no camera rate up to 10 kHz carries them"
+                if slowest is None
+                else f"they need at least {slowest:.3g} Hz, or a longer --settling-time"
+            ),
+            file=sys.stderr,
+        )
     return EXIT_CONVERGED

@@ -46,6 +46,8 @@ __all__ = [
 
 #: The slowest camera rate searched [Hz] (below it the answer is "none stable").
 MIN_RATE_HZ = 0.1
+#: The fastest camera rate searched [Hz] for a loop that the given rate cannot carry.
+MAX_RATE_HZ = 10_000.0
 #: Bisection steps on log(rate).
 _RATE_BISECTIONS = 60
 
@@ -84,13 +86,13 @@ class SampledModel:
             best = L
         return best
 
-    def summary(self, rate: float, latency_frames: int, own_rate: float | None = None) -> dict:
+    def summary(self, rate: float, latency_frames: int) -> dict:
         """The camera at ``rate`` [Hz], ``latency_frames`` late, as JSON values
         (``linearize --latency --json``'s ``camera``): the spectral radius, whether it is
-        stable, the latency margin at that rate and, where ``rate`` is the camera's own
-        (``own_rate``), the slowest stable rate (None where none is stable)."""
+        stable, the latency margin at that rate (-1: not stable even without latency) and
+        the slowest stable rate at this latency (:meth:`stable_rate_boundary`; None where
+        none up to :data:`MAX_RATE_HZ` is)."""
         rho = self.spectral_radius(rate, latency_frames)
-        own = own_rate is not None and rate == own_rate
         return json_ready(
             {
                 "rate": rate,
@@ -98,11 +100,30 @@ class SampledModel:
                 "spectral_radius": rho,
                 "stable": rho < 1,
                 "latency_margin_frames": self.latency_margin(rate),
-                "slowest_stable_rate_hz": (
-                    self.slowest_stable_rate(latency_frames, rate) if own else None
-                ),
+                "slowest_stable_rate_hz": self.stable_rate_boundary(latency_frames, rate),
             }
         )
+
+    def stable_rate_boundary(self, latency_frames: int, rate: float) -> float:
+        """The slowest stable camera rate [Hz] at ``latency_frames``, searched from
+        ``rate``: down from it where it is stable (:meth:`slowest_stable_rate`), else up,
+        doubling to the first stable rate, then down from there (the rate the loop needs).
+        NaN where no rate up to :data:`MAX_RATE_HZ` is stable."""
+        top = float(rate)
+        while self.spectral_radius(top, latency_frames) >= 1:
+            if top >= MAX_RATE_HZ:
+                return math.nan
+            top = min(2 * top, MAX_RATE_HZ)
+        if top == rate:
+            return self.slowest_stable_rate(latency_frames, rate)
+        lo, hi = top / 2, top  # lo unstable, hi stable: the boundary between
+        for _ in range(_RATE_BISECTIONS):
+            mid = math.sqrt(lo * hi)
+            if self.spectral_radius(mid, latency_frames) < 1:
+                hi = mid
+            else:
+                lo = mid
+        return hi
 
     def slowest_stable_rate(self, latency_frames: int, rate: float) -> float:
         """The slowest camera rate [Hz] with a spectral radius below 1 at
