@@ -34,6 +34,7 @@ from geovs_drake.scenario import (
     PoseConfig,
     ScenarioConfig,
     load_suite,
+    variant_name,
 )
 from geovs_drake.simulation import simulate
 from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
@@ -449,3 +450,52 @@ def test_a_model_file_s_package_uris_resolve_through_arm_packages(tmp_path, run_
     )  # fmt: skip
     assert run.code == 2 and run.err.count("\n") == 1
     assert "carrier.packages.my_arm_description must be a folder, got '/no/such/folder'" in run.err
+
+
+def _suite_start(name: str):
+    return {s.name: s for s in load_suite(None).scenarios}[name].initial()
+
+
+@pytest.mark.parametrize("plant", [Dynamic(), Kinematic()], ids=variant_name)
+def test_roll_179_converges_on_the_ur5_inside_its_joint_limits(plant):
+    """Issue 31: IK chose the start's 2 pi branch with no regard to the rotation to come,
+    and from the suite's roll_179 the UR5's wrist 3 ran onto its limit (both plants)."""
+    config = ScenarioConfig(carrier=Arm(), plant=plant, initial=_suite_start("roll_179"))
+    config.duration = 20.0
+    result = simulate(config)
+    assert result.status == "converged", result.message
+    assert result.summary()["min_joint_limit_margin"] > 0.5
+
+
+def test_the_start_branch_keeps_the_pose_and_the_rotation_to_come_inside():
+    """start_branch moves joints by whole turns only (forward kinematics: the same camera
+    pose), stays inside the limits, and puts the estimated end inside too; at a half turn,
+    whose way the start does not decide, it keeps IK's branch."""
+    from geovs_drake.loop.arm import camera_jacobians, start_branch
+
+    config = ScenarioConfig(carrier=Arm(), initial=_suite_start("roll_179"))
+    model = arm_model(config)
+    plant = arm_plant(model)
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    X0, X1 = config.X_WB @ config.X_BC_initial, config.X_WB @ config.X_BC_goal
+    found = solve_joints(model, X0)
+    q = start_branch(model, found, X0, X1)
+    turns = (q - found) / (2 * np.pi)
+    np.testing.assert_allclose(turns, np.round(turns), atol=1e-12)
+    assert np.any(turns != 0)  # this start needed another branch
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, q)
+    X = plant.GetFrameByName(CAMERA_FRAME).CalcPoseInWorld(context)
+    np.testing.assert_allclose(X.GetAsMatrix4(), X0.GetAsMatrix4(), atol=1e-9)
+    # The roll to come, 179 deg about the optical axis, carried to the joints: inside.
+    error = X0.InvertAndCompose(X1)
+    aa = error.rotation().ToAngleAxis()
+    twist = np.concatenate([aa.axis() * aa.angle(), error.translation()])
+    end = q + np.linalg.pinv(camera_jacobians(model, q[None])[0]) @ twist
+    assert np.all(q >= lower) and np.all(q <= upper)
+    assert np.all(end > lower + 0.5) and np.all(end < upper - 0.5), end
+    # A half turn: IK's branch is kept.
+    half = ScenarioConfig(carrier=Arm(), initial=_suite_start("roll_180"))
+    H0 = half.X_WB @ half.X_BC_initial
+    found = solve_joints(model, H0)
+    np.testing.assert_array_equal(start_branch(model, found, H0, X1), found)

@@ -35,6 +35,7 @@ __all__ = [
     "ARMS",
     "IK_POSITION_TOLERANCE",
     "IK_ROTATION_TOLERANCE",
+    "HALF_TURN_AMBIGUITY",
     "IK_SEEDS",
     "SINGULARITY_WEIGHT",
     "Unreachable",
@@ -48,6 +49,7 @@ __all__ = [
     "self_motion_speeds",
     "smallest_singular_values",
     "solve_joints",
+    "start_branch",
 ]
 
 #: The camera pose an IK solution must reach [m] and [rad].
@@ -67,6 +69,11 @@ SINGULARITY_WEIGHT = 10.0
 #: alone, which the BLAS kernel decides (the UR5's goal: wrist 1 at -2.54 or +3.74 rad).
 #: A tie goes to the solution nearer q = 0 (the smaller |q|), whatever the seeds' order.
 IK_SCORE_TIE = 1e-9
+
+#: A rotation to come within this of a half turn [rad] has no way to go that the start
+#: decides (the NF's saddle is the goal with the arrow reversed, a measure-zero set of
+#: starts): its branch is left as IK found it. Off the saddle the NF turns the short way.
+HALF_TURN_AMBIGUITY = 1e-6
 
 
 class Unreachable(ValueError):
@@ -284,4 +291,39 @@ def initial_joints(config: ScenarioConfig) -> np.ndarray:
                 f"carrier.initial_joints must give the arm's {nq} joints, got {len(given)}: {given}"
             )
         return np.asarray(given, dtype=float)
-    return solve_joints(model, config.X_WB @ config.X_BC_initial)
+    X_WC0, X_WC_goal = config.X_WB @ config.X_BC_initial, config.X_WB @ config.X_BC_goal
+    return start_branch(model, solve_joints(model, X_WC0), X_WC0, X_WC_goal)
+
+
+def start_branch(
+    model: ArmModel, q: np.ndarray, X_WC: RigidTransform, X_WC_goal: RigidTransform
+) -> np.ndarray:
+    """The start q with each joint whose range spans 2 pi or more on the branch (whole
+    turns, the same camera pose) that keeps the rotation to come inside its range.
+
+    The rotation to come is estimated to first order: the camera's displacement to the
+    goal as a twist in C, ``log(X_WC^-1 X_WC*)``, carried to the joints by ``J_C(q)^+``.
+    Each such joint takes the branch whose start and estimated end are farthest from its
+    limits (the unshifted one on a tie). A rotation of a half turn (within
+    :data:`HALF_TURN_AMBIGUITY`) has no way to go that the start decides, and keeps IK's
+    branch. Why: IK chose the start's branch with no regard to the motion, and from the
+    suite's roll_179 the UR5's wrist 3 ran onto its limit (issue 31)."""
+    plant = arm_plant(model)
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    error = X_WC.InvertAndCompose(X_WC_goal)
+    axis_angle = error.rotation().ToAngleAxis()
+    axis, angle = axis_angle.axis(), axis_angle.angle()
+    q = np.array(q, dtype=float)
+    if angle > np.pi - HALF_TURN_AMBIGUITY:
+        return q
+    J_plus = np.linalg.pinv(camera_jacobians(model, q[None])[0])
+    dq = J_plus @ np.concatenate([axis * angle, error.translation()])
+    for j in np.flatnonzero(upper - lower >= 2 * np.pi):
+        best, best_margin = q[j], -np.inf
+        for turns in (0, -1, 1, -2, 2):  # the unshifted branch first: it wins a tie
+            start = q[j] + 2 * np.pi * turns
+            margin = min(min(v - lower[j], upper[j] - v) for v in (start, start + dq[j]))
+            if start >= lower[j] and start <= upper[j] and margin > best_margin + IK_SCORE_TIE:
+                best, best_margin = start, margin
+        q[j] = best
+    return q

@@ -259,12 +259,19 @@ class _ArmStarts:
     def row(self, config: ScenarioConfig, X: np.ndarray, twist) -> dict:
         """:func:`_drake_row` on the arm: IK for the joints, the twist to joint velocities."""
         from geovs_drake.analysis.sweep.starts import kinetic_energy
-        from geovs_drake.loop.arm import Unreachable, joint_velocity_for, solve_joints
+        from geovs_drake.loop.arm import (
+            Unreachable,
+            joint_velocity_for,
+            solve_joints,
+            start_branch,
+        )
 
+        X_WC = config.X_WB @ RigidTransform(X)
         try:
-            q = solve_joints(self.model, config.X_WB @ RigidTransform(X))
+            q = solve_joints(self.model, X_WC)
         except Unreachable:
             return _stopped_row("unreachable")
+        q = start_branch(self.model, q, X_WC, config.X_WB @ config.X_BC_goal)
         config.initial_velocity = [0.0] * 6
         if config.dynamic and np.any(np.asarray(twist) != 0):
             twist = np.asarray(twist, dtype=float)
