@@ -170,8 +170,7 @@ def run_demo(
     OpenGL) and print its line after the others.
 
     ``carrier``: :class:`FreeRig` (default) or :class:`Arm` (the recording then shows the
-    arm servoing; the
-    rendered run is skipped, with a line saying why).
+    arm servoing, and the rendered run is the arm's camera's).
 
     Bad ``out`` or ``duration`` raise ValueError before anything is written."""
     from geovs_drake.geometry.navigation import NavigationFunction
@@ -188,15 +187,6 @@ def run_demo(
     config = demo_config(duration, carrier)
     config.validate()
     on_arm = isinstance(config.carrier, Arm)
-    if rendered and on_arm:
-        # Measured (docs/arm.md): at 30 Hz the held frames leave D within 0.2 s on the
-        # dynamic arm, whose light wrist makes the loop faster than the frames.
-        print(
-            "geovs-drake: skipping the rendered run on the arm: at 30 Hz the held frames "
-            "leave D within 0.2 s (the arm's loop is faster than the frames)",
-            file=sys.stderr,
-        )
-        rendered = False
     if rendered:
         # The rendered run is the demo's extra: without the vision extra the demo
         # still runs (like the block diagram without Graphviz), and says so first.

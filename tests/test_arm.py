@@ -30,10 +30,12 @@ from geovs_drake.scenario import (
     Arm,
     Dynamic,
     Kinematic,
+    Pinhole,
     PlantConfig,
     PoseConfig,
     ScenarioConfig,
     load_suite,
+    resolve,
     variant_name,
 )
 from geovs_drake.simulation import simulate
@@ -499,3 +501,33 @@ def test_the_start_branch_keeps_the_pose_and_the_rotation_to_come_inside():
     H0 = half.X_WB @ half.X_BC_initial
     found = solve_joints(model, H0)
     np.testing.assert_array_equal(start_branch(model, found, H0, X1), found)
+
+
+def test_the_arms_gain_scale_scales_a_cameras_damping_too():
+    """Issue 31: resolve() scaled k_p and control.damping by the arm's gain_scale, but a
+    loop with a camera damps with the camera's own B, which stayed unscaled: the UR5's
+    30 Hz loop ran with ten times the stiffness and the free rig's damping, and left D."""
+    config = ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole())
+    resolved = resolve(config)
+    assert resolved.config.control.potential_gain == pytest.approx(10 * 4.0)
+    assert list(resolved.damping) == pytest.approx([10 * v for v in Pinhole().damping])
+    assert config.sensor.damping == Pinhole().damping  # the caller's config untouched
+
+
+def test_the_ur5_converges_with_the_30_hz_pinhole_camera_from_the_small_move():
+    config = ScenarioConfig(carrier=Arm(), sensor=Pinhole(), initial=_suite_start("small_move"))
+    config.duration = 10.0
+    result = simulate(config)
+    assert result.status == "converged", result.message
+    assert result.summary()["min_joint_limit_margin"] > 0
+
+
+def test_the_ur5_converges_with_the_30_hz_rendered_camera_from_the_small_move():
+    pytest.importorskip("cv2")
+    from geovs_drake.scenario import Rendered
+
+    config = ScenarioConfig(carrier=Arm(), sensor=Rendered(), initial=_suite_start("small_move"))
+    config.duration = 6.0
+    result = simulate(config)
+    assert result.status == "converged", result.message
+    assert result.summary()["min_joint_limit_margin"] > 0

@@ -138,7 +138,8 @@ def _design(config, args):
 def _camera(config, args, design) -> dict:
     """The camera study of the gains the command reports: the designed ones where it
     designs (the camera then damps with the designed B), else the scenario's."""
-    from geovs_drake.analysis.linear.latency import camera_of, check_camera, sampled_model
+    from geovs_drake.analysis.linear.latency import camera_of, sampled_model
+    from geovs_drake.linear_model import check_camera
     from geovs_drake.scenario import camera_like
 
     camera = camera_of(config)

@@ -264,8 +264,9 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     finally:
         progress.close()
-    if result.step_warning is not None:
-        print(f"geovs-drake: warning: {result.step_warning}", file=sys.stderr)
+    for warning in (result.step_warning, result.camera_warning):
+        if warning is not None:
+            print(f"geovs-drake: warning: {warning}", file=sys.stderr)
     if args.json:
         print(json.dumps(result.summary()))
     else:

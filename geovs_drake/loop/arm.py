@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
@@ -48,6 +49,9 @@ __all__ = [
     "joint_velocity_for",
     "self_motion_speeds",
     "smallest_singular_values",
+    "ArmGoalModel",
+    "arm_goal_model",
+    "model_joint_damping",
     "solve_joints",
     "start_branch",
 ]
@@ -102,6 +106,49 @@ def arm_model(config: ScenarioConfig) -> ArmModel:
         camera_xyz_rpy=camera or (0.0,) * 6,
         packages=packages,
     )
+
+
+@dataclass(frozen=True)
+class ArmGoalModel:
+    """The arm at rest at the goal, what its linear model there needs: the joints ``q``
+    (IK of X_BC*), the mass matrix ``M`` (rotor inertia included), the camera frame's
+    Jacobian ``J`` (:func:`~geovs_drake.systems._arm_model.camera_jacobian`) and the
+    damping that reads the joints alone, ``D_joint``: ``B_q I``, the model file's own
+    joint damping and, for a redundant arm, ``d N`` (:class:`~geovs_drake.systems.ArmCamera`).
+    The law's stiffness K and damping B act through J: ``K_q = J^T K J``,
+    ``D_q = J^T B J + D_joint``."""
+
+    q: np.ndarray
+    M: np.ndarray
+    J: np.ndarray
+    D_joint: np.ndarray
+
+
+def arm_goal_model(config: ScenarioConfig) -> ArmGoalModel:
+    """:class:`ArmGoalModel` of ``config``'s arm (carrier :class:`~geovs_drake.scenario.Arm`)."""
+    model = arm_model(config)
+    q = solve_joints(model, config.X_WB @ config.X_BC_goal)
+    plant = arm_plant(model)
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, q)
+    J = camera_jacobian(plant, context, plant.GetFrameByName(CAMERA_FRAME))
+    nv = len(q)
+    D_joint = config.carrier.joint_damping * np.eye(nv) + np.diag(model_joint_damping(plant))
+    if nv > 6:  # a redundant arm's self-motion damping (ArmCamera)
+        D_joint = D_joint + config.carrier.null_space_damping * null_space_projector(J)
+    return ArmGoalModel(q=q, M=plant.CalcMassMatrix(context), J=J, D_joint=D_joint)
+
+
+def model_joint_damping(plant) -> np.ndarray:
+    """The model file's own joint damping [N m s/rad] per velocity (a URDF's
+    ``<dynamics damping>``: 0.003 on each of the Panda's joints), which the plant adds."""
+    damping = np.zeros(plant.num_velocities())
+    for index in plant.GetJointIndices():
+        joint = plant.get_joint(index)
+        if joint.num_velocities() > 0:
+            start = joint.velocity_start()
+            damping[start : start + joint.num_velocities()] = joint.default_damping_vector()
+    return damping
 
 
 def joint_count(model: ArmModel) -> int:

@@ -10,7 +10,7 @@ from geovs_drake.geometry.navigation import NavigationGains
 from geovs_drake.scenario.carriers import Arm, FreeRig
 from geovs_drake.scenario.laws import LawConfig
 from geovs_drake.scenario.schema import ScenarioConfig, damping_of, variant_name
-from geovs_drake.scenario.sensors import Exact, radius_error_of
+from geovs_drake.scenario.sensors import CameraModel, Exact, radius_error_of
 
 __all__ = ["ResolvedScenario", "exact_twin", "free_twin", "resolve"]
 
@@ -49,6 +49,9 @@ class ResolvedScenario:
     y_goal: ImageFeatures
     domain: SafeDomain
     gains: NavigationGains
+    #: The factor the law's gains were scaled by (the arm's ``gain_scale``; 1 elsewhere):
+    #: ``config`` holds the scaled gains, and its arm a gain_scale of 1.
+    gain_scale: float = 1.0
 
     @property
     def controller(self) -> str:
@@ -63,6 +66,7 @@ def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> Resolved
         return config
     config = ScenarioConfig() if config is None else config
     config.validate()
+    scale = 1.0
     if isinstance(config.carrier, Arm) and config.dynamic and config.carrier.gain_scale != 1:
         # The arm's gains (Arm.gain_scale): a scaled copy, so that every part of
         # the loop, the energy bound included, reads one k_p and one B.
@@ -71,6 +75,8 @@ def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> Resolved
         config.control.potential_gain *= scale
         config.control.damping = [scale * v for v in config.control.damping]
         config.control.tracking_gains = [scale * v for v in config.control.tracking_gains]
+        if isinstance(config.sensor, CameraModel):  # a camera's loop damps with its own B
+            config.sensor.damping = [scale * v for v in config.sensor.damping]
         config.carrier.gain_scale = 1.0
     return ResolvedScenario(
         config=config,
@@ -80,4 +86,5 @@ def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> Resolved
         y_goal=config.goal_features(),
         domain=config.domain.to_domain(),
         gains=config.navigation.to_gains(),
+        gain_scale=scale,
     )

@@ -161,6 +161,10 @@ class SimulationResult:
     step_limit: object | None = None
     #: One line when a user's step limit put the goal's fastest mode beyond the bound.
     step_warning: str | None = None
+    #: The run's gains against its camera (simulation.camera_fit), for a camera loop the
+    #: closed form models; and one line where they keep less than the gain margin.
+    camera_fit: object | None = None
+    camera_warning: str | None = None
     #: Drake's continuous states at ``times`` (for the linearisation along the run).
     states: np.ndarray | None = None
 
@@ -313,6 +317,14 @@ class SimulationResult:
                 "focal_error": cam.focal_error,
                 "latency_frames": int(cam.latency_frames),
             }
+            fit = self.camera_fit
+            if fit is not None:  # the sampled-data model at the goal (simulation.camera_fit)
+                out["camera"]["spectral_radius"] = fit.spectral_radius
+                out["camera"]["largest_stable_gain_scale"] = (
+                    fit.largest_stable_scale * fit.gain_scale
+                    if math.isfinite(fit.largest_stable_scale)
+                    else None
+                )
         out["radius_error"] = radius_error_of(cam)
         if self.arm is not None:
             out.update(self.arm.summary())

@@ -26,6 +26,7 @@ from geovs_drake.scenario import (
     ScenarioConfig,
     resolve,
 )
+from geovs_drake.simulation.camera_fit import camera_fit
 from geovs_drake.simulation.monitor import camera_signals, make_simulator
 from geovs_drake.simulation.result import (
     MARGIN_NAMES,
@@ -120,6 +121,7 @@ def simulate(
     loop = build_loop(resolved, meshcat=meshcat, log=False)
     diagram = loop.diagram
     limit = step_limit(resolved)
+    fit = camera_fit(resolved)  # the gains against the camera, before the run (issue 31)
     simulator, monitor = make_simulator(
         loop,
         record=True,
@@ -209,6 +211,8 @@ def simulate(
     result.step_limit = limit
     # A limit the user chose beyond the goal's bound: one line to say so (None otherwise).
     result.step_warning = limit.warning(config.simulator.integration_scheme)
+    result.camera_fit = fit
+    result.camera_warning = None if fit is None else fit.warning()
     if result.energy_guarantee is False:
         result.message += f" ({energy_note(result.initial_energy, result.energy_bound)})"
     if isinstance(resolved.law, PathFollowing):  # what the planner found (cached)

@@ -32,11 +32,9 @@ from pydrake.systems.primitives import Linearize
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.linear_model import chart_jacobian, navigation_hessian
 from geovs_drake.loop import build_loop
-from geovs_drake.loop.arm import arm_model, solve_joints
+from geovs_drake.loop.arm import arm_goal_model, arm_model, solve_joints
 from geovs_drake.scenario import Arm, Dynamic, Rendered, ScenarioConfig, camera_like, resolve
 from geovs_drake.spectrum import canonical_eigenvalues
-from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
-from geovs_drake.systems.arm_camera import null_space_projector
 
 __all__ = [
     "ArmLinearization",
@@ -74,8 +72,8 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
             f"linearize_arm_at_goal needs carrier Arm and plant Dynamic, got "
             f"{type(config.carrier).__name__} and {type(config.plant).__name__}"
         )
-    model = arm_model(config)
-    q_goal = solve_joints(model, config.X_WB @ config.X_BC_goal)
+    goal = arm_goal_model(config)
+    q_goal = goal.q
     config.initial = copy.deepcopy(config.goal)
     config.carrier.initial_joints = q_goal.tolist()
     config.carrier.initial_joint_velocity = []
@@ -94,18 +92,9 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
     H = navigation_hessian(NavigationFunction(resolved.domain, y, resolved.gains), y)
     Cc = chart_jacobian(y, resolved.believed_radius)
     K = c.control.potential_gain * Cc.T @ H @ Cc
-    plant = arm_plant(model)
-    pc = plant.CreateDefaultContext()
-    plant.SetPositions(pc, q_goal)
-    camera = plant.GetFrameByName(CAMERA_FRAME)
-    J = camera_jacobian(plant, pc, camera)
-    M = plant.CalcMassMatrix(pc)
-    nv = len(q_goal)
+    J, M, nv = goal.J, goal.M, len(q_goal)
     K_q = J.T @ K @ J
-    D_q = J.T @ np.diag(resolved.damping) @ J + c.carrier.joint_damping * np.eye(nv)
-    D_q = D_q + np.diag(_model_joint_damping(plant))
-    if nv > 6:  # a redundant arm's self-motion damping (ArmCamera)
-        D_q = D_q + c.carrier.null_space_damping * null_space_projector(J)
+    D_q = J.T @ np.diag(resolved.damping) @ J + goal.D_joint
     A_closed = np.zeros((2 * nv, 2 * nv))
     A_closed[:nv, nv:] = np.eye(nv)
     A_closed[nv:, :nv] = -np.linalg.solve(M, K_q)
@@ -117,18 +106,6 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
         jacobian_singular_value=float(np.linalg.svd(J, compute_uv=False)[-1]),
         eigenvalues=canonical_eigenvalues(A_drake),
     )
-
-
-def _model_joint_damping(plant) -> np.ndarray:
-    """The model file's own joint damping [N m s/rad] per velocity (a URDF's
-    ``<dynamics damping>``: 0.003 on each of the Panda's joints), which the plant adds."""
-    damping = np.zeros(plant.num_velocities())
-    for index in plant.GetJointIndices():
-        joint = plant.get_joint(index)
-        if joint.num_velocities() > 0:
-            start = joint.velocity_start()
-            damping[start : start + joint.num_velocities()] = joint.default_damping_vector()
-    return damping
 
 
 @dataclass

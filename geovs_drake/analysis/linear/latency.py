@@ -21,21 +21,17 @@ stable iff its spectral radius is below 1.
 from __future__ import annotations
 
 import copy
-import math
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.systems.analysis import DiscreteTimeApproximation
-from pydrake.systems.primitives import LinearSystem
 
-from geovs_drake._json import json_ready
 from geovs_drake.analysis.linear.linearization import INPUTS, OUTPUTS, linearize, noise_directions
+from geovs_drake.linear_model import SampledModel
 from geovs_drake.scenario import CameraModel, Pinhole, PoseConfig, ScenarioConfig, camera_like
 from geovs_drake.simulation import simulate
 
 __all__ = [
     "LatencyCase",
-    "SampledModel",
     "camera_of",
     "latency_margin",
     "latency_study",
@@ -43,117 +39,6 @@ __all__ = [
     "slowest_stable_rate",
     "spectral_radius",
 ]
-
-#: The slowest camera rate searched [Hz] (below it the answer is "none stable").
-MIN_RATE_HZ = 0.1
-#: The fastest camera rate searched [Hz] for a loop that the given rate cannot carry.
-MAX_RATE_HZ = 10_000.0
-#: Bisection steps on log(rate).
-_RATE_BISECTIONS = 60
-
-
-@dataclass
-class SampledModel:
-    """The goal's linear model split at the camera (module docstring)."""
-
-    A_c: np.ndarray  # what stays continuous
-    B_n: np.ndarray  # the held chart coordinate's input
-    C_xi: np.ndarray  # the image's chart coordinate of the state
-
-    def spectral_radius(self, rate: float, latency_frames: int) -> float:
-        """The sampled, delayed loop's spectral radius (below 1: locally stable)."""
-        check_camera(rate, latency_frames)
-        n = len(self.A_c)
-        held = DiscreteTimeApproximation(
-            LinearSystem(self.A_c, self.B_n, np.eye(n), np.zeros((n, self.B_n.shape[1]))),
-            1.0 / rate,
-        )
-        L = int(latency_frames)
-        Z = np.zeros((n * (L + 1), n * (L + 1)))
-        Z[:n, :n] = held.A()
-        Z[:n, L * n :] += held.B() @ self.C_xi
-        for k in range(1, L + 1):
-            Z[k * n : (k + 1) * n, (k - 1) * n : k * n] = np.eye(n)
-        return float(np.max(np.abs(np.linalg.eigvals(Z))))
-
-    def latency_margin(self, rate: float, max_frames: int = 30) -> int:
-        """The largest latency [frames] at ``rate`` with a spectral radius below 1 (-1
-        when none is, ``max_frames`` when all up to it are)."""
-        best = -1
-        for L in range(max_frames + 1):
-            if self.spectral_radius(rate, L) >= 1:
-                break
-            best = L
-        return best
-
-    def summary(self, rate: float, latency_frames: int) -> dict:
-        """The camera at ``rate`` [Hz], ``latency_frames`` late, as JSON values
-        (``linearize --latency --json``'s ``camera``): the spectral radius, whether it is
-        stable, the latency margin at that rate (-1: not stable even without latency) and
-        the slowest stable rate at this latency (:meth:`stable_rate_boundary`; None where
-        none up to :data:`MAX_RATE_HZ` is)."""
-        rho = self.spectral_radius(rate, latency_frames)
-        return json_ready(
-            {
-                "rate": rate,
-                "latency_frames": latency_frames,
-                "spectral_radius": rho,
-                "stable": rho < 1,
-                "latency_margin_frames": self.latency_margin(rate),
-                "slowest_stable_rate_hz": self.stable_rate_boundary(latency_frames, rate),
-            }
-        )
-
-    def stable_rate_boundary(self, latency_frames: int, rate: float) -> float:
-        """The slowest stable camera rate [Hz] at ``latency_frames``, searched from
-        ``rate``: down from it where it is stable (:meth:`slowest_stable_rate`), else up,
-        doubling to the first stable rate, then down from there (the rate the loop needs).
-        NaN where no rate up to :data:`MAX_RATE_HZ` is stable."""
-        top = float(rate)
-        while self.spectral_radius(top, latency_frames) >= 1:
-            if top >= MAX_RATE_HZ:
-                return math.nan
-            top = min(2 * top, MAX_RATE_HZ)
-        if top == rate:
-            return self.slowest_stable_rate(latency_frames, rate)
-        lo, hi = top / 2, top  # lo unstable, hi stable: the boundary between
-        for _ in range(_RATE_BISECTIONS):
-            mid = math.sqrt(lo * hi)
-            if self.spectral_radius(mid, latency_frames) < 1:
-                hi = mid
-            else:
-                lo = mid
-        return hi
-
-    def slowest_stable_rate(self, latency_frames: int, rate: float) -> float:
-        """The slowest camera rate [Hz] with a spectral radius below 1 at
-        ``latency_frames``: bisection on log(rate) between :data:`MIN_RATE_HZ` and
-        ``rate``, which must be stable (the radius need not be monotone in the rate, so
-        this is the boundary nearest ``rate`` from below). NaN when ``rate`` itself is
-        unstable; MIN_RATE_HZ when even that is stable."""
-        hi = float(rate)
-        if self.spectral_radius(hi, latency_frames) >= 1:
-            return math.nan
-        lo = MIN_RATE_HZ
-        if self.spectral_radius(lo, latency_frames) < 1:
-            return lo
-        for _ in range(_RATE_BISECTIONS):
-            mid = math.sqrt(lo * hi)
-            if self.spectral_radius(mid, latency_frames) < 1:
-                hi = mid
-            else:
-                lo = mid
-        return hi
-
-
-def check_camera(rate: float, latency_frames: int) -> None:
-    """One line for a camera the model cannot take."""
-    if not (math.isfinite(rate) and rate > 0):
-        raise ValueError(f"camera rate must be finite and > 0 [Hz]: rate = {rate}")
-    if int(latency_frames) != latency_frames or latency_frames < 0:
-        raise ValueError(
-            f"latency must be a whole number of frames >= 0: latency_frames = {latency_frames}"
-        )
 
 
 def camera_of(config: ScenarioConfig) -> CameraModel:

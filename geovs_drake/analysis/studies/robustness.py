@@ -45,13 +45,13 @@ import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 
 from geovs_drake.analysis._pool import map_scenarios
-from geovs_drake.analysis.linear.latency import SampledModel
 from geovs_drake.analysis.linear.linearization import rig_spatial_inertia
 from geovs_drake.analysis.studies.robustness_levels import LEVELS, NOMINAL, SHRINK
 from geovs_drake.geometry.camera import camera_map, camera_map_inverse, image_jacobian
 from geovs_drake.geometry.features import FEATURE_FAILURES, TargetMarks, pinhole_measurement
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.geometry.so3 import so3_exp
+from geovs_drake.linear_model import SampledModel
 from geovs_drake.sampling import random_features_in_domain
 from geovs_drake.scenario import (
     SENSOR_VARIANTS,
@@ -185,7 +185,7 @@ def sampled_spectral_radius(config: ScenarioConfig) -> float:
     coordinates (eps, nu) at frame k; between frames ``xdot = A_d x + A_p
     x_{k-L}``, ``A_d = [[0, I], [0, -M^-1 B]]`` (kinematics and the damping
     ``config.damping``, continuous) and ``A_p = [[0, 0], [-M^-1 K, 0]]`` (the
-    potential, sampled and held). :class:`~geovs_drake.analysis.linear.latency.SampledModel`
+    potential, sampled and held). :class:`~geovs_drake.linear_model.SampledModel`
     discretises it (Drake's ``DiscreteTimeApproximation``, a zero-order hold) and adds
     the delay. Below 1: locally stable.
     """

@@ -1,0 +1,206 @@
+"""Whether the loop's gains survive its camera: the goal's sampled-data model, checked
+when a run starts (issue 31).
+
+The NF's loop at the goal, in closed form (:mod:`geovs_drake.linear_model`), splits at
+the camera: the law's stiffness reads the held image, its damping the carrier's own
+velocity, continuously. With the camera's displacement eps (in C, rotation first):
+
+* free rig, dynamic (Eq. 45 on Eq. 46): ``M eps'' + s B eps' = -s K eps_held``, M the
+  rig's spatial inertia at the camera, ``K = k_p C_chart^T H C_chart``;
+* arm, dynamic: the same through ``J_C`` at the goal's joints,
+  ``M(q*) dq'' + (s J^T B J + D_joint) dq' = -s J^T K J dq_held``
+  (:class:`~geovs_drake.loop.arm.ArmGoalModel`);
+* kinematic (free rig or arm, Eqs. 17-19): ``eps' = -s k C_chart^-1 H C_chart eps_held``.
+
+The hold over a frame and the frames of latency make it a sampled loop
+(:class:`~geovs_drake.linear_model.SampledModel`); its spectral radius at the camera's
+rate decides local stability. ``s`` scales the law's gains (k_p and B, or k), as the
+arm's ``gain_scale`` does: :func:`camera_fit` finds the largest stable ``s``, and a run
+whose gains keep less than :data:`GAIN_MARGIN` of it gets one warning line naming it.
+
+The energy argument (Appendix C) needs continuous feedback; a held image breaks it, and
+this local model is what is left to check.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from geovs_drake.linear_model import SampledModel, goal_stiffness, rig_spatial_inertia
+from geovs_drake.loop.arm import arm_goal_model
+from geovs_drake.scenario import Arm, CameraModel, FreeRig, Nf, ResolvedScenario, variant_name
+
+__all__ = ["GAIN_MARGIN", "CameraFit", "camera_fit", "goal_sampled_model"]
+
+#: The factor by which a run's gains must stay below the largest stable ones at its
+#: camera's rate and latency (a gain margin of 2, 6 dB, the classic figure): less, and
+#: the run starts with a warning line.
+GAIN_MARGIN = 2.0
+#: The range of gain scales searched.
+_SCALE_RANGE = (1e-4, 1e4)
+#: The scan's ratio between neighbouring scales, then bisection steps on log(scale).
+_SCAN_STEP = 1.05
+_BISECTIONS = 30
+
+
+def goal_sampled_model(resolved: ResolvedScenario, scale: float = 1.0) -> SampledModel | None:
+    """The goal's closed-form model split at the camera (module docstring), the law's
+    gains times ``scale``; None where the closed form does not model the loop (a law
+    other than the NF, the fixed camera)."""
+    parts = _goal_parts(resolved)
+    return None if parts is None else parts.split(scale)
+
+
+@dataclass(frozen=True)
+class _GoalParts:
+    """The goal's closed form at scale 1: the inertia M (None: kinematic), the held
+    stiffness K, the law's damping B and the damping that reads the carrier alone."""
+
+    M: np.ndarray | None
+    K: np.ndarray
+    B: np.ndarray
+    D_carrier: np.ndarray
+
+    def split(self, scale: float) -> SampledModel:
+        if self.M is None:  # kinematic: the held image is all there is
+            n = len(self.K)
+            return SampledModel(A_c=np.zeros((n, n)), B_n=np.eye(n), C_xi=-scale * self.K)
+        n = len(self.M)
+        M_inv = np.linalg.inv(self.M)
+        A_c = np.zeros((2 * n, 2 * n))
+        A_c[:n, n:] = np.eye(n)
+        A_c[n:, n:] = -M_inv @ (scale * self.B + self.D_carrier)
+        B_n = np.vstack([np.zeros((n, n)), M_inv])
+        C_xi = np.hstack([-scale * self.K, np.zeros((n, n))])
+        return SampledModel(A_c=A_c, B_n=B_n, C_xi=C_xi)
+
+
+def _goal_parts(resolved: ResolvedScenario) -> _GoalParts | None:
+    config = resolved.config
+    if not isinstance(resolved.law, Nf) or not isinstance(config.carrier, FreeRig | Arm):
+        return None
+    K1, KC = goal_stiffness(config)
+    if not config.dynamic:
+        KC = config.control.kinematic_gain * KC
+        return _GoalParts(M=None, K=KC, B=np.zeros_like(KC), D_carrier=np.zeros_like(KC))
+    K = config.control.potential_gain * K1
+    B = np.diag(resolved.damping)
+    if isinstance(config.carrier, Arm):
+        goal = arm_goal_model(config)
+        J = goal.J
+        return _GoalParts(M=goal.M, K=J.T @ K @ J, B=J.T @ B @ J, D_carrier=goal.D_joint)
+    return _GoalParts(M=rig_spatial_inertia(config), K=K, B=B, D_carrier=np.zeros_like(B))
+
+
+@dataclass(frozen=True)
+class CameraFit:
+    """The run's gains against its camera (:func:`camera_fit`): the camera's ``rate``
+    [Hz] and ``latency_frames``, the sampled loop's ``spectral_radius`` with the run's
+    gains, and ``largest_stable_scale``, the largest factor on the law's gains that
+    keeps it below 1 for every factor between it and the run's (inf where every factor
+    searched does; 0 where none does)."""
+
+    carrier: str
+    plant: str
+    #: The arm's gain_scale the run's gains carry (1 elsewhere): the warning names the
+    #: largest stable one in the field's own terms.
+    gain_scale: float
+    rate: float
+    latency_frames: int
+    spectral_radius: float
+    largest_stable_scale: float
+
+    @property
+    def stable(self) -> bool:
+        """The model predicts the run's loop stable at the goal."""
+        return self.spectral_radius < 1
+
+    @property
+    def margin(self) -> float:
+        """The gain margin: the largest stable scale over the run's (1 is the run's)."""
+        return self.largest_stable_scale
+
+    def warning(self) -> str | None:
+        """One line where the run's gains keep less than :data:`GAIN_MARGIN` of the largest
+        stable ones, naming the largest stable gain scale; None where they keep enough."""
+        if self.margin >= GAIN_MARGIN:
+            return None
+        verdict = (
+            f"predicts the loop unstable (spectral radius {self.spectral_radius:.3g})"
+            if not self.stable
+            else f"leaves a gain margin of only {self.margin:.2g} (under {GAIN_MARGIN:g})"
+        )
+        scale = self.largest_stable_scale
+        if scale == 0:
+            fix = "no scale of these gains down to 1e-4 is stable: raise the camera's rate"
+        elif self.carrier == "arm":
+            largest = scale * self.gain_scale
+            fix = (
+                f"the largest stable gain_scale is {largest:.3g} (this run's: "
+                f"{self.gain_scale:g}); gain_scale {largest / GAIN_MARGIN:.3g} keeps a "
+                f"margin of {GAIN_MARGIN:g}"
+            )
+        else:
+            fix = (
+                f"the largest stable scale of control's gains is {scale:.3g}; "
+                f"{scale / GAIN_MARGIN:.3g} keeps a margin of {GAIN_MARGIN:g}"
+            )
+        return (
+            f"the {self.rate:g} Hz camera, {self.latency_frames} frames late, on the "
+            f"{self.plant} {self.carrier}: the sampled-data model at the goal {verdict}; {fix}"
+        )
+
+
+def camera_fit(resolved: ResolvedScenario) -> CameraFit | None:
+    """The run's gains against its camera (:class:`CameraFit`), or None where the loop
+    has no camera (the exact sensor) or the closed form does not model it."""
+    camera = resolved.config.sensor
+    parts = _goal_parts(resolved) if isinstance(camera, CameraModel) else None
+    if parts is None:
+        return None
+    rate, latency = float(camera.rate), int(camera.latency_frames)
+
+    def radius(scale: float) -> float:
+        return parts.split(scale).spectral_radius(rate, latency)
+
+    return CameraFit(
+        carrier=variant_name(resolved.config.carrier),
+        plant=variant_name(resolved.config.plant),
+        gain_scale=resolved.gain_scale,
+        rate=rate,
+        latency_frames=latency,
+        spectral_radius=radius(1.0),
+        largest_stable_scale=_largest_stable_scale(radius),
+    )
+
+
+def _largest_stable_scale(radius) -> float:
+    """The edge of the stable scales next to 1 (the stable set need not be one interval:
+    a damping that grows with the scale can bring stability back): scanned in steps of
+    :data:`_SCAN_STEP` up from 1 where 1 is stable, else down to the first stable
+    scale; then bisection on log(scale) within the step."""
+    low, high = _SCALE_RANGE
+    if radius(1.0) < 1:
+        stable = 1.0
+        while radius(stable * _SCAN_STEP) < 1:
+            stable *= _SCAN_STEP
+            if stable >= high:
+                return math.inf
+        unstable = stable * _SCAN_STEP
+    else:
+        unstable = 1.0
+        while radius(unstable / _SCAN_STEP) >= 1:
+            unstable /= _SCAN_STEP
+            if unstable <= low:
+                return 0.0
+        stable = unstable / _SCAN_STEP
+    for _ in range(_BISECTIONS):
+        mid = math.sqrt(stable * unstable)
+        if radius(mid) < 1:
+            stable = mid
+        else:
+            unstable = mid
+    return stable
