@@ -58,7 +58,8 @@ def test_the_predicted_edge_is_where_the_simulated_arm_loop_turns_unstable():
     half the edge converges towards the goal, 1.5 times it does not)."""
     base = ScenarioConfig(carrier=Arm(), sensor=Pinhole(latency_frames=1))
     fit = camera_fit(resolve(base))
-    edge = fit.largest_stable_scale * fit.gain_scale
+    edge = fit.largest_stable_gain
+    assert fit.gain_name == "gain_scale" and fit.gain_value == 10.0
     assert not fit.stable and 0 < edge < 10.0  # the default gain_scale is beyond it
     errors = {}
     for factor in (0.5, 1.5):
@@ -84,7 +85,7 @@ def test_a_gain_the_camera_cannot_carry_gets_one_warning_line(run_cli):
         "--duration", "0.2", "--json",
     )  # fmt: skip
     fit = camera_fit(resolve(ScenarioConfig(carrier=Arm(), sensor=Pinhole(latency_frames=1))))
-    edge = fit.largest_stable_scale * fit.gain_scale
+    edge = fit.largest_stable_gain
     warning = [line for line in run.err.splitlines() if "warning" in line]
     assert len(warning) == 1, run.err
     assert "the 30 Hz camera, 1 frames late, on the dynamic arm" in warning[0]
@@ -92,7 +93,11 @@ def test_a_gain_the_camera_cannot_carry_gets_one_warning_line(run_cli):
     assert f"the largest stable gain_scale is {edge:.3g} (this run's: 10)" in warning[0]
     assert f"gain_scale {edge / GAIN_MARGIN:.3g} keeps a margin of 2" in warning[0]
     camera = json.loads(run.out)["camera"]
-    assert camera["largest_stable_gain_scale"] == pytest.approx(edge)
+    assert camera["largest_stable_gain"] == {
+        "field": "gain_scale",
+        "value": pytest.approx(edge),
+        "this_run": 10.0,
+    }
     assert (
         camera["spectral_radius"] == pytest.approx(fit.spectral_radius) and fit.spectral_radius > 1
     )
@@ -114,3 +119,18 @@ def test_no_fit_without_a_camera_or_a_closed_form():
     assert camera_fit(resolve(ScenarioConfig())) is None  # the exact sensor
     assert camera_fit(resolve(ScenarioConfig(sensor=Pinhole(), controller=Ibvs()))) is None
     assert goal_sampled_model(resolve(ScenarioConfig(carrier=FixedCamera()))) is None
+
+
+def test_the_kinematic_plant_takes_a_camera_and_the_warning_names_its_gain():
+    """Cameras run on the kinematic plant too (issue 31, item 1): the free rig's default
+    k = 4 at 30 Hz is beyond the hold's bound (its fastest mode, 126 1/s, times the
+    frame), which the warning says with the kinematic gain that would work; at that
+    gain the same start converges."""
+    config = ScenarioConfig(plant=Kinematic(), sensor=Pinhole(), initial=NEAR_GOAL, duration=4.0)
+    fit = camera_fit(resolve(config))
+    assert not fit.stable and fit.gain_name == "control.kinematic_gain"
+    assert f"control.kinematic_gain {fit.largest_stable_gain / GAIN_MARGIN:.3g}" in fit.warning()
+    assert simulate(config).status == "left_domain"
+    config.control.kinematic_gain = fit.largest_stable_gain / GAIN_MARGIN
+    assert camera_fit(resolve(config)).warning() is None
+    assert simulate(config).status == "converged"

@@ -461,7 +461,6 @@ def test_a_baseline_runs_through_the_camera_model():
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
-        ({"plant": Kinematic()}, r"runs on the dynamic plant only, got plant Kinematic\(\)"),
         ({"carrier": FixedCamera()}, r"runs eye-in-hand only .*got carrier FixedCamera\(\)"),
     ],
 )

@@ -90,8 +90,6 @@ def test_every_combination_builds_through_build_loop_and_converges(carrier, sens
 @pytest.mark.parametrize(
     ("changes", "sensor", "message"),
     [
-        (dict(plant=Kinematic()), "pinhole", "dynamic plant only, got plant Kinematic"),
-        (dict(plant=Kinematic()), "rendered", "dynamic plant only, got plant Kinematic"),
         (dict(carrier=FixedCamera()), "pinhole", "eye-in-hand only .*got carrier FixedCamera"),
         (dict(carrier=FixedCamera()), "rendered", "eye-in-hand only .*got carrier FixedCamera"),
         (

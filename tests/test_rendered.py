@@ -268,7 +268,6 @@ def test_simulate_with_a_camera_from_the_command_line(capsys):
     [
         (["--resolution", "320"], "expected WxH"),
         (["--resolution", "8x8"], "expected WxH"),
-        (["--sensor", "rendered", "--plant", "kinematic"], "dynamic plant only"),
         (["--sensor", "pinhole", "--camera-rate", "0"], "--camera-rate must be"),
         (["--sensor", "webcam"], "invalid choice"),
     ],

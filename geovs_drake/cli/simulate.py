@@ -192,7 +192,7 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         ("sensor",),
         "exact: the controller reads y = c(H); rendered: Drake renders the target "
         "(RgbdSensor, VTK) and y is extracted from each frame; pinhole: that measurement "
-        "on exact image points, without rendering (dynamic plant only for the last two)",
+        "on exact image points, without rendering (eye-in-hand, either plant, for the last two)",
         choices=tuple(AXES["sensor"]),
     )
     add_variant_field(

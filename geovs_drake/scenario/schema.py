@@ -291,11 +291,6 @@ class ScenarioConfig:
                 "with plant Kinematic()"
             )
         if isinstance(self.sensor, CameraModel):
-            if not self.dynamic:
-                raise ValueError(
-                    f"sensor {type(self.sensor).__name__}() runs on the dynamic plant only, "
-                    "got plant Kinematic()"
-                )
             if isinstance(self.carrier, FixedCamera):
                 raise ValueError(
                     f"sensor {type(self.sensor).__name__}() runs eye-in-hand only (the camera "

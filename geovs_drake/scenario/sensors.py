@@ -42,7 +42,7 @@ class Exact:
 @dataclass
 class CameraModel:
     """A camera: the fields :class:`Pinhole` and :class:`Rendered` share. It runs at
-    ``rate`` frames per second with a zero-order hold.
+    ``rate`` frames per second with a zero-order hold, eye-in-hand, on either plant.
 
     The camera is a pinhole of ``resolution`` [W, H] px, square pixels, the principal
     point at the centre, and the focal length whose inscribed cone, ``border_px`` in

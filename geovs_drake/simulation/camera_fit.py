@@ -41,6 +41,9 @@ __all__ = ["GAIN_MARGIN", "CameraFit", "camera_fit", "goal_sampled_model"]
 GAIN_MARGIN = 2.0
 #: The range of gain scales searched.
 _SCALE_RANGE = (1e-4, 1e4)
+#: How far below the margin a gain may sit and pass: the bisection's resolution, so that
+#: the gain a warning suggests passes.
+_MARGIN_TOLERANCE = 1e-6
 #: The scan's ratio between neighbouring scales, then bisection steps on log(scale).
 _SCAN_STEP = 1.05
 _BISECTIONS = 30
@@ -105,9 +108,11 @@ class CameraFit:
 
     carrier: str
     plant: str
-    #: The arm's gain_scale the run's gains carry (1 elsewhere): the warning names the
-    #: largest stable one in the field's own terms.
-    gain_scale: float
+    #: The field a user turns to scale the law's gains, and its value in this run: the
+    #: arm's ``gain_scale`` (dynamic), ``control.kinematic_gain`` (kinematic), or a factor
+    #: on ``control.potential_gain`` and the damping (the free rig, dynamic; 1).
+    gain_name: str
+    gain_value: float
     rate: float
     latency_frames: int
     spectral_radius: float
@@ -119,6 +124,11 @@ class CameraFit:
         return self.spectral_radius < 1
 
     @property
+    def largest_stable_gain(self) -> float:
+        """The largest stable value of :attr:`gain_name` (the scale times this run's)."""
+        return self.largest_stable_scale * self.gain_value
+
+    @property
     def margin(self) -> float:
         """The gain margin: the largest stable scale over the run's (1 is the run's)."""
         return self.largest_stable_scale
@@ -126,27 +136,21 @@ class CameraFit:
     def warning(self) -> str | None:
         """One line where the run's gains keep less than :data:`GAIN_MARGIN` of the largest
         stable ones, naming the largest stable gain scale; None where they keep enough."""
-        if self.margin >= GAIN_MARGIN:
+        if self.margin >= GAIN_MARGIN * (1 - _MARGIN_TOLERANCE):  # the suggested gain: no warning
             return None
         verdict = (
             f"predicts the loop unstable (spectral radius {self.spectral_radius:.3g})"
             if not self.stable
             else f"leaves a gain margin of only {self.margin:.2g} (under {GAIN_MARGIN:g})"
         )
-        scale = self.largest_stable_scale
-        if scale == 0:
+        if self.largest_stable_scale == 0:
             fix = "no scale of these gains down to 1e-4 is stable: raise the camera's rate"
-        elif self.carrier == "arm":
-            largest = scale * self.gain_scale
-            fix = (
-                f"the largest stable gain_scale is {largest:.3g} (this run's: "
-                f"{self.gain_scale:g}); gain_scale {largest / GAIN_MARGIN:.3g} keeps a "
-                f"margin of {GAIN_MARGIN:g}"
-            )
         else:
+            largest = self.largest_stable_gain
             fix = (
-                f"the largest stable scale of control's gains is {scale:.3g}; "
-                f"{scale / GAIN_MARGIN:.3g} keeps a margin of {GAIN_MARGIN:g}"
+                f"the largest stable {self.gain_name} is {largest:.3g} (this run's: "
+                f"{self.gain_value:g}); {self.gain_name} {largest / GAIN_MARGIN:.3g} keeps "
+                f"a margin of {GAIN_MARGIN:g}"
             )
         return (
             f"the {self.rate:g} Hz camera, {self.latency_frames} frames late, on the "
@@ -169,12 +173,22 @@ def camera_fit(resolved: ResolvedScenario) -> CameraFit | None:
     return CameraFit(
         carrier=variant_name(resolved.config.carrier),
         plant=variant_name(resolved.config.plant),
-        gain_scale=resolved.gain_scale,
+        **_gain_field(resolved),
         rate=rate,
         latency_frames=latency,
         spectral_radius=radius(1.0),
         largest_stable_scale=_largest_stable_scale(radius),
     )
+
+
+def _gain_field(resolved: ResolvedScenario) -> dict:
+    """The field that scales the law's gains in this run, and its value (:class:`CameraFit`)."""
+    config = resolved.config
+    if not config.dynamic:
+        return dict(gain_name="control.kinematic_gain", gain_value=config.control.kinematic_gain)
+    if isinstance(config.carrier, Arm):
+        return dict(gain_name="gain_scale", gain_value=resolved.gain_scale)
+    return dict(gain_name="factor on control.potential_gain and the damping", gain_value=1.0)
 
 
 def _largest_stable_scale(radius) -> float:

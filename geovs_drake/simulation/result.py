@@ -320,11 +320,13 @@ class SimulationResult:
             fit = self.camera_fit
             if fit is not None:  # the sampled-data model at the goal (simulation.camera_fit)
                 out["camera"]["spectral_radius"] = fit.spectral_radius
-                out["camera"]["largest_stable_gain_scale"] = (
-                    fit.largest_stable_scale * fit.gain_scale
-                    if math.isfinite(fit.largest_stable_scale)
-                    else None
-                )
+                out["camera"]["largest_stable_gain"] = {
+                    "field": fit.gain_name,
+                    "value": (
+                        fit.largest_stable_gain if math.isfinite(fit.largest_stable_gain) else None
+                    ),
+                    "this_run": fit.gain_value,
+                }
         out["radius_error"] = radius_error_of(cam)
         if self.arm is not None:
             out.update(self.arm.summary())
