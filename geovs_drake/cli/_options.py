@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from geovs_drake.scenario import (
+    AUTO,
     AXES,
     ResolvedScenario,
     ScenarioConfig,
@@ -140,6 +141,19 @@ def joints_arg(text: str) -> list[float]:
     if not all(math.isfinite(v) for v in values):
         raise argparse.ArgumentTypeError(f"expected finite numbers q1,q2,..., got {text!r}")
     return values
+
+
+def gain_scale_arg(text: str) -> float | str:
+    """A finite number > 0, or ``auto`` (the arm's ``gain_scale``)."""
+    if text.strip().lower() == AUTO:
+        return AUTO
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a number > 0 or {AUTO}, got {text!r}")
+    return value
 
 
 def resolution_arg(text: str) -> list[int]:
@@ -331,7 +345,10 @@ def load_resolved(args: argparse.Namespace) -> ResolvedScenario:
     layers += args.layers or []
     config = load_scenario(args.config, overrides=layers)
     _apply_variant_fields(config, args.variant_fields or [])
-    return resolve(config)
+    # Here, not at the top: the command line starts without the loop's modules.
+    from geovs_drake.loop.camera_fit import fit_gains
+
+    return resolve(fit_gains(config))  # the arm's gain_scale: auto, chosen once
 
 
 def load_config(args: argparse.Namespace) -> ScenarioConfig:

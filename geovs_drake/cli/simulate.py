@@ -17,6 +17,7 @@ from geovs_drake.cli._options import (
     add_variant_flag,
     exit_code_of,
     field_default,
+    gain_scale_arg,
     joints_arg,
     load_resolved,
     numbers,
@@ -152,6 +153,18 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         "phi_q) (0: off)",
         type=float,
         metavar="RAD",
+    )
+    add_variant_field(
+        p,
+        "--gain-scale",
+        "carrier",
+        ("arm",),
+        "gain_scale",
+        "with --plant dynamic: the factor on the law's gains (k_p, B, the velocity "
+        "tracking); auto: 10, at most what the camera's rate and latency carry with a gain "
+        "margin of 2",
+        type=gain_scale_arg,
+        metavar="SCALE",
     )
     # Path following (--controller path) and the fixed camera (--mount): issue 12.
     add_variant_flag(

@@ -42,6 +42,7 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import Adder, LogVectorOutput
 
+from geovs_drake.loop.camera_fit import fit_gains
 from geovs_drake.loop.carriers import CARRIERS, CarrierParts, carrier_key
 from geovs_drake.loop.laws import LAWS
 from geovs_drake.loop.sensors import SENSORS, add_feature_loggers
@@ -139,6 +140,8 @@ def build_loop(
     y and pose outputs (module docstring). Raises ValueError in one line for parts
     that make no loop.
     """
+    if not isinstance(config, ResolvedScenario):  # the arm's gain_scale: auto, chosen once
+        config = fit_gains(ScenarioConfig() if config is None else config)
     resolved = resolve(config)
     config = resolved.config
     why = refusal(config)

@@ -22,7 +22,9 @@ them on this page and pickles name this path.
 """
 
 from geovs_drake.scenario.carriers import (
+    AUTO,
     CARRIER_VARIANTS,
+    NOMINAL_GAIN_SCALE,
     Arm,
     CarrierConfig,
     FixedCamera,
@@ -68,12 +70,14 @@ from geovs_drake.scenario.sensors import (
 from geovs_drake.scenario.suite import SuiteConfig, SuiteScenario, default_suite_path, load_suite
 
 __all__ = [
+    "AUTO",
     "AXES",
     "CARRIER_VARIANTS",
     "CONTROLLERS",
     "DEFAULT_MAX_STEP",
     "IBVS_DEPTHS",
     "LAW_VARIANTS",
+    "NOMINAL_GAIN_SCALE",
     "PLANT_VARIANTS",
     "SENSOR_VARIANTS",
     "Arm",

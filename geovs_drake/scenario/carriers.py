@@ -12,7 +12,9 @@ from pathlib import Path
 from geovs_drake.scenario.pose import PoseConfig, check_at_least, finite_numbers
 
 __all__ = [
+    "AUTO",
     "CARRIER_VARIANTS",
+    "NOMINAL_GAIN_SCALE",
     "Arm",
     "CarrierConfig",
     "FixedCamera",
@@ -20,6 +22,10 @@ __all__ = [
     "RigidBodyConfig",
     "check_carrier",
 ]
+
+
+#: ``Arm.gain_scale``'s value that asks for the gain to be chosen.
+AUTO = "auto"
 
 
 @dataclass
@@ -87,13 +93,17 @@ class Arm:
     joint_barrier_width: float = 0.0
     null_space_gain: float = 1.0
     singularity_damping: float = 0.05
-    #: The arm's inertia at the camera is about ten times the default rig's (1 kg): the
-    #: dynamic arm runs the NF with k_p and B, and the twist laws' velocity tracking
-    #: with its gains, multiplied by this factor, which keeps the free rig's time
-    #: constants. :func:`~geovs_drake.scenario.resolve` applies it, once; the loop's
-    #: energy bound is the scaled k_p.
-    gain_scale: float = 10.0
+    #: The factor on the law's gains (k_p and B, and the twist laws' velocity tracking) of
+    #: the dynamic arm, applied once by :func:`~geovs_drake.scenario.resolve` (the loop's
+    #: energy bound is the scaled k_p). ``auto`` (the default): :data:`NOMINAL_GAIN_SCALE`,
+    #: which keeps the free rig's time constants (the arm's inertia at the camera is about
+    #: ten times the default rig's), at most the largest that the camera's rate and
+    #: latency carry with a gain margin of 2 (:func:`geovs_drake.loop.fit_gains`).
+    gain_scale: float | str = AUTO
 
+
+#: The arm's gain scale that keeps the free rig's time constants: ``auto`` without a camera.
+NOMINAL_GAIN_SCALE = 10.0
 
 #: A carrier's configuration: one of the variants above.
 CarrierConfig = FreeRig | FixedCamera | Arm
@@ -107,7 +117,6 @@ _ARM_BOUNDS: dict[str, tuple[float, bool, str]] = {
     "joint_barrier_width": (0.0, False, " [rad]"),
     "null_space_gain": (0.0, False, " [1/s]"),
     "singularity_damping": (0.0, False, ""),
-    "gain_scale": (0.0, True, ""),
 }
 
 
@@ -129,6 +138,12 @@ def check_carrier(carrier: object) -> None:
         return
     for name, (low, strict, unit) in _ARM_BOUNDS.items():
         check_at_least(f"carrier.{name}", getattr(carrier, name), low, strict, unit)
+    if carrier.gain_scale != AUTO:
+        if isinstance(carrier.gain_scale, str):
+            raise ValueError(
+                f"carrier.gain_scale must be a number > 0 or {AUTO}, got {carrier.gain_scale!r}"
+            )
+        check_at_least("carrier.gain_scale", carrier.gain_scale, 0.0, True)
     # Here, not at the top: the command line starts without the loop's modules.
     from geovs_drake.systems._arm_model import ARMS
 

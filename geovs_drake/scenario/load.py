@@ -10,6 +10,7 @@ from typing import Any
 import yaml
 from pydrake.common.yaml import yaml_load_typed
 
+from geovs_drake.scenario.carriers import AUTO
 from geovs_drake.scenario.schema import AXES, ScenarioConfig, variant_by_name
 
 __all__ = ["load_scenario"]
@@ -143,6 +144,8 @@ def _check_node(value: Any, default: Any, where: str) -> None:
         ok, expected = isinstance(value, bool), "true or false"
     elif isinstance(default, float | int):
         ok, expected = _is_number(value), "a number"
+    elif default == AUTO:  # a number, or auto (Arm.gain_scale)
+        ok, expected = value == AUTO or _is_number(value), f"a number or {AUTO}"
     elif isinstance(default, str):
         ok, expected = isinstance(value, str), "a string"
     elif isinstance(default, list):

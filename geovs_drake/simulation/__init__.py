@@ -31,6 +31,5 @@ __getattr__, __dir__, __all__ = attach(
         ),
         "geovs_drake.loop.state": ("camera_pose_in_target",),
         "run": ("StartOutsideDomain", "check_start", "simulate"),
-        "camera_fit": ("GAIN_MARGIN", "CameraFit", "camera_fit"),
     },
 )

@@ -161,7 +161,7 @@ class SimulationResult:
     step_limit: object | None = None
     #: One line when a user's step limit put the goal's fastest mode beyond the bound.
     step_warning: str | None = None
-    #: The run's gains against its camera (simulation.camera_fit), for a camera loop the
+    #: The run's gains against its camera (loop.camera_fit), for a camera loop the
     #: closed form models; and one line where they keep less than the gain margin.
     camera_fit: object | None = None
     camera_warning: str | None = None
@@ -318,7 +318,7 @@ class SimulationResult:
                 "latency_frames": int(cam.latency_frames),
             }
             fit = self.camera_fit
-            if fit is not None:  # the sampled-data model at the goal (simulation.camera_fit)
+            if fit is not None:  # the sampled-data model at the goal (loop.camera_fit)
                 out["camera"]["spectral_radius"] = fit.spectral_radius
                 out["camera"]["largest_stable_gain"] = {
                     "field": fit.gain_name,

@@ -18,6 +18,7 @@ from geovs_drake.loop.arm import (
     smallest_singular_values,
 )
 from geovs_drake.loop.build import Loop, build_loop
+from geovs_drake.loop.camera_fit import camera_fit, fit_gains
 from geovs_drake.planning import plan_for_scenario
 from geovs_drake.scenario import (
     Nf,
@@ -26,7 +27,6 @@ from geovs_drake.scenario import (
     ScenarioConfig,
     resolve,
 )
-from geovs_drake.simulation.camera_fit import camera_fit
 from geovs_drake.simulation.monitor import camera_signals, make_simulator
 from geovs_drake.simulation.result import (
     MARGIN_NAMES,
@@ -115,7 +115,9 @@ def simulate(
     The logs are sampled at ``config.log_rate`` from the recorded steps (see
     :class:`SafeDomainMonitor`); ``wall_time_s`` times the integration alone.
     """
-    resolved = resolve(config)  # validated here, once; the builder trusts it
+    if not isinstance(config, ResolvedScenario):  # the arm's gain_scale: auto, chosen once
+        config = fit_gains(ScenarioConfig() if config is None else config)
+    resolved = resolve(config)  # the builder trusts it
     config = resolved.config
     check_start(config)
     loop = build_loop(resolved, meshcat=meshcat, log=False)

@@ -33,6 +33,7 @@ from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.linear_model import chart_jacobian, navigation_hessian
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.arm import arm_goal_model, arm_model, solve_joints
+from geovs_drake.loop.camera_fit import fit_gains
 from geovs_drake.scenario import Arm, Dynamic, Rendered, ScenarioConfig, camera_like, resolve
 from geovs_drake.spectrum import canonical_eigenvalues
 
@@ -77,7 +78,7 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
     config.initial = copy.deepcopy(config.goal)
     config.carrier.initial_joints = q_goal.tolist()
     config.carrier.initial_joint_velocity = []
-    resolved = resolve(config)
+    resolved = resolve(fit_gains(config))
     loop = build_loop(resolved, log=False)
     context = loop.diagram.CreateDefaultContext()
     A_drake = Linearize(
@@ -165,7 +166,7 @@ def arm_pixels(config: ScenarioConfig, joint_positions: np.ndarray) -> np.ndarra
     config = copy.deepcopy(config)
     config.sensor = camera_like(config.sensor, Rendered)
     config.plant = Dynamic()  # the rendered camera's loop; the drawing is the same arm
-    loop = build_loop(resolve(config), log=False)
+    loop = build_loop(resolve(fit_gains(config)), log=False)
     rgbd = loop.diagram.GetSubsystemByName("rgbd_sensor")
     plant = loop.carrier.plant
     labels = [int(index) for index in plant.GetBodyIndices(loop.carrier.body.model_instance())]

@@ -24,6 +24,7 @@ this local model is what is left to check.
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -31,9 +32,20 @@ import numpy as np
 
 from geovs_drake.linear_model import SampledModel, goal_stiffness, rig_spatial_inertia
 from geovs_drake.loop.arm import arm_goal_model
-from geovs_drake.scenario import Arm, CameraModel, FreeRig, Nf, ResolvedScenario, variant_name
+from geovs_drake.scenario import (
+    AUTO,
+    NOMINAL_GAIN_SCALE,
+    Arm,
+    CameraModel,
+    FreeRig,
+    Nf,
+    ResolvedScenario,
+    ScenarioConfig,
+    resolve,
+    variant_name,
+)
 
-__all__ = ["GAIN_MARGIN", "CameraFit", "camera_fit", "goal_sampled_model"]
+__all__ = ["GAIN_MARGIN", "CameraFit", "camera_fit", "fit_gains", "goal_sampled_model"]
 
 #: The factor by which a run's gains must stay below the largest stable ones at its
 #: camera's rate and latency (a gain margin of 2, 6 dB, the classic figure): less, and
@@ -60,24 +72,33 @@ def goal_sampled_model(resolved: ResolvedScenario, scale: float = 1.0) -> Sample
 @dataclass(frozen=True)
 class _GoalParts:
     """The goal's closed form at scale 1: the inertia M (None: kinematic), the held
-    stiffness K, the law's damping B and the damping that reads the carrier alone."""
+    stiffness K, the law's damping B and the damping that reads the carrier alone, and
+    R, an orthonormal basis of the positions the image sees (the row space of J_C; the
+    identity on the free rig).
+
+    Why R: a redundant arm's self-motion (J_C's null space) has no stiffness, so its
+    position is a pure integrator of the velocity, an eigenvalue 0 of A and 1 of the
+    sampled loop, whose rounding would decide "stable". Nothing reads it (the image does
+    not see it, the damping reads velocities), so the model keeps the positions in R
+    and every velocity: the other eigenvalues are unchanged."""
 
     M: np.ndarray | None
     K: np.ndarray
     B: np.ndarray
     D_carrier: np.ndarray
+    R: np.ndarray
 
     def split(self, scale: float) -> SampledModel:
         if self.M is None:  # kinematic: the held image is all there is
             n = len(self.K)
             return SampledModel(A_c=np.zeros((n, n)), B_n=np.eye(n), C_xi=-scale * self.K)
-        n = len(self.M)
+        n, m = self.R.shape  # velocities, seen positions
         M_inv = np.linalg.inv(self.M)
-        A_c = np.zeros((2 * n, 2 * n))
-        A_c[:n, n:] = np.eye(n)
-        A_c[n:, n:] = -M_inv @ (scale * self.B + self.D_carrier)
-        B_n = np.vstack([np.zeros((n, n)), M_inv])
-        C_xi = np.hstack([-scale * self.K, np.zeros((n, n))])
+        A_c = np.zeros((m + n, m + n))
+        A_c[:m, m:] = self.R.T  # z' = R^T v
+        A_c[m:, m:] = -M_inv @ (scale * self.B + self.D_carrier)
+        B_n = np.vstack([np.zeros((m, n)), M_inv])
+        C_xi = np.hstack([-scale * self.K @ self.R, np.zeros((n, n))])
         return SampledModel(A_c=A_c, B_n=B_n, C_xi=C_xi)
 
 
@@ -88,14 +109,18 @@ def _goal_parts(resolved: ResolvedScenario) -> _GoalParts | None:
     K1, KC = goal_stiffness(config)
     if not config.dynamic:
         KC = config.control.kinematic_gain * KC
-        return _GoalParts(M=None, K=KC, B=np.zeros_like(KC), D_carrier=np.zeros_like(KC))
+        zero = np.zeros_like(KC)
+        return _GoalParts(M=None, K=KC, B=zero, D_carrier=zero, R=np.eye(len(KC)))
     K = config.control.potential_gain * K1
     B = np.diag(resolved.damping)
     if isinstance(config.carrier, Arm):
         goal = arm_goal_model(config)
         J = goal.J
-        return _GoalParts(M=goal.M, K=J.T @ K @ J, B=J.T @ B @ J, D_carrier=goal.D_joint)
-    return _GoalParts(M=rig_spatial_inertia(config), K=K, B=B, D_carrier=np.zeros_like(B))
+        R = np.linalg.svd(J, full_matrices=False)[2].T  # the row space of J (nv x 6)
+        return _GoalParts(M=goal.M, K=J.T @ K @ J, B=J.T @ B @ J, D_carrier=goal.D_joint, R=R)
+    return _GoalParts(
+        M=rig_spatial_inertia(config), K=K, B=B, D_carrier=np.zeros_like(B), R=np.eye(len(K))
+    )
 
 
 @dataclass(frozen=True)
@@ -218,3 +243,21 @@ def _largest_stable_scale(radius) -> float:
         else:
             unstable = mid
     return stable
+
+
+def fit_gains(config: ScenarioConfig) -> ScenarioConfig:
+    """``config`` with the arm's ``gain_scale: auto`` chosen (a copy), any other config as
+    it is: :data:`~geovs_drake.scenario.NOMINAL_GAIN_SCALE`, at most the largest stable
+    gain scale at the camera's rate and latency over :data:`GAIN_MARGIN`
+    (:func:`camera_fit` of the nominal gains; the nominal where no scale is stable, and
+    the run's warning says so). What ``build_loop`` and ``simulate`` resolve; a config
+    that is not valid is left to :func:`~geovs_drake.scenario.resolve` to name."""
+    carrier = config.carrier
+    if not (isinstance(carrier, Arm) and carrier.gain_scale == AUTO):
+        return config
+    fitted = copy.deepcopy(config)
+    fitted.carrier.gain_scale = NOMINAL_GAIN_SCALE
+    fit = camera_fit(resolve(fitted)) if fitted.dynamic else None
+    if fit is not None and 0 < fit.margin < GAIN_MARGIN:
+        fitted.carrier.gain_scale = fit.largest_stable_gain / GAIN_MARGIN
+    return fitted
