@@ -34,7 +34,7 @@ from pydrake.systems.sensors import CameraInfo, RgbdSensor
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
 from geovs_drake.loop.carriers import CarrierParts
 from geovs_drake.scenario import Exact, Pinhole, Rendered, ResolvedScenario
-from geovs_drake.systems import FeatureExtractor, PinholeFeatureSensor
+from geovs_drake.systems import FeatureExtractor, PinholeFeatureSensor, SelfMask
 from geovs_drake.systems.feature_extractor import SCENE_COLOURS
 
 __all__ = [
@@ -171,7 +171,21 @@ def _rendered(builder, resolved, carrier, camera) -> OutputPort:
         "feature_sensor",
         FeatureExtractor(intrinsics=cam.believed_intrinsics(theta), **_sampled_settings(resolved)),
     )
-    builder.Connect(rgbd.color_image_output_port(), sensor.color_image_input)
+    color = rgbd.color_image_output_port()
+    if carrier.arm is not None:  # the arm's own pixels out of its camera's view
+        plant = carrier.plant
+        mask = builder.AddNamedSystem(
+            "self_mask",
+            SelfMask(
+                intrinsics.width,
+                intrinsics.height,
+                [int(i) for i in plant.GetBodyIndices(carrier.body.model_instance())],
+            ),
+        )
+        builder.Connect(color, mask.color_image_input)
+        builder.Connect(rgbd.label_image_output_port(), mask.label_image_input)
+        color = mask.masked_color_image_output
+    builder.Connect(color, sensor.color_image_input)
     return sensor.image_features_output
 
 

@@ -22,6 +22,7 @@ __getattr__, __dir__, __all__ = attach(
         "path_following_controller": ("PathFollowingController", "PathFollowingController_"),
         "pbvs_controller": ("PbvsController", "PbvsController_"),
         "pinhole_feature_sensor": ("PinholeFeatureSensor", "PinholeFeatureSensor_"),
+        "self_mask": ("SelfMask", "SelfMask_"),
         "spherical_camera": ("SphericalCamera", "SphericalCamera_"),
         "spherical_feature_controller": (
             "SphericalFeatureController",
