@@ -148,13 +148,15 @@ def test_the_kinematic_plant_takes_a_camera_and_the_warning_names_its_gain():
 
 def test_auto_gain_scale_is_the_nominal_where_nothing_limits_it():
     from geovs_drake.loop.camera_fit import fit_gains
-    from geovs_drake.scenario import NOMINAL_GAIN_SCALE
+    from geovs_drake.scenario import NOMINAL_GAIN_SCALES, Dynamic
 
-    assert Arm().gain_scale == "auto"
+    assert Arm().gain_scale == "auto" and NOMINAL_GAIN_SCALES[Dynamic] == 10.0
     for config in (ScenarioConfig(carrier=Arm()), ScenarioConfig(carrier=Arm(), sensor=Pinhole())):
-        assert fit_gains(config).carrier.gain_scale == NOMINAL_GAIN_SCALE
+        assert fit_gains(config).carrier.gain_scale == 10.0
     # Without a camera scenario.resolve() chooses it alone; with one, it says who does.
-    assert resolve(ScenarioConfig(carrier=Arm())).gain_scale == NOMINAL_GAIN_SCALE
+    assert resolve(ScenarioConfig(carrier=Arm())).gain_scale == 10.0
+    kinematic = resolve(ScenarioConfig(carrier=Arm(), plant=Kinematic()))
+    assert kinematic.gain_scale == 1.0 and kinematic.config.control.kinematic_gain == 4.0
     with pytest.raises(ValueError, match=r"gain_scale auto with a camera is fitted .*fit_gains"):
         resolve(ScenarioConfig(carrier=Arm(), sensor=Pinhole()))
 

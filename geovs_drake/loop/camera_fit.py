@@ -34,7 +34,7 @@ from geovs_drake.linear_model import SampledModel, goal_stiffness, rig_spatial_i
 from geovs_drake.loop.arm import arm_goal_model
 from geovs_drake.scenario import (
     AUTO,
-    NOMINAL_GAIN_SCALE,
+    NOMINAL_GAIN_SCALES,
     Arm,
     CameraModel,
     FreeRig,
@@ -209,10 +209,10 @@ def camera_fit(resolved: ResolvedScenario) -> CameraFit | None:
 def _gain_field(resolved: ResolvedScenario) -> dict:
     """The field that scales the law's gains in this run, and its value (:class:`CameraFit`)."""
     config = resolved.config
-    if not config.dynamic:
-        return dict(gain_name="control.kinematic_gain", gain_value=config.control.kinematic_gain)
     if isinstance(config.carrier, Arm):
         return dict(gain_name="gain_scale", gain_value=resolved.gain_scale)
+    if not config.dynamic:
+        return dict(gain_name="control.kinematic_gain", gain_value=config.control.kinematic_gain)
     return dict(gain_name="factor on control.potential_gain and the damping", gain_value=1.0)
 
 
@@ -247,7 +247,8 @@ def _largest_stable_scale(radius) -> float:
 
 def fit_gains(config: ScenarioConfig) -> ScenarioConfig:
     """``config`` with the arm's ``gain_scale: auto`` chosen (a copy), any other config as
-    it is: :data:`~geovs_drake.scenario.NOMINAL_GAIN_SCALE`, at most the largest stable
+    it is: the plant's :data:`~geovs_drake.scenario.NOMINAL_GAIN_SCALES`, at most the
+    largest stable
     gain scale at the camera's rate and latency over :data:`GAIN_MARGIN`
     (:func:`camera_fit` of the nominal gains; the nominal where no scale is stable, and
     the run's warning says so). What ``build_loop`` and ``simulate`` resolve; a config
@@ -256,8 +257,8 @@ def fit_gains(config: ScenarioConfig) -> ScenarioConfig:
     if not (isinstance(carrier, Arm) and carrier.gain_scale == AUTO):
         return config
     fitted = copy.deepcopy(config)
-    fitted.carrier.gain_scale = NOMINAL_GAIN_SCALE
-    fit = camera_fit(resolve(fitted)) if fitted.dynamic else None
+    fitted.carrier.gain_scale = NOMINAL_GAIN_SCALES[type(fitted.plant)]
+    fit = camera_fit(resolve(fitted))
     if fit is not None and 0 < fit.margin < GAIN_MARGIN:
         fitted.carrier.gain_scale = fit.largest_stable_gain / GAIN_MARGIN
     return fitted

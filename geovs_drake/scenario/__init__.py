@@ -24,7 +24,7 @@ them on this page and pickles name this path.
 from geovs_drake.scenario.carriers import (
     AUTO,
     CARRIER_VARIANTS,
-    NOMINAL_GAIN_SCALE,
+    NOMINAL_GAIN_SCALES,
     Arm,
     CarrierConfig,
     FixedCamera,
@@ -77,7 +77,7 @@ __all__ = [
     "DEFAULT_MAX_STEP",
     "IBVS_DEPTHS",
     "LAW_VARIANTS",
-    "NOMINAL_GAIN_SCALE",
+    "NOMINAL_GAIN_SCALES",
     "PLANT_VARIANTS",
     "SENSOR_VARIANTS",
     "Arm",

@@ -9,12 +9,13 @@ with its defaults. The loop takes each carrier's systems from
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from geovs_drake.scenario.plants import Dynamic, Kinematic
 from geovs_drake.scenario.pose import PoseConfig, check_at_least, finite_numbers
 
 __all__ = [
     "AUTO",
     "CARRIER_VARIANTS",
-    "NOMINAL_GAIN_SCALE",
+    "NOMINAL_GAIN_SCALES",
     "Arm",
     "CarrierConfig",
     "FixedCamera",
@@ -93,17 +94,20 @@ class Arm:
     joint_barrier_width: float = 0.0
     null_space_gain: float = 1.0
     singularity_damping: float = 0.05
-    #: The factor on the law's gains (k_p and B, and the twist laws' velocity tracking) of
-    #: the dynamic arm, applied once by :func:`~geovs_drake.scenario.resolve` (the loop's
-    #: energy bound is the scaled k_p). ``auto`` (the default): :data:`NOMINAL_GAIN_SCALE`,
-    #: which keeps the free rig's time constants (the arm's inertia at the camera is about
-    #: ten times the default rig's), at most the largest that the camera's rate and
+    #: The factor on the law's gains, applied once by
+    #: :func:`~geovs_drake.scenario.resolve`: k_p and B, and the twist laws' velocity
+    #: tracking, on the dynamic arm (the loop's energy bound is the scaled k_p);
+    #: ``control.kinematic_gain`` on the kinematic one. ``auto`` (the default): the
+    #: plant's :data:`NOMINAL_GAIN_SCALES` (10 on the dynamic arm, whose inertia at the
+    #: camera is about ten times the default rig's, which keeps the free rig's time
+    #: constants; 1 on the kinematic one), at most the largest that the camera's rate and
     #: latency carry with a gain margin of 2 (:func:`geovs_drake.loop.fit_gains`).
     gain_scale: float | str = AUTO
 
 
-#: The arm's gain scale that keeps the free rig's time constants: ``auto`` without a camera.
-NOMINAL_GAIN_SCALE = 10.0
+#: The arm's gain scale that keeps the free rig's time constants, by the plant's type:
+#: ``auto`` without a camera.
+NOMINAL_GAIN_SCALES: dict[type, float] = {Dynamic: 10.0, Kinematic: 1.0}
 
 #: A carrier's configuration: one of the variants above.
 CarrierConfig = FreeRig | FixedCamera | Arm

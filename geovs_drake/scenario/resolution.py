@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from geovs_drake.geometry.camera import ImageFeatures
 from geovs_drake.geometry.domain import SafeDomain
 from geovs_drake.geometry.navigation import NavigationGains
-from geovs_drake.scenario.carriers import AUTO, NOMINAL_GAIN_SCALE, Arm, FreeRig
+from geovs_drake.scenario.carriers import AUTO, NOMINAL_GAIN_SCALES, Arm, FreeRig
 from geovs_drake.scenario.laws import LawConfig
 from geovs_drake.scenario.schema import ScenarioConfig, damping_of, variant_name
 from geovs_drake.scenario.sensors import CameraModel, Exact, radius_error_of
@@ -68,7 +68,7 @@ def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> Resolved
     config.validate()
     scale = 1.0
     if isinstance(config.carrier, Arm) and config.carrier.gain_scale == AUTO:
-        if config.dynamic and isinstance(config.sensor, CameraModel):
+        if isinstance(config.sensor, CameraModel):
             # The camera's bound needs the arm's model at the goal (the loop's layer).
             raise ValueError(
                 "carrier.gain_scale auto with a camera is fitted to the camera by "
@@ -76,7 +76,13 @@ def resolve(config: ScenarioConfig | ResolvedScenario | None = None) -> Resolved
                 "resolve(fit_gains(config))"
             )
         config = copy.deepcopy(config)
-        config.carrier.gain_scale = NOMINAL_GAIN_SCALE  # no camera to fit: the nominal
+        config.carrier.gain_scale = NOMINAL_GAIN_SCALES[type(config.plant)]  # no camera
+    if isinstance(config.carrier, Arm) and not config.dynamic and config.carrier.gain_scale != 1:
+        # The kinematic arm's one gain, k of Eq. (19).
+        config = copy.deepcopy(config)
+        scale = config.carrier.gain_scale
+        config.control.kinematic_gain *= scale
+        config.carrier.gain_scale = 1.0
     if isinstance(config.carrier, Arm) and config.dynamic and config.carrier.gain_scale != 1:
         # The arm's gains (Arm.gain_scale): a scaled copy, so that every part of
         # the loop, the energy bound included, reads one k_p and one B.
