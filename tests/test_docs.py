@@ -25,6 +25,9 @@ def _required_values() -> dict:
         "goal": config.goal_features(),
         "radius": config.radius,
         "intrinsics": Pinhole().intrinsics(config.domain.to_domain().fov_half_angle),
+        "width": 32,
+        "height": 24,
+        "labels": [1],
     }
 
 
