@@ -148,7 +148,10 @@ def run_rendered_demo(config: ScenarioConfig, out: Path) -> SimulationResult:
     )
     picks = np.unique(np.linspace(0, len(rendered.times) - 1, 3).astype(int))
     frames, believed, _ = render_frames(
-        rendered_config, rendered.X_BC[picks], tuple(rendered_config.sensor.resolution)
+        rendered_config,
+        rendered.X_BC[picks],
+        tuple(rendered_config.sensor.resolution),
+        states=rendered.states[picks],
     )
     read = [extract_features(f, believed, TargetMarks().arrow_angle)[0] for f in frames]
     plot_camera_frames(frames, read, believed, rendered.times[picks], out / "camera_frames.png")

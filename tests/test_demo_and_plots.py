@@ -197,3 +197,18 @@ def test_demo_on_the_arm_records_the_arm_servoing(tmp_path, run_cli):
     assert not (tmp_path / "rendered_summary.json").exists()
     if shutil.which("dot"):
         assert "arm_camera" in (tmp_path / "block_diagram.svg").read_text()
+
+
+def test_the_rendered_demo_on_the_arm_draws_the_arms_camera_frames(tmp_path):
+    """The demo's rendered part on the arm (it was skipped there): the frames are the
+    arm's camera's, at the run's own joint states (a free body's state would not fit the
+    arm's plant)."""
+    pytest.importorskip("cv2")
+    from geovs_drake.demo import demo_config, run_rendered_demo
+    from geovs_drake.scenario import Arm
+
+    run = run_rendered_demo(demo_config(1.0, Arm()), tmp_path)
+    assert run.summary()["carrier"] == "arm" and run.summary()["sensor"] == "rendered"
+    assert (tmp_path / "camera_frames.png").stat().st_size > 0
+    summary = json.loads((tmp_path / "rendered_summary.json").read_text())
+    assert summary["exact_same_gains"]["carrier"] == "arm"

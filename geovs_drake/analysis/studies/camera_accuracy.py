@@ -69,9 +69,17 @@ class AccuracyResult:
         return out
 
 
-def render_frames(config: ScenarioConfig, X_BC: np.ndarray, resolution: tuple[int, int]):
+def render_frames(
+    config: ScenarioConfig,
+    X_BC: np.ndarray,
+    resolution: tuple[int, int],
+    states: np.ndarray | None = None,
+):
     """Colour images (N, H, W, 4) of the rendered loop's camera at camera poses X_BC (N, 4, 4),
-    with the extractor's believed intrinsics and the wall time per frame [ms]."""
+    with the extractor's believed intrinsics and the wall time per frame [ms].
+
+    ``states``: the loop's continuous states at those poses (a run's ``states``), which
+    an arm needs (its joints; a free body's state follows from X_BC)."""
     camera = camera_like(config.sensor, Rendered, resolution=[int(v) for v in resolution])
     diagram = build_loop(dataclasses.replace(config, sensor=camera), log=False).diagram
     root = diagram.CreateDefaultContext()
@@ -80,11 +88,13 @@ def render_frames(config: ScenarioConfig, X_BC: np.ndarray, resolution: tuple[in
     extractor = diagram.GetSubsystemByName("feature_sensor")
     plant_context = plant.GetMyMutableContextFromRoot(root)
     rgbd_context = rgbd.GetMyContextFromRoot(root)
-    states = initial_body_states(config, X_BC)
+    if states is None:
+        states = initial_body_states(config, X_BC)
+    n = plant.num_positions() + plant.num_velocities()
     frames = []
     start = time.perf_counter()
     for x in states:
-        plant.SetPositionsAndVelocities(plant_context, x)
+        plant.SetPositionsAndVelocities(plant_context, np.asarray(x)[:n])
         frames.append(np.array(rgbd.color_image_output_port().Eval(rgbd_context).data))
     ms = 1e3 * (time.perf_counter() - start) / max(1, len(states))
     believed = extractor.believed_intrinsics(extractor.GetMyContextFromRoot(root))
