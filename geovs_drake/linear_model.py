@@ -42,6 +42,7 @@ __all__ = [
     "MIN_RATE_HZ",
     "SampledModel",
     "check_camera",
+    "log_bisection",
     "chart_jacobian",
     "closed_form_A",
     "closed_form_refusal",
@@ -225,14 +226,9 @@ class SampledModel:
             top = min(2 * top, MAX_RATE_HZ)
         if top == rate:
             return self.slowest_stable_rate(latency_frames, rate)
-        lo, hi = top / 2, top  # lo unstable, hi stable: the boundary between
-        for _ in range(_RATE_BISECTIONS):
-            mid = math.sqrt(lo * hi)
-            if self.spectral_radius(mid, latency_frames) < 1:
-                hi = mid
-            else:
-                lo = mid
-        return hi
+        return log_bisection(  # top / 2 unstable, top stable: the boundary between
+            lambda r: self.spectral_radius(r, latency_frames) < 1, top, top / 2, _RATE_BISECTIONS
+        )
 
     def slowest_stable_rate(self, latency_frames: int, rate: float) -> float:
         """The slowest camera rate [Hz] with a spectral radius below 1 at
@@ -246,13 +242,22 @@ class SampledModel:
         lo = MIN_RATE_HZ
         if self.spectral_radius(lo, latency_frames) < 1:
             return lo
-        for _ in range(_RATE_BISECTIONS):
-            mid = math.sqrt(lo * hi)
-            if self.spectral_radius(mid, latency_frames) < 1:
-                hi = mid
-            else:
-                lo = mid
-        return hi
+        return log_bisection(
+            lambda r: self.spectral_radius(r, latency_frames) < 1, hi, lo, _RATE_BISECTIONS
+        )
+
+
+def log_bisection(stable_at, stable: float, unstable: float, steps: int) -> float:
+    """The edge between a ``stable`` and an ``unstable`` positive value (``stable_at``
+    tells which a value is), by ``steps`` bisections on the log: its stable side. The
+    camera's rates and the gains' scales are searched this way."""
+    for _ in range(steps):
+        mid = math.sqrt(stable * unstable)
+        if stable_at(mid):
+            stable = mid
+        else:
+            unstable = mid
+    return stable
 
 
 def check_camera(rate: float, latency_frames: int) -> None:

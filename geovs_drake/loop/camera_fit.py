@@ -30,7 +30,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geovs_drake.linear_model import SampledModel, goal_stiffness, rig_spatial_inertia
+from geovs_drake.linear_model import (
+    SampledModel,
+    goal_stiffness,
+    log_bisection,
+    rig_spatial_inertia,
+)
 from geovs_drake.loop.arm import arm_goal_model
 from geovs_drake.scenario import (
     AUTO,
@@ -236,13 +241,7 @@ def _largest_stable_scale(radius) -> float:
             if unstable <= low:
                 return 0.0
         stable = unstable / _SCAN_STEP
-    for _ in range(_BISECTIONS):
-        mid = math.sqrt(stable * unstable)
-        if radius(mid) < 1:
-            stable = mid
-        else:
-            unstable = mid
-    return stable
+    return log_bisection(lambda scale: radius(scale) < 1, stable, unstable, _BISECTIONS)
 
 
 def fit_gains(config: ScenarioConfig) -> ScenarioConfig:
