@@ -139,8 +139,9 @@ class CameraFit:
     carrier: str
     plant: str
     #: The field a user turns to scale the law's gains, and its value in this run: the
-    #: arm's ``gain_scale`` (dynamic), ``control.kinematic_gain`` (kinematic), or a factor
-    #: on ``control.potential_gain`` and the damping (the free rig, dynamic; 1).
+    #: arm's ``gain_scale`` (either plant), ``control.kinematic_gain`` (the kinematic free
+    #: rig), or a factor on ``control.potential_gain`` and the damping (the dynamic free
+    #: rig; 1).
     gain_name: str
     gain_value: float
     rate: float
