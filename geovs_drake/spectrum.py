@@ -35,6 +35,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "damping_ratios",
+    "time_constants",
     "SPECTRUM_RTOL",
     "assert_spectra_close",
     "canonical_order",
@@ -188,3 +190,17 @@ def assert_spectra_close(
         f"{atol + rtol * radius:.3g} (atol {atol:g} + rtol {rtol:g} * radius {radius:.4g})\n"
         f" actual: {canonical_spectrum(actual)}\ndesired: {canonical_spectrum(desired)}"
     )
+
+
+def damping_ratios(eigenvalues: np.ndarray) -> np.ndarray:
+    """``-Re(lambda) / |lambda|`` per eigenvalue (1 for a real stable mode; NaN at 0)."""
+    lam = np.asarray(eigenvalues)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(np.abs(lam) > 0, -lam.real / np.abs(lam), np.nan)
+
+
+def time_constants(eigenvalues: np.ndarray) -> np.ndarray:
+    """``-1 / Re(lambda)`` [s] per eigenvalue (inf where Re(lambda) = 0, negative where
+    the mode grows)."""
+    with np.errstate(divide="ignore"):
+        return -1.0 / np.asarray(eigenvalues).real

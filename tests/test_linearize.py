@@ -483,3 +483,31 @@ def test_linearize_of_a_camera_loop_is_its_continuous_twins_whatever_the_cameras
     np.testing.assert_allclose(linearize(camera).A, linearize(exact).A, rtol=0, atol=1e-12)
     # the caller's config untouched
     assert camera.sensor == Pinhole(pixel_noise=0.5, latency_frames=1, radius_error=0.05)
+
+
+def test_cli_linearize_on_the_arm_is_drakes_model_at_the_goal_and_its_camera_study(run_cli):
+    """Issue 31: linearize and the camera study run on the arm (they refused it). The
+    eigenvalues are those of the closed form through J_C; the camera study is the goal's
+    sampled model at the arm's own gain (auto, chosen for this camera and latency), which
+    keeps the margin; the free rig's studies are refused in one line."""
+    from geovs_drake.analysis.linear.arm_study import linearize_arm_at_goal
+    from geovs_drake.loop.camera_fit import GAIN_MARGIN, camera_fit, fit_gains
+    from geovs_drake.scenario import Arm, resolve
+
+    run = run_cli("linearize", "--carrier", "arm", "--latency", "1", "--json")
+    assert run.code == 0, run.err
+    out = json.loads(run.out)
+    assert out["carrier"] == "arm" and out["stable"]
+    closed = linearize_arm_at_goal(ScenarioConfig(carrier=Arm())).A_closed
+    eigenvalues = np.array([complex(re, im) for re, im in out["eigenvalues"]])
+    assert_spectra_close(eigenvalues, np.linalg.eigvals(closed), rtol=0, atol=1e-8)
+    fit = camera_fit(
+        resolve(fit_gains(ScenarioConfig(carrier=Arm(), sensor=Pinhole(latency_frames=1))))
+    )
+    camera = out["camera"]
+    assert camera["gain_scale"] == pytest.approx(fit.gain_value)
+    assert camera["spectral_radius"] == pytest.approx(fit.spectral_radius) and camera["stable"]
+    assert fit.margin == pytest.approx(GAIN_MARGIN, rel=1e-6)
+    refused = run_cli("linearize", "--carrier", "arm", "--settling-time", "2")
+    assert refused.code == 2 and "--settling-time is the free rig's study" in refused.err
+    assert refused.err.count("\n") == 1

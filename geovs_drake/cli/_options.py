@@ -335,16 +335,23 @@ def add_config(p: argparse.ArgumentParser) -> None:
     p.set_defaults(layers=None, variant_fields=None)
 
 
-def load_resolved(args: argparse.Namespace) -> ResolvedScenario:
-    """The scenario of ``args``: ``--config``, ``--scenario-text``, then each flag,
-    loaded once, validated and resolved once (ValueError: one line naming the layer or
-    the field). What is built from it trusts it."""
+def load_layers(args: argparse.Namespace) -> ScenarioConfig:
+    """The scenario of ``args`` as the user gave it: ``--config``, ``--scenario-text``, then
+    each flag, loaded once (ValueError: one line naming the layer or the field), not yet
+    resolved: what a study varies before it resolves (the arm's gains stay unscaled)."""
     layers: list[tuple[str, Any]] = []
     if args.scenario_text is not None:
         layers.append(("--scenario-text", args.scenario_text))
     layers += args.layers or []
     config = load_scenario(args.config, overrides=layers)
     _apply_variant_fields(config, args.variant_fields or [])
+    return config
+
+
+def load_resolved(args: argparse.Namespace) -> ResolvedScenario:
+    """The scenario of ``args`` (:func:`load_layers`), validated and resolved once. What is
+    built from it trusts it."""
+    config = load_layers(args)
     # Here, not at the top: the command line starts without the loop's modules.
     from geovs_drake.loop.camera_fit import fit_gains
 

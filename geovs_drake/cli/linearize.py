@@ -20,10 +20,11 @@ from geovs_drake.cli._options import (
     EXIT_CONVERGED,
     add_command,
     add_config,
+    add_field,
     add_json,
     add_plant,
     check_out,
-    load_config,
+    load_layers,
     numbers,
     pose_arg,
 )
@@ -55,6 +56,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     add_config(p)
     add_plant(p)
+    add_field(
+        p,
+        "--carrier",
+        ("carrier",),
+        "free: the paper's free rig; arm: the camera on the arm shipped in the package "
+        "(the dynamic arm at the goal, Drake's Linearize on its joints, and the camera "
+        "study; the design and the regions are the free rig's)",
+        choices=("free", "arm"),
+    )
     p.add_argument(
         "--at",
         type=at_arg,
@@ -125,6 +135,43 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _on_arm(config) -> bool:
+    from geovs_drake.scenario import Arm
+
+    return isinstance(config.carrier, Arm)
+
+
+def _arm_linearization(config, args):
+    """The dynamic arm at the goal (Drake's Linearize on its joints); what the command
+    models on the free rig only is one line's refusal."""
+    from geovs_drake.analysis.linear.arm_study import linearize_arm_at_goal
+
+    free_rig_only = [
+        flag
+        for flag, given in (
+            ("--at", args.at != "goal"),
+            ("--settling-time", args.settling_time is not None),
+            ("--damping-ratio", args.damping_ratio is not None),
+            ("--region", args.region),
+            ("--certify", args.certify),
+            ("--out", args.out is not None),
+        )
+        if given
+    ]
+    if free_rig_only:
+        raise ValueError(
+            f"{free_rig_only[0]} is the free rig's study; on the arm linearize gives the "
+            "goal's model and the camera study (--latency, --camera-rate)"
+        )
+    if not config.dynamic:
+        raise ValueError(
+            "linearize on the arm models the dynamic arm (joint torques); the kinematic "
+            "arm's goal model is the kinematic body's in the camera's coordinates: "
+            "--carrier free --plant kinematic"
+        )
+    return linearize_arm_at_goal(config)
+
+
 def _design(config, args):
     """The gains ``--settling-time`` (and ``--damping-ratio``) ask for: a ``GainDesign``."""
     from geovs_drake.analysis.linear.gain_design import design_gains
@@ -137,15 +184,28 @@ def _design(config, args):
 
 def _camera(config, args, design) -> dict:
     """The camera study of the gains the command reports: the designed ones where it
-    designs (the camera then damps with the designed B), else the scenario's."""
+    designs (the camera then damps with the designed B), else the scenario's; on the arm,
+    the goal's closed form through J_C at the arm's own gains (``gain_scale``, auto
+    chosen for this camera)."""
     from geovs_drake.analysis.linear.latency import camera_of, sampled_model
     from geovs_drake.linear_model import check_camera
-    from geovs_drake.scenario import camera_like
+    from geovs_drake.scenario import Arm, camera_like
 
     camera = camera_of(config)
     rate = camera.rate if args.camera_rate is None else args.camera_rate
     check_camera(rate, args.latency)
     studied = config
+    if isinstance(config.carrier, Arm):
+        from geovs_drake.loop.camera_fit import fit_gains, goal_sampled_model
+        from geovs_drake.scenario import resolve
+
+        camera_config = copy.deepcopy(config)
+        camera_config.sensor = camera_like(
+            camera, type(camera), rate=rate, latency_frames=args.latency
+        )
+        resolved = resolve(fit_gains(camera_config))
+        summary = goal_sampled_model(resolved).summary(rate, args.latency)
+        return {"gains": "scenario", "gain_scale": resolved.gain_scale, **summary}
     if design is not None:
         studied = copy.deepcopy(design.config)
         studied.sensor = camera_like(camera, type(camera), damping=list(studied.control.damping))
@@ -198,7 +258,9 @@ def _studies_table(out: dict) -> list[str]:
         )
         lines.append(
             f"camera at {c['rate']:g} Hz, {c['latency_frames']} frames late, with the "
-            f"{c['gains']} gains: spectral radius {c['spectral_radius']:.4g} "
+            f"{c['gains']} gains"
+            + (f" (the arm's gain_scale {c['gain_scale']:.3g})" if "gain_scale" in c else "")
+            + f": spectral radius {c['spectral_radius']:.4g} "
             f"({'stable' if c['stable'] else 'not stable'}); {latency}; {needs}"
         )
     if "region" in out:
@@ -253,7 +315,10 @@ def run(args: argparse.Namespace) -> int:
     """Run ``linearize``; the exit code."""
     if args.out is not None:
         check_out(args.out)
-    config = load_config(args)
+    # As given, not resolved: the studies vary it and resolve it themselves (the arm's
+    # gains are scaled once, by the loop they build).
+    config = load_layers(args)
+    config.validate()
     from geovs_drake.analysis.linear.linearization import linearize, state_at
     from geovs_drake.scenario import PoseConfig
     from geovs_drake.simulation import StartOutsideDomain, check_start
@@ -271,7 +336,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"geovs-drake: --at {text} is outside D: {reason}", file=sys.stderr)
             return EXIT_BAD_INPUT
         state = state_at(config, config.X_BC_initial)
-    lin = linearize(config, state)
+    lin = _arm_linearization(config, args) if _on_arm(config) else linearize(config, state)
     out = lin.summary()
     design = None
     # Every study runs before anything is written: bad input leaves no output behind.

@@ -29,13 +29,14 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
+from geovs_drake._json import json_ready
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.linear_model import chart_jacobian, navigation_hessian
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.arm import arm_goal_model, arm_model, solve_joints
 from geovs_drake.loop.camera_fit import fit_gains
 from geovs_drake.scenario import Arm, Dynamic, Rendered, ScenarioConfig, camera_like, resolve
-from geovs_drake.spectrum import canonical_eigenvalues
+from geovs_drake.spectrum import canonical_eigenvalues, damping_ratios, time_constants
 
 __all__ = [
     "ArmLinearization",
@@ -57,6 +58,40 @@ class ArmLinearization:
     A_closed: np.ndarray
     jacobian_singular_value: float
     eigenvalues: np.ndarray
+    #: The plant's name, and the model is at rest at the goal (an equilibrium), as
+    #: ``linearize`` reports it.
+    plant: str = "dynamic"
+    at_equilibrium: bool = True
+
+    @property
+    def damping_ratios(self) -> np.ndarray:
+        """:func:`~geovs_drake.spectrum.damping_ratios` of the eigenvalues."""
+        return damping_ratios(self.eigenvalues)
+
+    @property
+    def time_constants(self) -> np.ndarray:
+        """:func:`~geovs_drake.spectrum.time_constants` of the eigenvalues [s]."""
+        return time_constants(self.eigenvalues)
+
+    def summary(self) -> dict:
+        """As :meth:`LoopLinearization.summary
+        <geovs_drake.analysis.linear.linearization.LoopLinearization.summary>`, A on the
+        arm's (q, v), with the goal's joints and sigma_min of J_C there."""
+        return json_ready(
+            {
+                "plant": self.plant,
+                "carrier": "arm",
+                "at_equilibrium": True,
+                "A": self.A_drake,
+                "eigenvalues": self.eigenvalues,
+                "max_real_part": self.max_real_part,
+                "damping_ratios": self.damping_ratios,
+                "time_constants": self.time_constants,
+                "stable": self.max_real_part < 0,
+                "q_goal": self.q_goal,
+                "jacobian_singular_value": self.jacobian_singular_value,
+            }
+        )
 
     @property
     def max_real_part(self) -> float:

@@ -69,7 +69,7 @@ from geovs_drake.scenario import (
     exact_twin,
     variant_name,
 )
-from geovs_drake.spectrum import canonical_eigenvalues
+from geovs_drake.spectrum import canonical_eigenvalues, damping_ratios, time_constants
 
 __all__ = [
     "EQUILIBRIUM_TOLERANCE",
@@ -274,17 +274,13 @@ class LoopLinearization:
 
     @property
     def damping_ratios(self) -> np.ndarray:
-        """``-Re(lambda) / |lambda|`` per eigenvalue (1 for a real stable mode; NaN at 0)."""
-        lam = self.eigenvalues
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(np.abs(lam) > 0, -lam.real / np.abs(lam), np.nan)
+        """:func:`~geovs_drake.spectrum.damping_ratios` of the eigenvalues."""
+        return damping_ratios(self.eigenvalues)
 
     @property
     def time_constants(self) -> np.ndarray:
-        """``-1 / Re(lambda)`` [s] per eigenvalue (inf where Re(lambda) = 0, negative
-        where the mode grows)."""
-        with np.errstate(divide="ignore"):
-            return -1.0 / self.eigenvalues.real
+        """:func:`~geovs_drake.spectrum.time_constants` of the eigenvalues [s]."""
+        return time_constants(self.eigenvalues)
 
 
 def tangent_map(
