@@ -459,7 +459,9 @@ def _suite_start(name: str):
     return {s.name: s for s in load_suite(None).scenarios}[name].initial()
 
 
-@pytest.mark.parametrize("plant", [Dynamic(), Kinematic()], ids=variant_name)
+@pytest.mark.parametrize(
+    "plant", [Dynamic(), pytest.param(Kinematic(), marks=pytest.mark.slow)], ids=variant_name
+)
 def test_roll_179_converges_on_the_ur5_inside_its_joint_limits(plant):
     """Issue 31: IK chose the start's 2 pi branch with no regard to the rotation to come,
     and from the suite's roll_179 the UR5's wrist 3 ran onto its limit (both plants)."""

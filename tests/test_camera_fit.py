@@ -223,17 +223,17 @@ _SLOW = "one frame late, the stable gain (auto: 0.17 of the nominal) converges t
     ("model", "plant", "latency"),
     [
         pytest.param("default", "dynamic", 0, id="ur5-dynamic"),
-        pytest.param("default", "kinematic", 0, id="ur5-kinematic"),
+        pytest.param("default", "kinematic", 0, id="ur5-kinematic", marks=pytest.mark.slow),
         pytest.param("default", "kinematic", 1, id="ur5-kinematic-late"),
         pytest.param(
             "default", "dynamic", 1, id="ur5-dynamic-late",
-            marks=pytest.mark.xfail(strict=True, reason=_SLOW),
+            marks=[pytest.mark.slow, pytest.mark.xfail(strict=True, reason=_SLOW)],
         ),
-        pytest.param("panda", "kinematic", 0, id="panda-kinematic"),
-        pytest.param("panda", "kinematic", 1, id="panda-kinematic-late"),
+        pytest.param("panda", "kinematic", 0, id="panda-kinematic", marks=pytest.mark.slow),
+        pytest.param("panda", "kinematic", 1, id="panda-kinematic-late", marks=pytest.mark.slow),
         pytest.param(
             "panda", "dynamic", 0, id="panda-dynamic",
-            marks=pytest.mark.xfail(strict=True, reason=_TRANSIENT),
+            marks=[pytest.mark.slow, pytest.mark.xfail(strict=True, reason=_TRANSIENT)],
         ),
     ],
 )  # fmt: skip
@@ -242,7 +242,8 @@ def test_the_arms_with_a_30_hz_pinhole_camera_and_default_gains_from_the_small_m
 ):
     """Issue 31's matrix with no gain flags (gain_scale auto), the small move of the docs
     (0.05,-0.03,-0.55,0.1,-0.05,0.3), 15 s: what converges inside the joint limits, and,
-    strictly expected to fail, what does not yet (each with its reason)."""
+    strictly expected to fail, what does not yet (each with its reason). Two cases run in
+    make test, the rest are marked slow (make test-slow)."""
     if model == "panda" and not _has_panda():
         pytest.skip('the Panda needs its model: pip install "geovs-drake[panda]"')
     from geovs_drake.scenario import PLANT_VARIANTS

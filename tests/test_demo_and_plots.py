@@ -199,6 +199,7 @@ def test_demo_on_the_arm_records_the_arm_servoing(tmp_path, run_cli):
         assert "arm_camera" in (tmp_path / "block_diagram.svg").read_text()
 
 
+@pytest.mark.slow
 def test_the_rendered_demo_on_the_arm_draws_the_arms_camera_frames(tmp_path):
     """The demo's rendered part on the arm (it was skipped there): the frames are the
     arm's camera's, at the run's own joint states (a free body's state would not fit the
