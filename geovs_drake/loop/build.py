@@ -131,8 +131,10 @@ def build_loop(
     log: bool = True,
     study_ports: bool = False,
 ) -> Loop:
-    """The loop ``config`` describes (validated and resolved once, :func:`resolve`;
-    a :class:`~geovs_drake.scenario.ResolvedScenario` is trusted as it is).
+    """The loop ``config`` describes (the arm's ``gain_scale: auto`` chosen for its
+    camera, :func:`~geovs_drake.loop.camera_fit.fit_gains`, then validated and resolved
+    once, :func:`resolve`; a :class:`~geovs_drake.scenario.ResolvedScenario` is trusted
+    as it is).
 
     ``meshcat`` adds a MeshcatVisualizer and the camera frame's axes (a carrier
     with geometry only; double only: leave it out of diagrams you will convert to
