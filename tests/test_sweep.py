@@ -490,3 +490,26 @@ def test_the_drake_engine_runs_the_arm_keeping_each_starts_energy_ratio():
     assert np.allclose(ratio, reference["initial_energy_ratio"].to_numpy()[reached], rtol=1e-6)
     assert np.all(ratio < 1) and rows["monotone"].all()
     assert counts["joint_limit"] == 0 and counts["left_domain"] == 0
+
+
+def test_the_drake_engine_sweeps_the_arm_through_its_camera(run_cli):
+    """`sweep --carrier arm --engine drake --sensor pinhole` (issue 31): the starts are the
+    exact sweep's (drawn on the exact y with the free rig's kernels), each run through the
+    30 Hz camera, so the rows' final errors are the camera loop's, not the exact one's;
+    the batch engine, which reads the exact y, refuses the camera in one line."""
+    from geovs_drake.scenario import Pinhole
+
+    starts = sweep.SampledStarts(1, seed=2, velocity="bounded")  # a start the arm reaches
+    camera = sweep.run_sweep(
+        ScenarioConfig(carrier=Arm(), sensor=Pinhole()), starts, 1.0, engine="drake", workers=1
+    )
+    exact = sweep.run_sweep(ScenarioConfig(carrier=Arm()), starts, 1.0, engine="drake", workers=1)
+    for column in ("initial_energy_ratio",):  # the same starts, at the same E0 / k_p
+        np.testing.assert_allclose(camera.table[column], exact.table[column], rtol=1e-9)
+    assert (camera.table["status"] != "unreachable").all()  # the arm ran this start
+    errors = [run.table["final_position_error_m"].to_numpy() for run in (camera, exact)]
+    assert np.isfinite(errors).all()
+    assert not np.allclose(errors[0], errors[1], rtol=1e-6, atol=0)
+    run = run_cli("sweep", "--sensor", "pinhole", "--starts", "2", "--duration", "1")
+    assert run.code == 2 and "batch engine reads the exact y" in run.err
+    assert run.err.count("\n") == 1

@@ -50,6 +50,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "at the same E0 / k_p)",
         choices=("free", "arm"),
     )
+    add_field(
+        p,
+        "--sensor",
+        ("sensor",),
+        "exact: y = c(H); pinhole or rendered: the camera at its rate (a scenario's "
+        "sensor: !Pinhole {...} sets its rate, latency and errors), with --engine drake "
+        "(the batch engine reads the exact y)",
+        choices=("exact", "pinhole", "rendered"),
+    )
     p.add_argument(
         "--starts", type=int, default=1000, metavar="N", help="number of starts (default: 1000)"
     )

@@ -40,7 +40,7 @@ from geovs_drake.analysis.sweep.parts import (
 from geovs_drake.analysis.sweep.starts import SampledStarts, SweepError
 from geovs_drake.analysis.sweep.summary import SweepSummary, plot_summary
 from geovs_drake.batch import loop_parameters
-from geovs_drake.scenario import ScenarioConfig, free_twin, resolve, variant_name
+from geovs_drake.scenario import ScenarioConfig, exact_twin, free_twin, resolve, variant_name
 
 __all__ = [
     "CSV_LIMIT",
@@ -404,9 +404,11 @@ def run_sweep(
     if resume:  # before anything else: a different sweep in the folder is the first thing to say
         _check_record(out, manifest)
     try:  # read once here from the built diagram, and shipped with every part
-        # The Drake engine runs any carrier; its starts are drawn with the free rig's
-        # kernels (the same camera, domain and NF), which the batch engine also runs.
-        parameters = loop_parameters(config if engine == "batch" else free_twin(config))
+        # The Drake engine runs any carrier and sensor; its starts are drawn with the free
+        # rig's kernels on the exact y (the same domain, goal and NF), which the batch
+        # engine also runs.
+        drawn_by = config if engine == "batch" else exact_twin(free_twin(config))
+        parameters = loop_parameters(drawn_by)
     except ValueError as e:  # a loop the batch engine does not run
         raise SweepError(str(e)) from e
     parts, names = [], []
