@@ -35,15 +35,16 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
-    "damping_ratios",
-    "time_constants",
     "SPECTRUM_RTOL",
+    "EigenvalueFacts",
     "assert_spectra_close",
+    "canonical_eigenvalues",
     "canonical_order",
     "canonical_spectrum",
-    "canonical_eigenvalues",
+    "damping_ratios",
     "match_spectra",
     "spectra_close",
+    "time_constants",
 ]
 
 #: Values closer than this times the spectral radius count as one in the canonical order.
@@ -204,3 +205,36 @@ def time_constants(eigenvalues: np.ndarray) -> np.ndarray:
     the mode grows)."""
     with np.errstate(divide="ignore"):
         return -1.0 / np.asarray(eigenvalues).real
+
+
+class EigenvalueFacts:
+    """What a linear model's ``eigenvalues`` say, for the result classes that hold them
+    (the linearisations at the goal, along a run, of the arm): written once here."""
+
+    eigenvalues: np.ndarray
+
+    @property
+    def max_real_part(self) -> float:
+        """The largest real part of the eigenvalues: < 0 for a stable model."""
+        return float(np.max(np.asarray(self.eigenvalues).real))
+
+    @property
+    def damping_ratios(self) -> np.ndarray:
+        """:func:`damping_ratios` of the eigenvalues."""
+        return damping_ratios(self.eigenvalues)
+
+    @property
+    def time_constants(self) -> np.ndarray:
+        """:func:`time_constants` of the eigenvalues [s]."""
+        return time_constants(self.eigenvalues)
+
+    def eigenvalue_summary(self) -> dict:
+        """``eigenvalues``, ``max_real_part``, ``damping_ratios``, ``time_constants`` and
+        ``stable`` (every real part < 0), as a result's summary reports them."""
+        return {
+            "eigenvalues": self.eigenvalues,
+            "max_real_part": self.max_real_part,
+            "damping_ratios": self.damping_ratios,
+            "time_constants": self.time_constants,
+            "stable": self.max_real_part < 0,
+        }

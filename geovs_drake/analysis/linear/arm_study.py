@@ -36,7 +36,7 @@ from geovs_drake.loop import build_loop
 from geovs_drake.loop.arm import arm_goal_model, arm_model, solve_joints
 from geovs_drake.loop.camera_fit import fit_gains
 from geovs_drake.scenario import Arm, Dynamic, Rendered, ScenarioConfig, camera_like, resolve
-from geovs_drake.spectrum import canonical_eigenvalues, damping_ratios, time_constants
+from geovs_drake.spectrum import EigenvalueFacts, canonical_eigenvalues
 
 __all__ = [
     "ArmLinearization",
@@ -48,7 +48,7 @@ __all__ = [
 
 
 @dataclass
-class ArmLinearization:
+class ArmLinearization(EigenvalueFacts):
     """The arm loop's linearisation at the goal: Drake's A on (q, v), the closed form,
     the goal's joints, sigma_min of J_C there, and the eigenvalues of A_drake in the
     canonical order (:mod:`geovs_drake.spectrum`)."""
@@ -63,16 +63,6 @@ class ArmLinearization:
     plant: str = "dynamic"
     at_equilibrium: bool = True
 
-    @property
-    def damping_ratios(self) -> np.ndarray:
-        """:func:`~geovs_drake.spectrum.damping_ratios` of the eigenvalues."""
-        return damping_ratios(self.eigenvalues)
-
-    @property
-    def time_constants(self) -> np.ndarray:
-        """:func:`~geovs_drake.spectrum.time_constants` of the eigenvalues [s]."""
-        return time_constants(self.eigenvalues)
-
     def summary(self) -> dict:
         """As :meth:`LoopLinearization.summary
         <geovs_drake.analysis.linear.linearization.LoopLinearization.summary>`, A on the
@@ -83,20 +73,11 @@ class ArmLinearization:
                 "carrier": "arm",
                 "at_equilibrium": True,
                 "A": self.A_drake,
-                "eigenvalues": self.eigenvalues,
-                "max_real_part": self.max_real_part,
-                "damping_ratios": self.damping_ratios,
-                "time_constants": self.time_constants,
-                "stable": self.max_real_part < 0,
+                **self.eigenvalue_summary(),
                 "q_goal": self.q_goal,
                 "jacobian_singular_value": self.jacobian_singular_value,
             }
         )
-
-    @property
-    def max_real_part(self) -> float:
-        """The largest real part of the eigenvalues: < 0 for a stable goal."""
-        return float(np.max(self.eigenvalues.real))
 
 
 def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:

@@ -69,7 +69,7 @@ from geovs_drake.scenario import (
     exact_twin,
     variant_name,
 )
-from geovs_drake.spectrum import canonical_eigenvalues, damping_ratios, time_constants
+from geovs_drake.spectrum import EigenvalueFacts, canonical_eigenvalues
 
 __all__ = [
     "EQUILIBRIUM_TOLERANCE",
@@ -101,7 +101,7 @@ def _quaternion_tangent(q: np.ndarray) -> np.ndarray:
 
 
 @dataclass
-class LinearizationResult:
+class LinearizationResult(EigenvalueFacts):
     """The closed loop linearised at the goal, in Drake's state and in minimal coordinates.
 
     Attributes:
@@ -121,11 +121,6 @@ class LinearizationResult:
     eigenvalues: np.ndarray  # of A, in the canonical order
     quaternion_eigenvalue: complex  # of A_drake along the quaternion norm
     invariance_residual: float  # |A_drake T - T A| / |A_drake|: T's span is invariant
-
-    @property
-    def max_real_part(self) -> float:
-        """The largest real part of the eigenvalues: < 0 for a stable goal."""
-        return float(np.max(self.eigenvalues.real))
 
 
 def config_at_goal(config: ScenarioConfig) -> ScenarioConfig:
@@ -195,7 +190,7 @@ _POSE_SIZE = 7
 
 
 @dataclass
-class LoopLinearization:
+class LoopLinearization(EigenvalueFacts):
     """The closed loop linearised at a state x0 (:func:`linearize`).
 
     Attributes:
@@ -245,11 +240,6 @@ class LoopLinearization:
         return self.minimal.D()
 
     @property
-    def max_real_part(self) -> float:
-        """The largest real part of the eigenvalues: < 0 for a stable (frozen) model."""
-        return float(np.max(self.eigenvalues.real))
-
-    @property
     def at_equilibrium(self) -> bool:
         """x0 is an equilibrium (``|xdot|`` <= :data:`EQUILIBRIUM_TOLERANCE`)."""
         return bool(np.linalg.norm(self.f0) <= EQUILIBRIUM_TOLERANCE)
@@ -264,23 +254,9 @@ class LoopLinearization:
                 "plant": self.plant,
                 "at_equilibrium": self.at_equilibrium,
                 "A": self.A,
-                "eigenvalues": self.eigenvalues,
-                "max_real_part": self.max_real_part,
-                "damping_ratios": self.damping_ratios,
-                "time_constants": self.time_constants,
-                "stable": self.max_real_part < 0,
+                **self.eigenvalue_summary(),
             }
         )
-
-    @property
-    def damping_ratios(self) -> np.ndarray:
-        """:func:`~geovs_drake.spectrum.damping_ratios` of the eigenvalues."""
-        return damping_ratios(self.eigenvalues)
-
-    @property
-    def time_constants(self) -> np.ndarray:
-        """:func:`~geovs_drake.spectrum.time_constants` of the eigenvalues [s]."""
-        return time_constants(self.eigenvalues)
 
 
 def tangent_map(
