@@ -195,16 +195,28 @@ def _shown(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-class _Layer(argparse.Action):
+class _ScenarioFlag(argparse.Action):
+    """A flag that sets a scenario field; ``positive``: the unit of a number that must be
+    finite and > 0, checked as it is parsed (one line, exit 2)."""
+
+    def __init__(self, *args: Any, positive: str | None = None, **kwargs: Any):
+        self.positive = positive
+        super().__init__(*args, **kwargs)
+
+    def _check(self, parser, value, option_string) -> None:
+        if self.positive is not None and not (math.isfinite(value) and value > 0):
+            parser.error(f"{option_string} must be finite and > 0 [{self.positive}]: {value}")
+
+
+class _Layer(_ScenarioFlag):
     """Appends ``(flag, {path: value})`` to ``args.layers``, in command-line order."""
 
-    def __init__(self, *args: Any, path: tuple[str, ...], positive: str | None, **kwargs: Any):
-        self.path, self.positive = path, positive
+    def __init__(self, *args: Any, path: tuple[str, ...], **kwargs: Any):
+        self.path = path
         super().__init__(*args, **kwargs)
 
     def __call__(self, parser, namespace, value, option_string=None) -> None:
-        if self.positive is not None and not (math.isfinite(value) and value > 0):
-            parser.error(f"{option_string} must be finite and > 0 [{self.positive}]: {value}")
+        self._check(parser, value, option_string)
         fragment: Any = value
         for key in reversed(self.path):
             fragment = {key: fragment}
@@ -237,16 +249,15 @@ def add_field(
     )
 
 
-class _VariantField(argparse.Action):
+class _VariantField(_ScenarioFlag):
     """Appends ``(flag, apply, value)`` to ``args.variant_fields``, in command-line order."""
 
-    def __init__(self, *args: Any, apply: Any, positive: str | None = None, **kwargs: Any):
-        self.apply, self.positive = apply, positive
+    def __init__(self, *args: Any, apply: Any, **kwargs: Any):
+        self.apply = apply
         super().__init__(*args, **kwargs)
 
     def __call__(self, parser, namespace, value, option_string=None) -> None:
-        if self.positive is not None and not (math.isfinite(value) and value > 0):
-            parser.error(f"{option_string} must be finite and > 0 [{self.positive}]: {value}")
+        self._check(parser, value, option_string)
         entry = (option_string, self.apply, value)
         namespace.variant_fields = [*(getattr(namespace, "variant_fields", None) or []), entry]
 
