@@ -170,6 +170,17 @@ class SampledModel:
     B_n: np.ndarray  # the held chart coordinate's input
     C_xi: np.ndarray  # the image's chart coordinate of the state
 
+    def continuous(self) -> SampledModel:
+        """The same loop with the law reading the image continuously (a predictor between
+        frames, :class:`~geovs_drake.systems.FramePredictor`, exact at the goal): the
+        stiffness joins ``A_c`` and nothing is held, so the spectral radius at any rate
+        and latency is that of ``exp((A_c + B_n C_xi) T)``."""
+        return SampledModel(
+            A_c=self.A_c + self.B_n @ self.C_xi,
+            B_n=self.B_n,
+            C_xi=np.zeros_like(self.C_xi),
+        )
+
     def spectral_radius(self, rate: float, latency_frames: int) -> float:
         """The sampled, delayed loop's spectral radius (below 1: locally stable)."""
         check_camera(rate, latency_frames)

@@ -17,6 +17,9 @@ from geovs_drake.spectrum import assert_spectra_close
 
 #: A start a few millimetres and degrees off the goal: the linear model's regime.
 NEAR_GOAL = PoseConfig(xyz=[0.01, -0.005, -0.51], rpy=[0.01, 0.0, 0.03])
+#: The camera's held frame as the law's y, no prediction between frames: the sampled loop
+#: whose gains the camera limits (what these tests study; the default predicts).
+HELD = dict(prediction="none")
 
 
 @pytest.mark.parametrize("scale", [0.3, 1.0, 3.0])
@@ -24,7 +27,7 @@ NEAR_GOAL = PoseConfig(xyz=[0.01, -0.005, -0.51], rpy=[0.01, 0.0, 0.03])
 def test_the_free_rigs_closed_form_split_is_drakes_linearize_split(scale, latency):
     """The free rig: the spectral radius of the closed form's sampled loop equals the one
     built from Drake's Linearize of the whole diagram (analysis.linear.latency)."""
-    config = ScenarioConfig(sensor=Pinhole())
+    config = ScenarioConfig(sensor=Pinhole(**HELD))
     config.control.potential_gain *= scale
     config.sensor.damping = [scale * v for v in config.sensor.damping]
     closed = goal_sampled_model(resolve(config))
@@ -62,7 +65,7 @@ def test_the_predicted_edge_is_where_the_simulated_arm_loop_turns_unstable():
     """The UR5 with the pinhole camera one frame late: below the predicted largest stable
     gain scale the loop decays, above it it grows until it leaves D (issue 31's check:
     half the edge converges towards the goal, 1.5 times it does not)."""
-    base = ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole(latency_frames=1))
+    base = ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole(latency_frames=1, **HELD))
     fit = camera_fit(resolve(base))
     edge = fit.largest_stable_gain
     assert fit.gain_name == "gain_scale" and fit.gain_value == 10.0
@@ -71,7 +74,7 @@ def test_the_predicted_edge_is_where_the_simulated_arm_loop_turns_unstable():
     for factor in (0.5, 1.5):
         config = ScenarioConfig(
             carrier=Arm(gain_scale=factor * edge),
-            sensor=Pinhole(latency_frames=1),
+            sensor=Pinhole(latency_frames=1, **HELD),
             initial=NEAR_GOAL,
             duration=8.0,
         )
@@ -87,11 +90,14 @@ def test_the_predicted_edge_is_where_the_simulated_arm_loop_turns_unstable():
 
 def test_a_gain_the_camera_cannot_carry_gets_one_warning_line(run_cli):
     run = run_cli(
-        "simulate", "--carrier", "arm", "--scenario-text", "sensor: !Pinhole {latency_frames: 1}",
+        "simulate", "--carrier", "arm", "--sensor", "pinhole", "--prediction", "none",
+        "--scenario-text", "sensor: !Pinhole {latency_frames: 1}",
         "--gain-scale", "10", "--duration", "0.2", "--json",
     )  # fmt: skip
     fit = camera_fit(
-        resolve(ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole(latency_frames=1)))
+        resolve(
+            ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole(latency_frames=1, **HELD))
+        )
     )
     edge = fit.largest_stable_gain
     warning = [line for line in run.err.splitlines() if "warning" in line]
@@ -113,8 +119,13 @@ def test_a_gain_the_camera_cannot_carry_gets_one_warning_line(run_cli):
 
 @pytest.mark.parametrize(
     "config",
-    [ScenarioConfig(sensor=Pinhole()), ScenarioConfig(carrier=Arm(), sensor=Pinhole())],
-    ids=["free rig", "arm"],
+    [
+        ScenarioConfig(sensor=Pinhole()),
+        ScenarioConfig(carrier=Arm(), sensor=Pinhole()),
+        ScenarioConfig(sensor=Pinhole(**HELD)),
+        ScenarioConfig(carrier=Arm(), sensor=Pinhole(**HELD)),
+    ],
+    ids=["free rig", "arm", "free rig held", "arm held"],
 )
 def test_the_defaults_with_a_30_hz_camera_keep_the_margin_and_warn_nothing(config):
     from geovs_drake.loop.camera_fit import fit_gains
@@ -136,7 +147,9 @@ def test_the_kinematic_plant_takes_a_camera_and_the_warning_names_its_gain():
     k = 4 at 30 Hz is beyond the hold's bound (its fastest mode, 126 1/s, times the
     frame), which the warning says with the kinematic gain that would work; at that
     gain the same start converges."""
-    config = ScenarioConfig(plant=Kinematic(), sensor=Pinhole(), initial=NEAR_GOAL, duration=4.0)
+    config = ScenarioConfig(
+        plant=Kinematic(), sensor=Pinhole(**HELD), initial=NEAR_GOAL, duration=4.0
+    )
     fit = camera_fit(resolve(config))
     assert not fit.stable and fit.gain_name == "control.kinematic_gain"
     assert f"control.kinematic_gain {fit.largest_stable_gain / GAIN_MARGIN:.3g}" in fit.warning()
@@ -168,12 +181,14 @@ def test_auto_gain_scale_keeps_the_margin_and_the_loop_converges_at_it():
     from geovs_drake.loop.camera_fit import fit_gains
 
     config = ScenarioConfig(
-        carrier=Arm(), sensor=Pinhole(latency_frames=1), initial=NEAR_GOAL, duration=10.0
+        carrier=Arm(), sensor=Pinhole(latency_frames=1, **HELD), initial=NEAR_GOAL, duration=10.0
     )
     fitted = fit_gains(config)
     assert config.carrier.gain_scale == "auto"  # a copy: the caller's config untouched
     nominal = camera_fit(
-        resolve(ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole(latency_frames=1)))
+        resolve(
+            ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole(latency_frames=1, **HELD))
+        )
     )
     picked = fitted.carrier.gain_scale
     assert picked == pytest.approx(nominal.largest_stable_gain / GAIN_MARGIN)
@@ -214,36 +229,29 @@ def _has_panda() -> bool:
     return True
 
 
-#: What the goal's model does not see, or what only prediction between frames would fix.
-_TRANSIENT = "the Panda's transient grows at 30 Hz though the goal's model keeps a margin of 18"
-_SLOW = "one frame late, the stable gain (auto: 0.17 of the nominal) converges too slowly"
-
-
 @pytest.mark.parametrize(
     ("model", "plant", "latency"),
     [
-        pytest.param("default", "dynamic", 0, id="ur5-dynamic"),
+        pytest.param("default", "dynamic", 0, id="ur5-dynamic", marks=pytest.mark.slow),
+        pytest.param("default", "dynamic", 1, id="ur5-dynamic-late"),
         pytest.param("default", "kinematic", 0, id="ur5-kinematic", marks=pytest.mark.slow),
         pytest.param("default", "kinematic", 1, id="ur5-kinematic-late"),
-        pytest.param(
-            "default", "dynamic", 1, id="ur5-dynamic-late",
-            marks=[pytest.mark.slow, pytest.mark.xfail(strict=True, reason=_SLOW)],
-        ),
+        pytest.param("panda", "dynamic", 0, id="panda-dynamic"),
+        pytest.param("panda", "dynamic", 1, id="panda-dynamic-late", marks=pytest.mark.slow),
         pytest.param("panda", "kinematic", 0, id="panda-kinematic", marks=pytest.mark.slow),
         pytest.param("panda", "kinematic", 1, id="panda-kinematic-late", marks=pytest.mark.slow),
-        pytest.param(
-            "panda", "dynamic", 0, id="panda-dynamic",
-            marks=[pytest.mark.slow, pytest.mark.xfail(strict=True, reason=_TRANSIENT)],
-        ),
     ],
-)  # fmt: skip
+)
 def test_the_arms_with_a_30_hz_pinhole_camera_and_default_gains_from_the_small_move(
     model, plant, latency
 ):
-    """Issue 31's matrix with no gain flags (gain_scale auto), the small move of the docs
-    (0.05,-0.03,-0.55,0.1,-0.05,0.3), 15 s: what converges inside the joint limits, and,
-    strictly expected to fail, what does not yet (each with its reason). Two cases run in
-    make test, the rest are marked slow (make test-slow)."""
+    """Issue 31's matrix with no gain flags (gain_scale auto, prediction odometry), the
+    small move of the docs (0.05,-0.03,-0.55,0.1,-0.05,0.3), 15 s: every case converges
+    inside the joint limits, with no warning and the nominal gains (the predictor makes
+    the goal's model the continuous loop's). Without prediction the dynamic cases one frame
+    late needed auto's 0.17 of the nominal and had not converged in 30 s, and the
+    Panda's left D at the nominal (docs/arm.md). Three cases run in make test, the rest
+    are marked slow (make test-slow)."""
     if model == "panda" and not _has_panda():
         pytest.skip('the Panda needs its model: pip install "geovs-drake[panda]"')
     from geovs_drake.scenario import PLANT_VARIANTS
@@ -257,5 +265,8 @@ def test_the_arms_with_a_30_hz_pinhole_camera_and_default_gains_from_the_small_m
     )
     result = simulate(config)
     assert result.camera_warning is None  # auto kept the margin
+    assert result.summary()["camera"]["largest_stable_gain"]["this_run"] == (
+        10.0 if plant == "dynamic" else 1.0
+    )  # the nominal: nothing limits it
     assert result.status == "converged", result.message
     assert result.summary()["min_joint_limit_margin"] > 0

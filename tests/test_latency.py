@@ -97,3 +97,24 @@ def test_the_pinhole_loop_agrees_with_the_prediction_over_latency_and_two_rates(
     cases = latency_study({"default": config, "soft": soft_gains(config)})
     assert len(cases) == 28
     assert all(c.agrees for c in cases), [c for c in cases if not c.agrees]
+
+
+def test_prediction_between_frames_carries_the_gains_the_held_frame_cannot():
+    """The map's small case (issue 31): the default gains one frame late at 30 Hz leave D
+    on the held frame, as the sampled model predicts; with the odometry predictor the
+    model is the continuous loop's (stable) and the same run converges."""
+    cases = latency_study(
+        {"default": _camera_config()},
+        rates=(30.0,),
+        latencies=(1,),
+        duration=6.0,
+        predictions=("none", "odometry"),
+    )
+    outcome = {c.prediction: (c.predicted_stable, c.status) for c in cases}
+    assert outcome == {"none": (False, "left_domain"), "odometry": (True, "converged")}
+    assert all(c.agrees for c in cases)
+
+
+def test_a_prediction_the_study_does_not_know_is_one_line():
+    with pytest.raises(ValueError, match="predictions must be in none, odometry: got 'smith'"):
+        latency_study({"default": _camera_config()}, predictions=("smith",))

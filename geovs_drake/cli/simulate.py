@@ -30,6 +30,7 @@ from geovs_drake.scenario import (
     AXES,
     CONTROLLERS,
     IBVS_DEPTHS,
+    PREDICTIONS,
     FixedCamera,
     FreeRig,
     ScenarioConfig,
@@ -218,6 +219,16 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         type=float,
         metavar="HZ",
         positive="Hz",
+    )
+    add_variant_field(
+        p,
+        "--prediction",
+        "sensor",
+        ("pinhole", "rendered"),
+        "prediction",
+        "what the law sees between frames: "
+        + "; ".join(f"{name}: {p.description}" for name, p in PREDICTIONS.items()),
+        choices=tuple(PREDICTIONS),
     )
     add_variant_field(
         p,

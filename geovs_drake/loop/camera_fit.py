@@ -40,6 +40,7 @@ from geovs_drake.loop.arm import arm_goal_model
 from geovs_drake.scenario import (
     AUTO,
     NOMINAL_GAIN_SCALES,
+    PREDICTIONS,
     Arm,
     CameraModel,
     FreeRig,
@@ -66,12 +67,15 @@ _SCAN_STEP = 1.05
 _BISECTIONS = 30
 
 
-def goal_sampled_model(resolved: ResolvedScenario, scale: float = 1.0) -> SampledModel | None:
+def goal_sampled_model(
+    resolved: ResolvedScenario, scale: float = 1.0, continuous: bool = False
+) -> SampledModel | None:
     """The goal's closed-form model split at the camera (module docstring), the law's
-    gains times ``scale``; None where the closed form does not model the loop (a law
-    other than the NF, the fixed camera)."""
+    gains times ``scale``, ``continuous`` where a predictor feeds the law between frames;
+    None where the closed form does not model the loop (a law other than the NF, the
+    fixed camera)."""
     parts = _goal_parts(resolved)
-    return None if parts is None else parts.split(scale)
+    return None if parts is None else parts.split(scale, continuous)
 
 
 @dataclass(frozen=True)
@@ -93,7 +97,14 @@ class _GoalParts:
     D_carrier: np.ndarray
     R: np.ndarray
 
-    def split(self, scale: float) -> SampledModel:
+    def split(self, scale: float, continuous: bool = False) -> SampledModel:
+        """The model at gains times ``scale``; ``continuous``: the law reads the image
+        continuously (a predictor between frames), so the stiffness joins ``A_c`` and
+        nothing is held."""
+        model = self._split(scale)
+        return model.continuous() if continuous else model
+
+    def _split(self, scale: float) -> SampledModel:
         if self.M is None:  # kinematic: the held image is all there is
             n = len(self.K)
             return SampledModel(A_c=np.zeros((n, n)), B_n=np.eye(n), C_xi=-scale * self.K)
@@ -146,6 +157,9 @@ class CameraFit:
     gain_value: float
     rate: float
     latency_frames: int
+    #: The camera's ``prediction`` (:data:`~geovs_drake.scenario.PREDICTIONS`): with a
+    #: continuous one the model is the continuous loop's, sampled at the camera's rate.
+    prediction: str
     spectral_radius: float
     largest_stable_scale: float
 
@@ -197,9 +211,10 @@ def camera_fit(resolved: ResolvedScenario) -> CameraFit | None:
     if parts is None:
         return None
     rate, latency = float(camera.rate), int(camera.latency_frames)
+    continuous = PREDICTIONS[camera.prediction].continuous
 
     def radius(scale: float) -> float:
-        return parts.split(scale).spectral_radius(rate, latency)
+        return parts.split(scale, continuous).spectral_radius(rate, latency)
 
     return CameraFit(
         carrier=variant_name(resolved.config.carrier),
@@ -207,6 +222,7 @@ def camera_fit(resolved: ResolvedScenario) -> CameraFit | None:
         **_gain_field(resolved),
         rate=rate,
         latency_frames=latency,
+        prediction=camera.prediction,
         spectral_radius=radius(1.0),
         largest_stable_scale=_largest_stable_scale(radius),
     )

@@ -34,10 +34,11 @@ from pydrake.systems.sensors import CameraInfo, RgbdSensor
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
 from geovs_drake.loop.carriers import CarrierParts
 from geovs_drake.scenario import Exact, Pinhole, Rendered, ResolvedScenario
-from geovs_drake.systems import FeatureExtractor, PinholeFeatureSensor, SelfMask
+from geovs_drake.systems import FeatureExtractor, FramePredictor, PinholeFeatureSensor, SelfMask
 from geovs_drake.systems.feature_extractor import SCENE_COLOURS
 
 __all__ = [
+    "PREDICTORS",
     "RENDERER_NAME",
     "SENSORS",
     "VTK_PRINCIPAL_POINT_SHIFT",
@@ -81,6 +82,44 @@ def _sampled_settings(resolved: ResolvedScenario) -> dict:
     )
 
 
+def _held(builder, resolved, carrier, held: OutputPort) -> OutputPort:
+    """The held frame as it is (``prediction: none``)."""
+    return held
+
+
+def _odometry(builder, resolved, carrier, held: OutputPort) -> OutputPort:
+    """The held frame moved by the carrier's pose since its capture (``prediction:
+    odometry``): :class:`~geovs_drake.systems.FramePredictor` on the camera's clock."""
+    cam = resolved.config.sensor
+    predictor = builder.AddNamedSystem(
+        "frame_predictor",
+        FramePredictor(
+            radius=resolved.believed_radius,
+            X_RC=carrier.X_RC,
+            period=1.0 / cam.rate,
+            latency_frames=int(cam.latency_frames),
+        ),
+    )
+    builder.Connect(held, predictor.image_features_input)
+    builder.Connect(carrier.body_pose, predictor.body_pose_input)
+    return predictor.predicted_image_features_output
+
+
+#: What the law sees between a camera's frames, by ``sensor.prediction``
+#: (:data:`~geovs_drake.scenario.PREDICTIONS`): ``add(builder, resolved, carrier, held)``
+#: returns the y port the law reads.
+PREDICTORS: dict[
+    str, Callable[[DiagramBuilder, ResolvedScenario, CarrierParts, OutputPort], OutputPort]
+] = {
+    "none": _held,
+    "odometry": _odometry,
+}
+
+
+def _between_frames(builder, resolved, carrier, held: OutputPort) -> OutputPort:
+    return PREDICTORS[resolved.config.sensor.prediction](builder, resolved, carrier, held)
+
+
 def _pinhole(builder, resolved, carrier, camera) -> OutputPort:
     """The rendered loop's measurement (camera rate, latency, pixel noise, focal error,
     the same fit) on exactly projected points, without a renderer."""
@@ -98,7 +137,7 @@ def _pinhole(builder, resolved, carrier, camera) -> OutputPort:
         ),
     )
     builder.Connect(carrier.body_pose, sensor.body_pose_input)
-    return sensor.image_features_output
+    return _between_frames(builder, resolved, carrier, sensor.image_features_output)
 
 
 def vtk_camera_info(intrinsics: PinholeIntrinsics) -> CameraInfo:
@@ -186,7 +225,7 @@ def _rendered(builder, resolved, carrier, camera) -> OutputPort:
         builder.Connect(rgbd.label_image_output_port(), mask.label_image_input)
         color = mask.masked_color_image_output
     builder.Connect(color, sensor.color_image_input)
-    return sensor.image_features_output
+    return _between_frames(builder, resolved, carrier, sensor.image_features_output)
 
 
 #: The sensors, by the type of ``config.sensor``.

@@ -58,6 +58,7 @@ from geovs_drake.scenario.schema import (
     variant_name,
 )
 from geovs_drake.scenario.sensors import (
+    PREDICTIONS,
     SENSOR_VARIANTS,
     CameraModel,
     Exact,
@@ -79,6 +80,7 @@ __all__ = [
     "LAW_VARIANTS",
     "NOMINAL_GAIN_SCALES",
     "PLANT_VARIANTS",
+    "PREDICTIONS",
     "SENSOR_VARIANTS",
     "Arm",
     "CameraModel",

@@ -10,14 +10,16 @@ import copy
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
 from geovs_drake.scenario.pose import finite_numbers
 
 __all__ = [
+    "PREDICTIONS",
     "SENSOR_VARIANTS",
     "CameraModel",
+    "Prediction",
     "Exact",
     "Pinhole",
     "Rendered",
@@ -56,6 +58,12 @@ class CameraModel:
     may give no y (the last good y held) before the run stops with ``feature_lost``;
     ``radius_error`` as :class:`Exact`'s. ``seed`` draws the noise.
 
+    ``prediction``: what the law sees between frames (:data:`PREDICTIONS`). ``"none"``:
+    the held frame (a zero-order hold, late by the latency). ``"odometry"``: the held
+    frame moved by the carrier's own motion since it was taken
+    (:class:`~geovs_drake.systems.FramePredictor`, a Smith predictor: exact for a still
+    target), which gives the law the continuous loop's stability at any rate and latency.
+
     ``damping``: the damping B of a loop with a camera, rotational first, in place of
     ``control.damping``. Why a second one: the default gains give the exact loop a mode
     at 36 rad/s damped only 0.19 of critical; a 30 Hz zero-order hold delays the force
@@ -73,6 +81,7 @@ class CameraModel:
     max_lost_frames: int = 3
     radius_error: float = 0.0
     seed: int = 0
+    prediction: str = "odometry"
     damping: list[float] = field(default_factory=lambda: [0.6, 0.6, 0.6, 4.0, 4.0, 4.0])
 
     def intrinsics(self, fov_half_angle: float) -> PinholeIntrinsics:
@@ -96,6 +105,23 @@ class Rendered(CameraModel):
     """The scene drawn by Drake's RgbdSensor (RenderEngineVtk) every frame and y
     extracted from the colour image (:class:`~geovs_drake.systems.FeatureExtractor`)."""
 
+
+class Prediction(NamedTuple):
+    """What a camera's law sees between frames: ``description``, and whether the loop's
+    local model is the continuous one (``continuous``: the predictor removes the hold
+    and the latency at the goal) or the sampled one."""
+
+    description: str
+    continuous: bool
+
+
+#: The ``CameraModel.prediction`` of each name (the systems: ``loop.sensors.PREDICTORS``).
+PREDICTIONS: dict[str, Prediction] = {
+    "none": Prediction("the held frame, late by the latency", continuous=False),
+    "odometry": Prediction(
+        "the held frame moved by the carrier's motion since its capture", continuous=True
+    ),
+}
 
 #: A sensor's configuration: one of the variants above.
 SensorConfig = Exact | Pinhole | Rendered
@@ -145,6 +171,10 @@ def check_sensor(sensor: object) -> None:
     if not (math.isfinite(sensor.focal_error) and -0.5 <= sensor.focal_error <= 0.5):
         raise ValueError(
             f"sensor.focal_error must be in [-0.5, 0.5]: focal_error = {sensor.focal_error}"
+        )
+    if sensor.prediction not in PREDICTIONS:
+        raise ValueError(
+            f"sensor.prediction must be one of {', '.join(PREDICTIONS)}, got {sensor.prediction!r}"
         )
     damping = finite_numbers(sensor.damping, 6)
     if damping is None or not all(v >= 0 for v in damping):

@@ -316,6 +316,7 @@ class SimulationResult:
                 "pixel_noise_px": cam.pixel_noise,
                 "focal_error": cam.focal_error,
                 "latency_frames": int(cam.latency_frames),
+                "prediction": cam.prediction,
             }
             fit = self.camera_fit
             if fit is not None:  # the sampled-data model at the goal (loop.camera_fit)

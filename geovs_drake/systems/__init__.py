@@ -13,6 +13,7 @@ __getattr__, __dir__, __all__ = attach(
         "feature_extractor": ("FeatureExtractor", "FeatureExtractor_"),
         "fixed_camera_kinematic_mount": ("FixedCameraKinematicMount", "FixedCameraKinematicMount_"),
         "fixed_camera_mount": ("FixedCameraMount", "FixedCameraMount_"),
+        "frame_predictor": ("FramePredictor", "FramePredictor_"),
         "ibvs_controller": ("IbvsController", "IbvsController_"),
         "image_jacobian_force": ("ImageJacobianForce", "ImageJacobianForce_"),
         "kinematic_arm": ("KinematicArm", "KinematicArm_"),

@@ -16,6 +16,12 @@ over frame k. Drake's ``DiscreteTimeApproximation`` gives the exact zero-order-h
 discretisation (Phi, Gamma) of ``(A_c, B_n)``; with ``z_k = (x_k, x_{k-1}, ...,
 x_{k-L})`` the sampled loop is ``x_{k+1} = Phi x_k + Gamma C_xi x_{k-L}``, locally
 stable iff its spectral radius is below 1.
+
+With ``prediction: odometry`` (:class:`~geovs_drake.systems.FramePredictor`) the law
+reads the held frame moved by the rig's motion since its capture: at the goal that is
+the continuous loop's y, so the model is :meth:`SampledModel.continuous` (nothing held)
+and the rate and latency drop out of the local model. :func:`latency_study` runs both,
+so its maps show where prediction matters.
 """
 
 from __future__ import annotations
@@ -27,7 +33,14 @@ import numpy as np
 
 from geovs_drake.analysis.linear.linearization import INPUTS, OUTPUTS, linearize, noise_directions
 from geovs_drake.linear_model import SampledModel
-from geovs_drake.scenario import CameraModel, Pinhole, PoseConfig, ScenarioConfig, camera_like
+from geovs_drake.scenario import (
+    PREDICTIONS,
+    CameraModel,
+    Pinhole,
+    PoseConfig,
+    ScenarioConfig,
+    camera_like,
+)
 from geovs_drake.simulation import simulate
 
 __all__ = [
@@ -94,11 +107,13 @@ def slowest_stable_rate(config: ScenarioConfig, latency_frames: int | None = Non
 
 @dataclass
 class LatencyCase:
-    """One camera (rate, latency) with its prediction and the pinhole loop's outcome."""
+    """One camera (rate, latency, what the law sees between frames) with the model's
+    verdict and the pinhole loop's outcome."""
 
     gains: str
     rate: float
     latency_frames: int
+    prediction: str
     spectral_radius: float
     predicted_stable: bool
     status: str
@@ -120,25 +135,38 @@ def latency_study(
     latencies: tuple[int, ...] = tuple(range(7)),
     duration: float = 15.0,
     start: PoseConfig = CHECK_START,
+    predictions: tuple[str, ...] = ("none",),
 ) -> list[LatencyCase]:
-    """Each named gain set at each rate and latency: the predicted spectral radius and
-    the pinhole-sensor loop (no noise, no calibration error) from ``start``."""
+    """Each named gain set at each rate, latency and ``prediction``
+    (:data:`~geovs_drake.scenario.PREDICTIONS`): the model's spectral radius and the
+    pinhole-sensor loop (no noise, no calibration error) from ``start``."""
+    unknown = [p for p in predictions if p not in PREDICTIONS]
+    if unknown:
+        raise ValueError(f"predictions must be in {', '.join(PREDICTIONS)}: got {unknown[0]!r}")
     cases = []
     for name, config in configs.items():
-        model = sampled_model(config)
-        for rate in rates:
-            for L in latencies:
-                c = copy.deepcopy(config)
-                c.sensor = camera_like(
-                    c.sensor, Pinhole, rate=float(rate), latency_frames=int(L), pixel_noise=0.0
-                )
-                c.initial, c.duration = copy.deepcopy(start), duration
-                result = simulate(c)
-                rho = model.spectral_radius(rate, L)
-                err = float(
-                    np.linalg.norm(result.final_X_BC.translation() - c.X_BC_goal.translation())
-                )
-                cases.append(
-                    LatencyCase(name, float(rate), int(L), rho, rho < 1, result.status, err)
-                )
+        held = sampled_model(config)
+        for prediction in predictions:
+            model = held.continuous() if PREDICTIONS[prediction].continuous else held
+            for rate in rates:
+                for L in latencies:
+                    c = copy.deepcopy(config)
+                    c.sensor = camera_like(
+                        c.sensor,
+                        Pinhole,
+                        rate=float(rate),
+                        latency_frames=int(L),
+                        pixel_noise=0.0,
+                        prediction=prediction,
+                    )
+                    c.initial, c.duration = copy.deepcopy(start), duration
+                    result = simulate(c)
+                    rho = model.spectral_radius(rate, L)
+                    goal = c.X_BC_goal.translation()
+                    err = float(np.linalg.norm(result.final_X_BC.translation() - goal))
+                    cases.append(
+                        LatencyCase(
+                            name, float(rate), int(L), prediction, rho, rho < 1, result.status, err
+                        )
+                    )
     return cases

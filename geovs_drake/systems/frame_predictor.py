@@ -1,0 +1,139 @@
+"""FramePredictor: the image between frames, from the carrier's own motion (issue 31)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import BasicVector_, LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
+
+from geovs_drake.geometry._ops import MATH
+from geovs_drake.geometry.prediction import predicted_image
+from geovs_drake.geometry.rigid import quaternion_to_rotation
+from geovs_drake.systems._parameters import POSE_SIZE, pose_to_param
+
+__all__ = ["FramePredictor", "FramePredictor_"]
+
+# Layout of the one numeric parameter: the believed radius and the camera on the body.
+_RADIUS, _R_RC, _P_RC = 0, slice(1, 10), slice(10, 13)
+#: The rig pose's components in ``body_pose``: the quaternion, then the position.
+_QUATERNION, _POSITION = slice(0, 4), slice(4, 7)
+
+
+@TemplateSystem.define("FramePredictor_", T_list=[float])
+def FramePredictor_(T):
+    class Impl(LeafSystem_[T]):
+        """The held frame's y moved to the camera's pose now: a Smith predictor.
+
+        .. pydrake_system::
+
+            name: FramePredictor
+            input_ports:
+            - image_features
+            - body_pose
+            output_ports:
+            - predicted_image_features
+
+        ``image_features`` is a sampled camera's held y (:class:`PinholeFeatureSensor`,
+        :class:`FeatureExtractor`): the frame taken ``latency_frames`` periods ago.
+        ``body_pose`` is the carrier's pose ``[qw, qx, qy, qz, x, y, z]`` of the body the
+        camera rides on (at ``X_RC``), from proprioception: the arm's joints through its
+        kinematics, the free rig's state.
+
+        The predictor keeps the body's pose at each frame time on the sensor's own
+        clock (the same initialization and periodic events, ``period``), in a line
+        of ``latency_frames + 1`` as the sensor keeps its frames, so the oldest pose
+        is the one the held frame was taken from. Its output is
+        :func:`~geovs_drake.geometry.prediction.predicted_image`: that frame inverted
+        (Eq. 23, the believed ``radius``), carried by the body's motion since, and
+        mapped back (Eqs. 3, 6, 7). It reads ``body_pose`` now, so the law sees y
+        continuously: exact for a still target and an exact camera, the hold and the
+        latency removed (the sampled-data model of the loop becomes the continuous
+        one's, :mod:`geovs_drake.loop.camera_fit`). NaN in, NaN out (no frame yet).
+        Double only, as the sensors it follows.
+        """
+
+        def _construct(
+            self,
+            radius: float,
+            X_RC: RigidTransform | None = None,
+            period: float = 1.0 / 30.0,
+            latency_frames: int = 0,
+            converter=None,
+        ):
+            LeafSystem_[T].__init__(self, converter)
+            X_RC = RigidTransform() if X_RC is None else X_RC
+            if not (math.isfinite(radius) and radius > 0):
+                raise ValueError(f"radius must be finite and > 0: radius = {radius}")
+            if not (math.isfinite(period) and period > 0):
+                raise ValueError(f"camera period must be finite and > 0 [s], got {period}")
+            if isinstance(latency_frames, bool) or not (
+                isinstance(latency_frames, int) and latency_frames >= 0
+            ):
+                raise ValueError(f"latency_frames must be an integer >= 0, got {latency_frames!r}")
+            self._defaults = (radius, X_RC, period, latency_frames)
+            self._line = latency_frames + 1
+            self._params_index = self.DeclareNumericParameter(
+                BasicVector_[T]([radius] + pose_to_param(X_RC))
+            )
+            self.image_features_input = self.DeclareVectorInputPort("image_features", 13)
+            self.body_pose_input = self.DeclareVectorInputPort("body_pose", POSE_SIZE)
+            self._poses = self.DeclareDiscreteState(np.zeros(self._line * POSE_SIZE))
+            self.DeclareInitializationDiscreteUpdateEvent(self._on_start)
+            self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._on_frame)
+            self.predicted_image_features_output = self.DeclareVectorOutputPort(
+                "predicted_image_features",
+                13,
+                self.CalcPredictedImageFeatures,
+                prerequisites_of_calc={
+                    self.all_input_ports_ticket(),
+                    self.all_parameters_ticket(),
+                    self.xd_ticket(),
+                },
+            )
+
+        def _construct_copy(self, other, converter=None):
+            Impl._construct(self, *other._defaults, converter=converter)
+
+        def _on_start(self, context, discrete_state) -> None:
+            # The first frame fills the sensor's latency line; its pose fills this one.
+            pose = self.body_pose_input.Eval(context)
+            discrete_state.get_mutable_vector(self._poses).SetFromVector(np.tile(pose, self._line))
+
+        def _on_frame(self, context, discrete_state) -> None:
+            line = context.get_discrete_state(self._poses).get_value().reshape(self._line, -1)
+            new = np.vstack([line[1:], self.body_pose_input.Eval(context)])
+            discrete_state.get_mutable_vector(self._poses).SetFromVector(new.ravel())
+
+        def frame_pose(self, context) -> np.ndarray:
+            """The body's pose ``[q, p]`` when the held frame was taken."""
+            return context.get_discrete_state(self._poses).get_value()[:POSE_SIZE].copy()
+
+        def CalcPredictedImageFeatures(self, context, output) -> None:
+            y = self.image_features_input.Eval(context)
+            if not np.all(np.isfinite(y)):  # no frame yet, or a trial stage's NaN
+                output.SetFromVector(np.full(13, math.nan))
+                return
+            p = context.get_numeric_parameter(self._params_index).get_value().tolist()
+            then = self.frame_pose(context).tolist()
+            now = self.body_pose_input.Eval(context).tolist()
+            output.SetFromVector(
+                predicted_image(
+                    tuple(y.tolist()),
+                    p[_RADIUS],
+                    quaternion_to_rotation(then[_QUATERNION], MATH),
+                    tuple(then[_POSITION]),
+                    quaternion_to_rotation(now[_QUATERNION], MATH),
+                    tuple(now[_POSITION]),
+                    tuple(p[_R_RC]),
+                    tuple(p[_P_RC]),
+                    MATH,
+                )
+            )
+
+    return Impl
+
+
+FramePredictor = FramePredictor_[None]
