@@ -8,7 +8,12 @@ steps per simulated second, and arm / free; on the dynamic plant also the arm wi
 the joint-limit barrier (width :data:`BARRIER_WIDTH`); on both plants the 7-axis
 Panda (``--arm panda``, when example-robot-data is installed).
 
-    .venv/bin/python benchmarks/bench_arm.py [--repeat 5] [--duration 30]
+Then the cameras (issue 31): the UR5 with the 30 Hz pinhole camera and with the rendered
+one (RenderEngineVtk, EGL), each with the odometry predictor (the default), against the
+UR5 with the exact sensor as the baseline, alternately in the same process, over
+``--camera-duration`` simulated seconds.
+
+    .venv/bin/python benchmarks/bench_arm.py [--repeat 5] [--duration 30] [--camera-duration 10]
 """
 
 from __future__ import annotations
@@ -19,7 +24,14 @@ import statistics
 
 from _record import Figure, record
 
-from geovs_drake.scenario import PLANT_VARIANTS, Arm, FreeRig, PoseConfig, ScenarioConfig
+from geovs_drake.scenario import (
+    PLANT_VARIANTS,
+    SENSOR_VARIANTS,
+    Arm,
+    FreeRig,
+    PoseConfig,
+    ScenarioConfig,
+)
 from geovs_drake.simulation import simulate
 
 #: The issue's small move: a start every carrier reaches and converges from.
@@ -33,10 +45,17 @@ LOOPS = {
     "arm+barrier": f"arm (UR5) with the joint-limit barrier (width {BARRIER_WIDTH:g} rad)",
     "panda": "arm (7-axis Panda)",
 }
+#: The camera loops on the UR5, by the sensor they name, against the exact sensor's.
+CAMERAS = {
+    "pinhole": "UR5 with the 30 Hz pinhole camera",
+    "rendered": "UR5 with the 30 Hz rendered camera",
+}
 
 
-def run(carrier: str, plant: str, duration: float) -> tuple[float, float, str]:
-    """One run of ``carrier``: free, arm (the UR5), arm+barrier or panda."""
+def run(
+    carrier: str, plant: str, duration: float, sensor: str = "exact"
+) -> tuple[float, float, str]:
+    """One run of ``carrier``: free, arm (the UR5), arm+barrier or panda, with ``sensor``."""
     arm = Arm(
         model="panda" if carrier == "panda" else "default",
         joint_barrier_width=BARRIER_WIDTH if carrier == "arm+barrier" else 0.0,
@@ -44,6 +63,7 @@ def run(carrier: str, plant: str, duration: float) -> tuple[float, float, str]:
     config = ScenarioConfig(
         carrier=FreeRig() if carrier == "free" else arm,
         plant=PLANT_VARIANTS[plant](),
+        sensor=SENSOR_VARIANTS[sensor](),
         duration=duration,
         initial=SMALL_MOVE,
     )
@@ -55,6 +75,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--duration", type=float, default=30.0)
+    parser.add_argument("--camera-duration", type=float, default=10.0)
     args = parser.parse_args()
     figures = []
     try:
@@ -93,7 +114,41 @@ def main() -> None:
                     target=">= 30x" if plant == "dynamic" and carrier != "panda" else "",
                 )
             )
-    record("bench_arm", "The arm loops against the free body", figures)
+    figures += camera_figures(args.repeat, args.camera_duration)
+    record("bench_arm", "The arm loops against the free body, and with cameras", figures)
+
+
+def camera_figures(repeat: int, duration: float) -> list[Figure]:
+    """The UR5's camera loops against its exact-sensor loop (module docstring)."""
+    figures = []
+    for plant in ("dynamic", "kinematic"):
+        sensors = ("exact", *CAMERAS)
+        for sensor in sensors:
+            run("arm", plant, 1.0, sensor)  # the renderer's first frame, the caches
+        rtf = {s: [] for s in sensors}
+        status = {}
+        for _ in range(repeat):
+            for sensor in sensors:
+                factor, _, status[sensor] = run("arm", plant, duration, sensor)
+                rtf[sensor].append(factor)
+        exact = statistics.median(rtf["exact"])
+        print(f"{plant}: UR5, exact sensor {exact:.1f}x real time")
+        for sensor, name in CAMERAS.items():
+            factor = statistics.median(rtf[sensor])
+            print(
+                f"{plant}: {name} {factor:.1f}x ({status[sensor]}); / exact = "
+                f"{factor / exact:.2f} (median of {repeat})"
+            )
+            figures.append(
+                Figure(
+                    f"{plant} {name}, real-time factor, small move, {duration:g} s",
+                    factor,
+                    "x real time",
+                    "the UR5 with the exact sensor, same law and start, alternately",
+                    exact,
+                )
+            )
+    return figures
 
 
 if __name__ == "__main__":

@@ -45,6 +45,9 @@ from geovs_drake.simulation import simulate
 
 __all__ = [
     "LatencyCase",
+    "MapCase",
+    "camera_map",
+    "map_table",
     "camera_of",
     "latency_margin",
     "latency_study",
@@ -170,3 +173,105 @@ def latency_study(
                         )
                     )
     return cases
+
+
+@dataclass
+class MapCase:
+    """One cell of :func:`camera_map`: the arm's ``gain_scale``, the camera (rate,
+    latency, prediction), the goal model's verdict and the pinhole loop's outcome."""
+
+    gain_scale: float
+    rate: float
+    latency_frames: int
+    prediction: str
+    spectral_radius: float
+    predicted_stable: bool
+    status: str
+    final_position_error_m: float
+
+    @property
+    def agrees(self) -> bool:
+        """The model's verdict (radius below 1) matches the run (converged)."""
+        return self.predicted_stable == (self.status == "converged")
+
+
+def camera_map(
+    config: ScenarioConfig,
+    gain_scales: tuple[float, ...],
+    rates: tuple[float, ...] = (10.0, 15.0, 30.0, 60.0),
+    latencies: tuple[int, ...] = (0, 1, 2),
+    predictions: tuple[str, ...] = tuple(PREDICTIONS),
+    duration: float = 15.0,
+    start: PoseConfig = CHECK_START,
+) -> list[MapCase]:
+    """Issue 31's maps on the arm: each ``gain_scale`` x camera rate x latency x
+    ``prediction``, the goal's closed-form sampled model
+    (:func:`~geovs_drake.loop.camera_fit.goal_sampled_model`) against the pinhole loop
+    from ``start`` (no noise, no calibration error). ``config``'s carrier must be an
+    :class:`~geovs_drake.scenario.Arm` (the scale is its ``gain_scale``)."""
+    from geovs_drake.loop.camera_fit import goal_sampled_model
+    from geovs_drake.scenario import Arm, resolve
+
+    if not isinstance(config.carrier, Arm):
+        raise ValueError(f"camera_map scales an arm's gain_scale: carrier = {config.carrier!r}")
+    cases = []
+    for scale in gain_scales:
+        for prediction in predictions:
+            if prediction not in PREDICTIONS:
+                raise ValueError(f"prediction must be in {', '.join(PREDICTIONS)}: {prediction!r}")
+            for rate in rates:
+                for L in latencies:
+                    c = copy.deepcopy(config)
+                    c.carrier.gain_scale = float(scale)
+                    c.sensor = camera_like(
+                        c.sensor,
+                        Pinhole,
+                        rate=float(rate),
+                        latency_frames=int(L),
+                        pixel_noise=0.0,
+                        prediction=prediction,
+                    )
+                    c.initial, c.duration = copy.deepcopy(start), duration
+                    model = goal_sampled_model(
+                        resolve(c), continuous=PREDICTIONS[prediction].continuous
+                    )
+                    rho = model.spectral_radius(rate, L)
+                    result = simulate(c)
+                    goal = c.X_BC_goal.translation()
+                    err = float(np.linalg.norm(result.final_X_BC.translation() - goal))
+                    cases.append(
+                        MapCase(
+                            float(scale), float(rate), int(L), prediction, rho, rho < 1,
+                            result.status, err,
+                        )
+                    )  # fmt: skip
+    return cases
+
+
+#: How :func:`map_table` writes a run's outcome.
+_OUTCOME = {"converged": "ok", "left_domain": "left D", "not_converged": "slow"}
+
+
+def map_table(cases: list[MapCase]) -> str:
+    """:func:`camera_map`'s cases as Markdown: one table per prediction, a row per gain
+    scale and latency, a column per rate; each cell the run's outcome, then the model's
+    spectral radius, starred where the model and the run disagree."""
+    out = []
+    for prediction in dict.fromkeys(c.prediction for c in cases):
+        mine = [c for c in cases if c.prediction == prediction]
+        rates = sorted({c.rate for c in mine})
+        out.append(f"prediction: {prediction}\n")
+        out.append("| gain_scale | latency | " + " | ".join(f"{r:g} Hz" for r in rates) + " |")
+        out.append("|---|---|" + "---|" * len(rates))
+        rows = dict.fromkeys((c.gain_scale, c.latency_frames) for c in mine)
+        for scale, L in rows:
+            cells = []
+            for r in rates:
+                (c,) = [
+                    c for c in mine if (c.gain_scale, c.latency_frames, c.rate) == (scale, L, r)
+                ]
+                flag = "" if c.agrees else " *"
+                cells.append(f"{_OUTCOME.get(c.status, c.status)} ({c.spectral_radius:.3f}){flag}")
+            out.append(f"| {scale:g} | {L} | " + " | ".join(cells) + " |")
+        out.append("")
+    return "\n".join(out)

@@ -54,6 +54,7 @@ from geovs_drake.geometry.so3 import so3_exp
 from geovs_drake.linear_model import SampledModel
 from geovs_drake.sampling import random_features_in_domain
 from geovs_drake.scenario import (
+    PREDICTIONS,
     SENSOR_VARIANTS,
     CameraModel,
     Pinhole,
@@ -187,7 +188,9 @@ def sampled_spectral_radius(config: ScenarioConfig) -> float:
     ``config.damping``, continuous) and ``A_p = [[0, 0], [-M^-1 K, 0]]`` (the
     potential, sampled and held). :class:`~geovs_drake.linear_model.SampledModel`
     discretises it (Drake's ``DiscreteTimeApproximation``, a zero-order hold) and adds
-    the delay. Below 1: locally stable.
+    the delay. Below 1: locally stable. With a continuous ``sensor.prediction``
+    (odometry: the held frame moved by the rig's motion, exact at the equilibrium) the
+    potential joins the continuous part (:meth:`SampledModel.continuous`).
     """
     M = rig_spatial_inertia(config)
     equilibrium = predicted_equilibrium(config)
@@ -199,6 +202,8 @@ def sampled_spectral_radius(config: ScenarioConfig) -> float:
     B_n = np.vstack([np.zeros((6, 6)), np.linalg.inv(M)])
     C_xi = np.hstack([-K, np.zeros((6, 6))])
     model = SampledModel(A_c=A_d, B_n=B_n, C_xi=C_xi)
+    if PREDICTIONS[config.sensor.prediction].continuous:
+        model = model.continuous()
     return model.spectral_radius(config.sensor.rate, int(config.sensor.latency_frames))
 
 
