@@ -231,3 +231,124 @@ def test_the_barrier_width_shrinks_the_goals_the_arm_can_reach(arm_config):
     model = arm_model(config)
     q_goal = solve_joints(model, config.X_WB @ config.X_BC_goal)
     assert np.min(joint_limit_margins(model, q_goal)) > 1.5
+
+
+# ------------------------------------------------------------------ per-joint widths
+WIDTHS = (0.4, 1.2, 0.25)  # one per joint of LOWER, UPPER
+
+
+def test_a_per_joint_width_is_each_joint_s_own_step():
+    """Truth: the module docstring's step written here per joint, with each joint's own
+    width, multiplied out; a joint 0.3 from its limit is in the barrier of width 0.4 but
+    not of 0.25, so the widths' order matters and the check can fail."""
+
+    def step(m, w):
+        return 1 - (1 - min(m / w, 1.0)) ** 3
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        q = rng.uniform(LOWER + 1e-3, UPPER - 1e-3)
+        product = np.prod(
+            [step(q[i] - LOWER[i], w) * step(UPPER[i] - q[i], w) for i, w in enumerate(WIDTHS)]
+        )
+        assert joint_barrier(q, LOWER, UPPER, WIDTHS, min)[0] == pytest.approx(1 - product)
+    q = np.array([0.0, 0.0, 2.7])  # the third joint 0.3 from its upper limit
+    assert joint_barrier(q, LOWER, UPPER, WIDTHS, min)[0] == 0.0
+    assert joint_barrier(q, LOWER, UPPER, (0.4, 1.2, 0.4), min)[0] > 0.0
+    # One number is that width for every joint.
+    assert joint_barrier(q, LOWER, UPPER, 0.4, min) == joint_barrier(
+        q, LOWER, UPPER, (0.4,) * 3, min
+    )
+
+
+def test_the_per_joint_barrier_gradient_is_its_central_difference():
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        # Each joint 0.01 to 0.6 from a limit: inside its own width, or just outside it.
+        margin = rng.uniform(0.01, 0.6, 3)
+        q = np.where(rng.random(3) < 0.5, LOWER + margin, UPPER - margin)
+        _, grad = joint_barrier(q, LOWER, UPPER, WIDTHS, min)
+        h = 1e-7
+        fd = [
+            (
+                joint_barrier(q + h * e, LOWER, UPPER, WIDTHS, min)[0]
+                - joint_barrier(q - h * e, LOWER, UPPER, WIDTHS, min)[0]
+            )
+            / (2 * h)
+            for e in np.eye(3)
+        ]
+        assert np.allclose(grad, fd, atol=1e-6), (q, grad, fd)
+
+
+def test_the_fraction_gives_each_joint_that_share_of_its_range():
+    from geovs_drake.geometry.joint_barrier import joint_widths
+
+    assert joint_widths(LOWER, UPPER, fraction=0.1) == pytest.approx((0.2, 0.4, 0.35))
+    assert joint_widths(LOWER, UPPER, width=0.5) == (0.5, 0.5, 0.5)
+    assert joint_widths(LOWER, UPPER) is None
+    with pytest.raises(ValueError, match="3 finite widths > 0"):
+        joint_barrier([0.0, 0.0, 1.0], LOWER, UPPER, (0.4, 0.0, 0.3), min)
+
+
+@pytest.mark.parametrize(
+    ("text", "argv", "needle"),
+    [
+        (
+            "{joint_barrier_fraction: 0.1, joint_barrier_width: 0.5}",
+            [],
+            "carrier.joint_barrier_fraction and carrier.joint_barrier_width are exclusive",
+        ),
+        ("{joint_barrier_fraction: 0.5}", [], "joint_barrier_fraction = 0.5"),
+        ("{joint_barrier_fraction: -0.1}", [], "joint_barrier_fraction = -0.1"),
+        (
+            "{joint_barrier_fraction: 0.1}",
+            ["--controller", "ibvs"],
+            "joint_barrier_fraction applies to the dynamic arm under the NF",
+        ),
+    ],
+)
+def test_a_bad_barrier_fraction_is_one_line(text, argv, needle, run_cli):
+    run = run_cli("simulate", "--carrier", "arm", "--scenario-text", f"carrier: !Arm {text}", *argv)
+    assert run.code == 2 and run.err.count("\n") == 1 and needle in run.err, run.err
+
+
+def test_the_per_joint_barrier_torque_differentiates_by_autodiff_as_by_central_differences(
+    arm_config,
+):
+    """ArmCamera with a width per joint (10 % of each range: 1.26 rad, the elbow 0.63)
+    converts to AutoDiffXd; d tau / d q against central differences of the float system,
+    at a q where the elbow and wrist 1 are inside their own widths."""
+    from pydrake.autodiffutils import ExtractGradient, InitializeAutoDiff
+
+    from geovs_drake.geometry.joint_barrier import joint_widths
+    from geovs_drake.systems import ArmCamera
+
+    model = arm_model(arm_config)
+    plant = arm_plant(model)
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    widths = joint_widths(lower, upper, fraction=0.1)
+    assert widths[2] == pytest.approx(0.2 * np.pi) and widths[0] == pytest.approx(0.4 * np.pi)
+    system = ArmCamera(model=model, joint_barrier_width=widths)
+    ad = system.ToAutoDiffXd()
+    q = np.array([-0.3, -0.25, 2.7, 5.4, 0.49, -1.08])  # elbow 0.44, wrist 1 0.88 from limits
+    v = np.array([0.1, -0.2, 0.3, 0.0, 0.1, -0.1])
+    wrench, phi = np.array([0.5, -0.2, 0.1, 2.0, -1.0, 0.5]), np.array([0.3])
+
+    def tau(sys, x):
+        context = sys.CreateDefaultContext()
+        sys.arm_state_input.FixValue(context, x)
+        sys.wrench_C_input.FixValue(context, wrench)
+        sys.phi_input.FixValue(context, phi)
+        sys.potential_gain_input.FixValue(context, [4.0])
+        return sys.actuation_output.Eval(context)
+
+    x = np.concatenate([q, v])
+    gradient = ExtractGradient(tau(ad, InitializeAutoDiff(x).ravel()))
+    h = 1e-6
+    fd = np.stack(
+        [(tau(system, x + h * e) - tau(system, x - h * e)) / (2 * h) for e in np.eye(12)], axis=1
+    )
+    assert np.allclose(gradient, fd, rtol=1e-6, atol=1e-5)
+    _, dphi_q = joint_barrier(q, lower, upper, widths, min)
+    # Both near their upper limits (phi_q grows towards them); joint 1 outside its width.
+    assert dphi_q[2] > 0 and dphi_q[3] > 0 and dphi_q[0] == 0

@@ -152,6 +152,11 @@ def test_the_merged_summary_is_the_summary_of_the_rows():
     ratio = rows["max_energy_ratio"].to_numpy()
     assert report["max_energy_ratio"] == float(np.max(ratio[np.isfinite(ratio)]))
     assert report["monotone"] == int(rows["monotone"].sum())
+    # The free rig has no joints: each run's end is its status, counted as the statuses.
+    end = rows["end"].to_numpy()
+    assert (end == status).all() and rows["final_joint_speed"].isna().all()
+    assert report["ends"] == {k: int(np.sum(end == k)) for k in report["ends"]}
+    assert sum(report["ends"].values()) == len(rows)
     t = rows["t_converged"].to_numpy()[status == "converged"]
     bound = report["t_converged_resolution_s"]
     assert bound == 4.0 / (2 * sweep.TIME_BINS)
@@ -490,6 +495,27 @@ def test_the_drake_engine_runs_the_arm_keeping_each_starts_energy_ratio():
     assert np.allclose(ratio, reference["initial_energy_ratio"].to_numpy()[reached], rtol=1e-6)
     assert np.all(ratio < 1) and rows["monotone"].all()
     assert counts["joint_limit"] == 0 and counts["left_domain"] == 0
+    # The arm's end: no barrier (phi_q 0), the nearest joint inside its range; none where
+    # IK found no joints.
+    arm = rows[reached]
+    assert (arm["final_joint_barrier"] == 0).all() and (arm["final_joint_margin"] > 0).all()
+    assert np.isfinite(arm["final_joint_speed"]).all()
+    assert rows[~reached][["final_joint_speed", "final_joint_margin"]].isna().all().all()
+    assert set(arm["end"]) <= {"converged", "moving", "stalled"}
+
+
+def test_the_cli_line_counts_how_the_arm_s_runs_ended(tmp_path, run_cli):
+    """On the arm the line adds the runs' ends (a stall at the barrier told from a run
+    still moving), the counts of summary.json's ends."""
+    run = run_cli(
+        "sweep",
+        *("--carrier", "arm", "--engine", "drake", "--starts", "2", "--duration", "0.5"),
+        *("--workers", "1", "--out", str(tmp_path)),
+    )
+    assert run.code == 0, run.err
+    ends = json.loads((tmp_path / "summary.json").read_text())["ends"]
+    listed = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in ends.items() if v)
+    assert sum(ends.values()) == 2 and f"| ends: {listed} |" in run.out, run.out
 
 
 def test_the_drake_engine_sweeps_the_arm_through_its_camera(run_cli):

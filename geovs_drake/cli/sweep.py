@@ -193,11 +193,17 @@ def run(args: argparse.Namespace) -> int:
         resumed = f", {result.resumed_parts} parts resumed" if result.resumed_parts else ""
         # The arm's joint limit, only where the arm ran (a free rig has none).
         limit = f", joint limit {g['joint_limit']}" if "joint_limit" in summary["counts"] else ""
+        # How the arm's runs ended: a stall at the barrier told from a run still moving.
+        ends = ""
+        if "joint_limit" in summary["counts"]:
+            ends = " | ends: " + ", ".join(
+                f"{k.replace('_', ' ')} {v}" for k, v in summary["ends"].items() if v
+            )
         print(
             f"{result.plant}: {finished} of {result.starts} starts x "
             f"{result.duration:g} s ({result.engine}{resumed}): {counts} | {covered}: "
             f"{g['starts']} starts, of which left D {g['left_domain']}, lost visibility "
-            f"{g['lost_visibility']}, non-finite {g['non_finite']}{limit} | "
+            f"{g['lost_visibility']}, non-finite {g['non_finite']}{limit}{ends} | "
             f"{result.wall_time_s:.1f} s wall | {out}/"
         )
     if code == EXIT_INTERRUPTED:

@@ -15,15 +15,21 @@ from their limits, 1 on the boundary of D or at a joint limit. With the arm's to
 B_q v <= 0`` (:class:`~geovs_drake.systems.ArmCamera`), so a start with E0 < k_p never
 reaches a joint limit, as it never leaves D.
 
+The width is one number for every joint, or one per joint (:func:`joint_widths`): a
+fraction of each joint's range, as ViSP's joint-limit task puts its activation in the
+last 10 % of each range. A per-joint width is a constant of the formula, so the same
+scalar-style code serves every scalar type.
+
 Scalar style: ``min_`` is the min of the scalar type (``min`` for floats,
 ``pydrake.math.min`` for AutoDiffXd and Expression), so no branch reads a value.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
-__all__ = ["combine", "joint_barrier", "smooth_step"]
+__all__ = ["combine", "joint_barrier", "joint_widths", "per_joint", "smooth_step"]
 
 
 def smooth_step(m, width: float, min_: Callable) -> tuple:
@@ -32,14 +38,47 @@ def smooth_step(m, width: float, min_: Callable) -> tuple:
     return 1 - u * u * u, 3 * u * u / width
 
 
+def per_joint(width: float | Sequence[float], n: int) -> tuple[float, ...]:
+    """The barrier's width for each of n joints: ``width`` repeated, or its n entries;
+    ValueError unless every one is finite and > 0 (a width of 0 divides by 0)."""
+    widths = (width,) * n if _is_number(width) else tuple(width)
+    if len(widths) != n or not all(math.isfinite(w) and w > 0 for w in map(float, widths)):
+        raise ValueError(f"the barrier needs {n} finite widths > 0 [rad], got {width!r}")
+    return tuple(float(w) for w in widths)
+
+
+def _is_number(value) -> bool:
+    """A single width (a Python or numpy number, a 0-d array), not a sequence of them."""
+    return not hasattr(value, "__len__") or getattr(value, "ndim", 1) == 0
+
+
+def joint_widths(
+    lower: Sequence[float], upper: Sequence[float], width: float = 0.0, fraction: float = 0.0
+) -> tuple[float, ...] | None:
+    """Each joint's barrier width [rad]: ``width`` for all, or ``fraction`` of each
+    joint's range ``upper - lower`` (the two are exclusive: the arm's config checks it);
+    None when both are 0 (no barrier)."""
+    if fraction > 0:
+        return per_joint(
+            [fraction * (hi - lo) for lo, hi in zip(lower, upper, strict=True)], len(lower)
+        )
+    return per_joint(width, len(lower)) if width > 0 else None
+
+
 def joint_barrier(
-    q: Sequence, lower: Sequence[float], upper: Sequence[float], width: float, min_: Callable
+    q: Sequence,
+    lower: Sequence[float],
+    upper: Sequence[float],
+    width: float | Sequence[float],
+    min_: Callable,
 ) -> tuple:
-    """(phi_q, dphi_q/dq) for joint positions q strictly inside [lower, upper]."""
+    """(phi_q, dphi_q/dq) for joint positions q strictly inside [lower, upper]; ``width``
+    one for all joints or one per joint (:func:`per_joint`)."""
     steps, slopes = [], []
-    for q_i, lo, hi in zip(q, lower, upper, strict=True):
-        s_lo, d_lo = smooth_step(q_i - lo, width, min_)
-        s_hi, d_hi = smooth_step(hi - q_i, width, min_)
+    widths = per_joint(width, len(lower))
+    for q_i, lo, hi, w in zip(q, lower, upper, widths, strict=True):
+        s_lo, d_lo = smooth_step(q_i - lo, w, min_)
+        s_hi, d_hi = smooth_step(hi - q_i, w, min_)
         steps.append(s_lo * s_hi)
         slopes.append(d_lo * s_hi - s_lo * d_hi)  # d/dq of s(q - lo) s(hi - q)
     product = 1.0

@@ -21,8 +21,14 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import Solve
 
+from geovs_drake.geometry.camera import camera_map, camera_map_inverse
 from geovs_drake.geometry.joint_barrier import joint_barrier
-from geovs_drake.scenario import ScenarioConfig
+from geovs_drake.geometry.navigation import (
+    ModelCoordinates,
+    features_from_model,
+    model_coordinates,
+)
+from geovs_drake.scenario import Nf, ScenarioConfig
 from geovs_drake.systems._arm_model import (
     ARMS,
     CAMERA_FRAME,
@@ -37,11 +43,16 @@ __all__ = [
     "IK_POSITION_TOLERANCE",
     "IK_ROTATION_TOLERANCE",
     "HALF_TURN_AMBIGUITY",
+    "GOAL_PATH_DAMPING",
+    "GOAL_PATH_JUMP",
+    "GOAL_PATH_STEPS",
     "IK_SEEDS",
     "SINGULARITY_WEIGHT",
     "Unreachable",
     "arm_model",
     "camera_jacobians",
+    "chart_path",
+    "goal_on_branch",
     "initial_joints",
     "joint_barrier_values",
     "joint_count",
@@ -73,6 +84,19 @@ SINGULARITY_WEIGHT = 10.0
 #: alone, which the BLAS kernel decides (the UR5's goal: wrist 1 at -2.54 or +3.74 rad).
 #: A tie goes to the solution nearer q = 0 (the smaller |q|), whatever the seeds' order.
 IK_SCORE_TIE = 1e-9
+
+#: Steps of the path along which a start's joints are carried to the goal's pose
+#: (:func:`chart_path`, :func:`goal_on_branch`): the pose moves 1/512 of the way per
+#: step (thousandths of a rad and of a metre on the sweep's starts), where a few Newton
+#: steps converge (64 steps left 15 of the sweep's 142 paths unfollowed, 512 left 13).
+GOAL_PATH_STEPS = 512
+#: The damping of the continuation's least-squares steps: it keeps a step bounded where
+#: the path passes near a singularity (sigma_min(J_C) of order 1e-2 and less).
+GOAL_PATH_DAMPING = 1e-3
+#: A joint that moves more than this [rad] over one step of the path has met a
+#: singularity (:func:`goal_on_branch`); away from one a step moves the joints by
+#: thousandths of a rad.
+GOAL_PATH_JUMP = 0.5
 
 #: A rotation to come within this of a half turn [rad] has no way to go that the start
 #: decides (the NF's saddle is the goal with the arrow reversed, a measure-zero set of
@@ -151,6 +175,16 @@ def model_joint_damping(plant) -> np.ndarray:
     return damping
 
 
+def joint_names(plant) -> tuple[str, ...]:
+    """The name of the joint each of the plant's velocities belongs to."""
+    names = [""] * plant.num_velocities()
+    for index in plant.GetJointIndices():
+        joint = plant.get_joint(index)
+        for k in range(joint.num_velocities()):
+            names[joint.velocity_start() + k] = joint.name()
+    return tuple(names)
+
+
 def joint_count(model: ArmModel) -> int:
     """The arm's number of joint positions nq."""
     return arm_plant(model).num_positions()
@@ -164,11 +198,13 @@ def joint_limit_margins(model: ArmModel, q: np.ndarray) -> np.ndarray:
     return np.minimum(q - plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits() - q)
 
 
-def joint_barrier_values(model: ArmModel, q: np.ndarray, width: float) -> np.ndarray:
-    """phi_q, the joints' barrier of width ``width`` [rad]
-    (:mod:`geovs_drake.geometry.joint_barrier`), at each q (N, nq); 0 with width 0."""
+def joint_barrier_values(
+    model: ArmModel, q: np.ndarray, width: float | tuple[float, ...]
+) -> np.ndarray:
+    """phi_q, the joints' barrier of width ``width`` [rad], one for all joints or one per
+    joint (:mod:`geovs_drake.geometry.joint_barrier`), at each q (N, nq); 0 with width 0."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
-    if width <= 0:
+    if np.ndim(width) == 0 and width <= 0:
         return np.zeros(len(q))
     plant = arm_plant(model)
     lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
@@ -339,33 +375,128 @@ def initial_joints(config: ScenarioConfig) -> np.ndarray:
             )
         return np.asarray(given, dtype=float)
     X_WC0, X_WC_goal = config.X_WB @ config.X_BC_initial, config.X_WB @ config.X_BC_goal
-    return start_branch(model, solve_joints(model, X_WC0), X_WC0, X_WC_goal)
+    path = chart_path(config, config.X_BC_initial)
+    return start_branch(model, solve_joints(model, X_WC0), X_WC0, X_WC_goal, path)
+
+
+def chart_path(
+    config: ScenarioConfig, X_BC: RigidTransform, steps: int = GOAL_PATH_STEPS
+) -> list[RigidTransform] | None:
+    """The camera's poses X_WC on the straight path in the NF's model chart from the image
+    of X_BC to the goal's (:mod:`geovs_drake.geometry.navigation`): lambda and the two
+    discs on their segments, the arrow's angle the short way round its circle, as the
+    NF's circle factor turns it; ``steps + 1`` poses, X_BC's first, the goal's last.
+    None under another law (whose way round is its own) or for a start outside D (no
+    chart there).
+
+    Why this path: the joints' whole turns at the goal are those of any path in D that
+    winds round the circle as the NF's does (D is the circle times a contractible
+    product), so IK carried along it (:func:`goal_on_branch`) ends on the goal's joints
+    that the arm reaches. The rotation's geodesic in SE(3) need not wind so: from a start
+    rolled 179 deg it can turn the other way round (docs/arm.md, "The barrier's spurious
+    equilibria")."""
+    domain, radius = config.domain.to_domain(), config.radius
+    try:
+        y0 = camera_map(X_BC.inverse(), radius)
+    except ValueError:  # not visible
+        return None
+    if not isinstance(config.controller, Nf) or not bool(domain.contains(y0)):
+        return None
+    goal = camera_map(config.X_BC_goal.inverse(), radius)
+    ends = [model_coordinates(y, domain) for y in (y0, goal)]
+    (m0, m1), s = ends, np.linspace(0.0, 1.0, steps + 1)
+    a0, a1 = (float(np.arctan2(m.circle[1], m.circle[0])) for m in ends)
+    a = a0 + s * (np.mod(a1 - a0 + np.pi, 2 * np.pi) - np.pi)  # the short way
+    w = s[:, None]
+    chart = ModelCoordinates(
+        (1 - s) * float(m0.u) + s * float(m1.u),
+        (1 - w) * np.asarray(m0.w_fov) + w * np.asarray(m1.w_fov),
+        (1 - w) * np.asarray(m0.w_occ) + w * np.asarray(m1.w_occ),
+        np.stack([np.cos(a), np.sin(a)], axis=-1),
+    )
+    X_CB = camera_map_inverse(features_from_model(chart, domain), radius)
+    return [config.X_WB @ RigidTransform(X).inverse() for X in X_CB]
+
+
+def goal_on_branch(model: ArmModel, q: np.ndarray, path: list[RigidTransform]) -> np.ndarray | None:
+    """The joints at the end of ``path`` (camera poses X_WC, the camera at q at the
+    first) carried from q along it, the limits ignored: at each pose a few damped Newton
+    steps, then Newton to rounding at the last. The joints keep their posture
+    (shoulder, elbow, wrist) and count their whole turns along the path, unless it
+    crosses a singularity; None where they do not reach the last pose."""
+    plant = arm_plant(model)
+    context = plant.CreateDefaultContext()
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+    q = np.array(q, dtype=float)
+    for target in path[1:]:
+        before = q.copy()
+        for _ in range(3):
+            plant.SetPositions(context, q)
+            X_err = camera.CalcPoseInWorld(context).InvertAndCompose(target)
+            aa = X_err.rotation().ToAngleAxis()
+            e = np.concatenate([aa.axis() * aa.angle(), X_err.translation()])
+            J = camera_jacobian(plant, context, camera)
+            damped = J @ J.T + GOAL_PATH_DAMPING**2 * np.eye(len(e))
+            q = q + J.T @ np.linalg.solve(damped, e)
+        # A joint that jumps across a small step of the camera has met a singularity:
+        # past it the posture, and so the count of turns, is anyone's guess.
+        if np.max(np.abs(q - before)) > GOAL_PATH_JUMP:
+            return None
+    q = _refine(plant, camera, q, path[-1])
+    dp, dr = _pose_error(plant, camera, q, path[-1])
+    return q if dp < IK_POSITION_TOLERANCE and dr < IK_ROTATION_TOLERANCE else None
+
+
+def _pose_error(plant, camera, q: np.ndarray, X_WC: RigidTransform) -> tuple[float, float]:
+    """(position [m], rotation [rad]) distance of the camera at q from X_WC."""
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, q)
+    X = camera.CalcPoseInWorld(context)
+    dr = X.rotation().InvertAndCompose(X_WC.rotation()).ToAngleAxis().angle()
+    return float(np.linalg.norm(X.translation() - X_WC.translation())), float(dr)
 
 
 def start_branch(
-    model: ArmModel, q: np.ndarray, X_WC: RigidTransform, X_WC_goal: RigidTransform
+    model: ArmModel,
+    q: np.ndarray,
+    X_WC: RigidTransform,
+    X_WC_goal: RigidTransform,
+    path: list[RigidTransform] | None = None,
 ) -> np.ndarray:
     """The start q with each joint whose range spans 2 pi or more on the branch (whole
-    turns, the same camera pose) that keeps the rotation to come inside its range.
+    turns, the same camera pose) that keeps the motion to come inside its range.
 
-    The rotation to come is estimated to first order: the camera's displacement to the
-    goal as a twist in C, ``log(X_WC^-1 X_WC*)``, carried to the joints by ``J_C(q)^+``.
-    Each such joint takes the branch whose start and estimated end are farthest from its
-    limits (the unshifted one on a tie). A rotation of a half turn (within
+    The motion to come is the joints carried along ``path`` (camera poses from X_WC to
+    X_WC*, :func:`chart_path`: the NF's own way round) to the goal
+    (:func:`goal_on_branch`); without a path, or where the joints do not reach its end,
+    it is estimated to first order: the camera's displacement to the goal as a twist in
+    C, ``log(X_WC^-1 X_WC*)``, carried to the joints by ``J_C(q)^+``. Each such joint
+    takes the branch whose start and end are farthest from its limits (the unshifted
+    one on a tie): the goal's joints are chosen among their whole turns for the largest
+    margin, so that with a joint barrier they lie outside it (the goal a minimum of
+    phi_total) where a branch allows. A rotation of a half turn (within
     :data:`HALF_TURN_AMBIGUITY`) has no way to go that the start decides, and keeps IK's
     branch. Why: IK chose the start's branch with no regard to the motion, and from the
-    suite's roll_179 the UR5's wrist 3 ran onto its limit (issue 31)."""
+    suite's roll_179 the UR5's wrist 3 ran onto its limit (issue 31); the first-order
+    estimate then missed the way round of starts rolled near a half turn and the travel
+    of joints near a singularity, where the arm stalled at the barrier of a goal joint
+    within its width of a limit (docs/arm.md, "The barrier's spurious equilibria")."""
     plant = arm_plant(model)
     lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
     error = X_WC.InvertAndCompose(X_WC_goal)
     axis_angle = error.rotation().ToAngleAxis()
     axis, angle = axis_angle.axis(), axis_angle.angle()
     q = np.array(q, dtype=float)
-    if angle > np.pi - HALF_TURN_AMBIGUITY:
+    turning = np.flatnonzero(upper - lower >= 2 * np.pi)
+    if angle > np.pi - HALF_TURN_AMBIGUITY or len(turning) == 0:  # (the Panda has none)
         return q
-    J_plus = np.linalg.pinv(camera_jacobians(model, q[None])[0])
-    dq = J_plus @ np.concatenate([axis * angle, error.translation()])
-    for j in np.flatnonzero(upper - lower >= 2 * np.pi):
+    goal = None if path is None else goal_on_branch(model, q, path)
+    if goal is not None:
+        dq = goal - q
+    else:
+        J_plus = np.linalg.pinv(camera_jacobians(model, q[None])[0])
+        dq = J_plus @ np.concatenate([axis * angle, error.translation()])
+    for j in turning:
         best, best_margin = q[j], -np.inf
         for turns in (0, -1, 1, -2, 2):  # the unshifted branch first: it wins a tie
             start = q[j] + 2 * np.pi * turns

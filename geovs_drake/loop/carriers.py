@@ -32,6 +32,7 @@ from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from pydrake.visualization import AddFrameTriadIllustration
 
 from geovs_drake.geometry._ops import MATH, NUMPY
+from geovs_drake.geometry.joint_barrier import joint_widths
 from geovs_drake.geometry.rigid import fixed_camera_relative_pose
 from geovs_drake.loop.arm import arm_model, initial_joints
 from geovs_drake.loop.state import POSE, fixed_camera_pose, initial_rig_pose, initial_rig_state
@@ -472,13 +473,20 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
             f"got {len(v0)}"
         )
     plant.SetDefaultPositions(q0)
-    barrier = config.carrier.joint_barrier_width
+    # The barrier's width per joint: the carrier's width for all, or its fraction of each
+    # joint's range (None: no barrier).
+    barrier = joint_widths(
+        plant.GetPositionLowerLimits(),
+        plant.GetPositionUpperLimits(),
+        config.carrier.joint_barrier_width,
+        config.carrier.joint_barrier_fraction,
+    )
     arm = builder.AddNamedSystem(
         "arm_camera",
         ArmCamera(
             model=model,
             joint_damping=config.carrier.joint_damping,
-            joint_barrier_width=barrier,
+            joint_barrier_width=0.0 if barrier is None else barrier,
             null_space_damping=config.carrier.null_space_damping,
         ),
     )
@@ -489,7 +497,7 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
     def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
         builder.Connect(arm.camera_state_output, force.body_state_input)
         builder.Connect(force.wrench_C_output, arm.wrench_C_input)
-        if barrier > 0:  # the barrier's k_p is the NF wrench's own (ImageJacobianForce)
+        if barrier is not None:  # the barrier's k_p is the NF wrench's own (ImageJacobianForce)
             builder.Connect(force.potential_gain_output, arm.potential_gain_input)
 
     def set_initial_state(root: Context) -> None:
@@ -506,7 +514,7 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
         set_initial_state=set_initial_state,
         body_state=arm.camera_state_output,
         connect_force=connect_force,
-        phi_input=arm.phi_input if barrier > 0 else None,
+        phi_input=arm.phi_input if barrier is not None else None,
     )
 
 

@@ -16,6 +16,7 @@ __all__ = [
     "AUTO",
     "CARRIER_VARIANTS",
     "NOMINAL_GAIN_SCALES",
+    "TORQUE_LIMITS",
     "Arm",
     "CarrierConfig",
     "FixedCamera",
@@ -75,6 +76,9 @@ class Arm:
     null space, which damps a redundant arm's self-motion (dynamic arm);
     ``joint_barrier_width`` [rad] > 0 puts the joint limits inside the NF's guarantee
     (the dynamic arm under the NF: :mod:`geovs_drake.geometry.joint_barrier`, 0: off);
+    ``joint_barrier_fraction`` in (0, 0.5) instead gives each joint the width of that
+    fraction of its range (ViSP's joint-limit task: 0.1, the last 10 %), exclusive with
+    ``joint_barrier_width``;
     the kinematic arm's ``null_space_gain`` [1/s] centres a redundant arm's
     self-motion, and its ``singularity_damping`` m damps its pseudo-inverse where
     sigma_min(J_C) < m (:class:`~geovs_drake.systems.KinematicArm`; 0: off).
@@ -92,6 +96,10 @@ class Arm:
     joint_damping: float = 0.5
     null_space_damping: float = 2.0
     joint_barrier_width: float = 0.0
+    #: Each joint's barrier width as a fraction of its range (0: off; docstring). Its
+    #: own field, not a second meaning of ``joint_barrier_width``: a number's unit
+    #: (rad or a share of the range) never depends on another field.
+    joint_barrier_fraction: float = 0.0
     null_space_gain: float = 1.0
     singularity_damping: float = 0.05
     #: The factor on the law's gains, applied once by
@@ -103,7 +111,21 @@ class Arm:
     #: constants; 1 on the kinematic one), at most the largest that the camera's rate and
     #: latency carry with a gain margin of 2 (:func:`geovs_drake.loop.fit_gains`).
     gain_scale: float | str = AUTO
+    #: What the dynamic arm's effort limits do to the gains (:data:`TORQUE_LIMITS`,
+    #: :mod:`geovs_drake.loop.effort_fit`): ``warn``, one warning line where the run's
+    #: torques over its energy level set can pass a limit; ``respect``, ``gain_scale:
+    #: auto`` also stays at or below the largest scale that keeps them inside.
+    torque_limits: str = "warn"
 
+
+#: What the dynamic arm's effort limits do to its gains (``Arm.torque_limits``). Why
+#: ``warn`` is the default: over the whole level set the UR5's torques stay inside only
+#: at gain_scale 0.85 from the default start, where it has not converged in 30 s (7 cm
+#: off), while at the nominal 10 the clamped run converges (docs/arm.md).
+TORQUE_LIMITS: dict[str, str] = {
+    "warn": "one warning line where the torques over the run's energy level set pass a limit",
+    "respect": "gain_scale auto also keeps those torques inside the effort limits",
+}
 
 #: The arm's gain scale that keeps the free rig's time constants, by the plant's type:
 #: ``auto`` without a camera.
@@ -119,6 +141,7 @@ _ARM_BOUNDS: dict[str, tuple[float, bool, str]] = {
     "joint_damping": (0.0, False, " [N m s/rad]"),
     "null_space_damping": (0.0, False, " [N m s/rad]"),
     "joint_barrier_width": (0.0, False, " [rad]"),
+    "joint_barrier_fraction": (0.0, False, ""),
     "null_space_gain": (0.0, False, " [1/s]"),
     "singularity_damping": (0.0, False, ""),
 }
@@ -142,6 +165,20 @@ def check_carrier(carrier: object) -> None:
         return
     for name, (low, strict, unit) in _ARM_BOUNDS.items():
         check_at_least(f"carrier.{name}", getattr(carrier, name), low, strict, unit)
+    # Below one half: the two sides' steps of a joint would otherwise overlap, and no
+    # configuration would be free of the barrier (phi_q > 0 everywhere: no goal is a
+    # minimum of phi_total).
+    if carrier.joint_barrier_fraction >= 0.5:
+        raise ValueError(
+            "carrier.joint_barrier_fraction must be < 0.5 (a share of each joint's range): "
+            f"joint_barrier_fraction = {carrier.joint_barrier_fraction!r}"
+        )
+    if carrier.joint_barrier_fraction > 0 and carrier.joint_barrier_width > 0:
+        raise ValueError(
+            "carrier.joint_barrier_fraction and carrier.joint_barrier_width are exclusive "
+            f"(give one): joint_barrier_fraction = {carrier.joint_barrier_fraction!r}, "
+            f"joint_barrier_width = {carrier.joint_barrier_width!r}"
+        )
     if carrier.gain_scale != AUTO:
         if isinstance(carrier.gain_scale, str):
             raise ValueError(
@@ -171,6 +208,11 @@ def check_carrier(carrier: object) -> None:
         raise ValueError(
             f"carrier.end_effector_frame must name the frame the camera rides on in "
             f"{carrier.model} (a model file has no default), got {carrier.end_effector_frame!r}"
+        )
+    if carrier.torque_limits not in TORQUE_LIMITS:
+        raise ValueError(
+            f"carrier.torque_limits must be one of {', '.join(TORQUE_LIMITS)}, "
+            f"got {carrier.torque_limits!r}"
         )
     for name in ("initial_joints", "initial_joint_velocity"):
         values = getattr(carrier, name)

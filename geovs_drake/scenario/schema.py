@@ -304,9 +304,13 @@ class ScenarioConfig:
                 "initial_velocity (a free camera's twist) does not apply to carrier Arm: "
                 f"give carrier.initial_joint_velocity instead, got initial_velocity = {twist}"
             )
-        if arm.joint_barrier_width > 0 and not (self.dynamic and isinstance(self.controller, Nf)):
+        barrier = next(
+            (f for f in ("joint_barrier_width", "joint_barrier_fraction") if getattr(arm, f) > 0),
+            None,
+        )
+        if barrier and not (self.dynamic and isinstance(self.controller, Nf)):
             raise ValueError(
-                "carrier.joint_barrier_width applies to the dynamic arm under the NF (it is "
+                f"carrier.{barrier} applies to the dynamic arm under the NF (it is "
                 f"a term of the NF's energy), got plant {type(self.plant).__name__}(), "
                 f"controller {type(self.controller).__name__}()"
             )

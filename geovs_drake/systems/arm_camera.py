@@ -7,7 +7,7 @@ import pydrake.math as pm
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from geovs_drake.geometry.joint_barrier import joint_barrier
+from geovs_drake.geometry.joint_barrier import joint_barrier, per_joint
 from geovs_drake.systems._arm_model import (
     CAMERA_FRAME,
     ArmError,
@@ -86,7 +86,8 @@ def ArmCamera_(T):
         which is what keeps E = 1/2 v^T M(q) v + k_p phi non-increasing (the
         rig's M becomes the arm's M(q)).
 
-        With a joint-limit barrier of width w > 0 (``joint_barrier_width``, rad;
+        With a joint-limit barrier of width w > 0 (``joint_barrier_width``, rad: one
+        for every joint, or one per joint, e.g. a fraction of each joint's range;
         :mod:`geovs_drake.geometry.joint_barrier`) the torque becomes
 
             tau = (1 - phi_q) J_C^T F_C - k_p (1 - phi) dphi_q/dq - tau_g - B_q v,
@@ -115,7 +116,7 @@ def ArmCamera_(T):
             self,
             model: ArmModel | None = None,
             joint_damping=None,
-            joint_barrier_width: float = 0.0,
+            joint_barrier_width: float | tuple[float, ...] = 0.0,
             null_space_damping: float = 0.0,
             converter=None,
         ):
@@ -131,16 +132,18 @@ def ArmCamera_(T):
             damping = np.zeros(nv) if joint_damping is None else np.asarray(joint_damping)
             self._defaults = (model, damping, joint_barrier_width, null_space_damping)
             self._redundant = nv > _TWIST
-            # The barrier's limits are the model's: fixed, like the model itself (a
-            # parameter would let them drift from the plant's).
+            # The barrier's limits and widths are the model's: fixed, like the model
+            # itself (a parameter would let them drift from the plant's). A scalar 0 is
+            # no barrier; anything else must be a width > 0 for every joint.
+            off = np.ndim(joint_barrier_width) == 0 and joint_barrier_width == 0
             self._barrier = (
-                (
+                None
+                if off
+                else (
                     float_plant.GetPositionLowerLimits(),
                     float_plant.GetPositionUpperLimits(),
-                    float(joint_barrier_width),
+                    per_joint(joint_barrier_width, nq),
                 )
-                if joint_barrier_width > 0
-                else None
             )
             self._params_index = self.DeclareNumericParameter(
                 BasicVector_[T](

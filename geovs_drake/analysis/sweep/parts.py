@@ -30,7 +30,7 @@ from pydrake.math import RigidTransform, RollPitchYaw
 
 from geovs_drake._optional import require
 from geovs_drake.analysis.sweep.starts import sample_starts
-from geovs_drake.analysis.sweep.summary import SweepSummary
+from geovs_drake.analysis.sweep.summary import SweepSummary, run_ends
 from geovs_drake.batch import STATUS_NAMES, LoopParameters, loop_parameters, run_batch
 from geovs_drake.loop.state import poses_in_target
 from geovs_drake.scenario import (
@@ -79,11 +79,21 @@ ROW_FIELDS = (
     "final_roll",
     "final_pitch",
     "final_yaw",
+    # The arm at the end (NaN on the free rig and the batch engine): its fastest joint
+    # [rad/s], phi_q (0 without a barrier) and the nearest joint's margin to its limit
+    # [rad]; and how the run ended (summary.run_ends: a stall where the barrier and the
+    # NF balance is told from a run still on its way).
+    "final_joint_speed",
+    "final_joint_barrier",
+    "final_joint_margin",
+    "end",
 )
 #: The Parquet key-value metadata entry that holds a part's summary (JSON).
 SUMMARY_KEY = b"geovs_drake.summary"
 _POSE = ("x", "y", "z", "roll", "pitch", "yaw")
 _TWIST = ("wx", "wy", "wz", "vx", "vy", "vz")
+#: The arm's columns at the end of a run (ROW_FIELDS), NaN where there is no arm.
+_ARM_END = ("final_joint_speed", "final_joint_barrier", "final_joint_margin")
 
 
 @dataclass(frozen=True)
@@ -154,6 +164,7 @@ def run_part(part: Part, name: str | None = None) -> tuple[dict, object | None]:
     columns.update(_pose_columns(X_BC))
     columns.update(zip(_TWIST, np.asarray(twists, float).T, strict=True))
     columns.update(run(config, p, X_BC, twists, part.duration))
+    columns["end"] = run_ends(columns)
     summary = SweepSummary.of_rows(config, part.duration, columns).to_json()
     table = _table(columns, summary)
     if part.results is None:
@@ -201,6 +212,7 @@ def _batch_columns(
         "max_energy_ratio": r.max_lyapunov_ratio,
         "monotone": r.monotone,
         **_pose_columns(final, "final_"),
+        **{k: np.full(len(X_BC), math.nan) for k in _ARM_END},  # no arm in the batch engine
     }
 
 
@@ -225,7 +237,7 @@ def _drake_columns(
         c.initial = PoseConfig.from_rigid_transform(RigidTransform(X))
         c.initial_velocity = [float(v) for v in twist] if dynamic else [0.0] * 6
         rows.append(_drake_row(c) if arm is None else arm.row(c, X, twist))
-    names = [k for k in ROW_FIELDS if k not in ("start", *_POSE, *_TWIST)]
+    names = [k for k in ROW_FIELDS if k not in ("start", *_POSE, *_TWIST, "end")]
     return {
         k: np.array([r[k] for r in rows], dtype=object if k == "status" else None) for k in names
     }
@@ -233,7 +245,7 @@ def _drake_columns(
 
 def _stopped_row(status: str) -> dict:
     """A start that stopped before its first step, with its status."""
-    row = dict.fromkeys(ROW_FIELDS[14:], math.nan)
+    row = dict.fromkeys(ROW_FIELDS[ROW_FIELDS.index("status") :], math.nan)
     row.update(status=status, monotone=True)
     return row
 
@@ -261,6 +273,7 @@ class _ArmStarts:
         from geovs_drake.analysis.sweep.starts import kinetic_energy
         from geovs_drake.loop.arm import (
             Unreachable,
+            chart_path,
             joint_velocity_for,
             solve_joints,
             start_branch,
@@ -271,7 +284,9 @@ class _ArmStarts:
             q = solve_joints(self.model, X_WC)
         except Unreachable:
             return _stopped_row("unreachable")
-        q = start_branch(self.model, q, X_WC, config.X_WB @ config.X_BC_goal)
+        # The start's whole turns from the joints carried along the NF's way to the goal.
+        path = chart_path(config, RigidTransform(X))
+        q = start_branch(self.model, q, X_WC, config.X_WB @ config.X_BC_goal, path)
         config.initial_velocity = [0.0] * 6
         if config.dynamic and np.any(np.asarray(twist) != 0):
             twist = np.asarray(twist, dtype=float)
@@ -308,6 +323,43 @@ def _drake_row(config: ScenarioConfig) -> dict:
         "max_energy_ratio": float(np.max(L) / k_p),
         "monotone": bool(r.lyapunov_monotone),
         **dict(zip(("final_" + k for k in _POSE), map(float, pose), strict=True)),
+        **_arm_end(r),
+    }
+
+
+def _arm_end(r) -> dict[str, float]:
+    """The :data:`_ARM_END` columns of a run (simulate's result): the arm's joints at its
+    last logged state, NaN without an arm. The joint speed is the state's own on the
+    torque-driven arm, the last logged step's difference on the kinematic one (its state
+    holds no velocity); phi_q is that of the carrier's barrier (0 without one, 1 at or
+    beyond a limit)."""
+    if r.arm is None or r.states is None or len(r.states) == 0:
+        return dict.fromkeys(_ARM_END, math.nan)
+    from geovs_drake.geometry.joint_barrier import joint_barrier, joint_widths
+    from geovs_drake.loop.arm import arm_model
+    from geovs_drake.systems._arm_model import arm_plant
+
+    plant = arm_plant(arm_model(r.config))
+    nq, nv = plant.num_positions(), plant.num_velocities()
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    q = r.states[-1, :nq]
+    if r.states.shape[1] >= nq + nv:
+        v = r.states[-1, nq : nq + nv]
+    elif len(r.states) > 1:
+        v = (q - r.states[-2, :nq]) / (r.times[-1] - r.times[-2])
+    else:
+        v = np.full(nq, math.nan)
+    margin = float(np.min(np.minimum(q - lower, upper - q)))
+    arm = r.config.carrier
+    widths = joint_widths(lower, upper, arm.joint_barrier_width, arm.joint_barrier_fraction)
+    if widths is None:
+        phi_q = 0.0
+    else:  # the step's formula holds inside the range only
+        phi_q = 1.0 if margin <= 0 else float(joint_barrier(q, lower, upper, widths, min)[0])
+    return {
+        "final_joint_speed": float(np.max(np.abs(v))),
+        "final_joint_barrier": phi_q,
+        "final_joint_margin": margin,
     }
 
 
@@ -318,7 +370,7 @@ def _table(columns: dict[str, np.ndarray], summary: dict):
     arrays = []
     for name in ROW_FIELDS:
         v = columns[name]
-        if name == "status":
+        if name in ("status", "end"):
             arrays.append(pa.array([str(s) for s in v], pa.string()))
         elif name == "monotone":
             arrays.append(pa.array(np.asarray(v, bool)))

@@ -383,7 +383,7 @@ def run_sweep(
     """
     config.validate()
     # Here, not at the top: a sweep's workers import this module without the loop's.
-    from geovs_drake.loop.camera_fit import fit_gains
+    from geovs_drake.loop.build import fit_gains
 
     config = fit_gains(config)  # the arm's gain_scale: auto, chosen once for every start
     n, source = _check_settings(starts, duration, engine, workers, chunk)

@@ -9,6 +9,12 @@ sample at rank ceil(q N) (numpy's ``inverted_cdf``), so it is within half a
 bin, ``duration / (2 TIME_BINS)``, of the exact one: 0.5 ms for a 10-s sweep.
 The maximum is kept exactly.
 
+Each run's end is classified (:func:`run_ends`) and counted: converged; on the arm, a
+run not converged whose joints have come to rest (:data:`STALL_SPEED`) has *stalled*,
+at a spurious equilibrium of the barrier and the NF where the joint barrier is active
+(``barrier_stall``: phi_q > 0), elsewhere otherwise (``stalled``), and one whose joints
+still turn is ``moving``; the other statuses (joint limit, left D, ...) are their own.
+
 The starts plot is drawn from the summary too: counts on a grid of distance
 ``|p_BC|`` (log bins over D's distance range) by the yaw of X_BC, for all starts,
 those not converged and those that failed, and the :data:`SLOWEST` slowest
@@ -30,12 +36,15 @@ from geovs_drake.scenario import Arm, ScenarioConfig
 __all__ = [
     "ARM_STATUSES",
     "DISTANCE_BINS",
+    "ENDS",
     "FAILED",
     "SLOWEST",
+    "STALL_SPEED",
     "TIME_BINS",
     "YAW_BINS",
     "SweepSummary",
     "plot_summary",
+    "run_ends",
 ]
 
 #: Bins of the convergence-time histogram on [0, duration] (module docstring: the
@@ -53,8 +62,35 @@ FAILED = ("left_domain", "lost_visibility", "non_finite")
 #: the first is a failure like FAILED's.
 ARM_STATUSES = ("joint_limit", "unreachable")
 _ARM_FAILED = ARM_STATUSES[:1]
+#: A run not converged whose fastest joint turns slower than this at the end [rad/s] has
+#: stalled (:func:`run_ends`). Measured on the UR5 under the NF (30 s runs, docs/arm.md
+#: "The barrier's spurious equilibria"): the 44 runs held by the barrier ended below
+#: 5e-7 rad/s, the 28 still on their way (1 to 6 mm off the goal) above 4e-3; the bound
+#: sits between, a factor 40 from each. A run that nears its equilibrium slowly is still
+#: ``moving`` at a short horizon: the count depends on the duration.
+STALL_SPEED = 1e-4
+#: The ends :func:`run_ends` adds to the statuses, in the order they are reported.
+ENDS = ("converged", "barrier_stall", "stalled", "moving")
 #: The layers of the starts grid.
 _GRID_LAYERS = ("all", "not_converged", "failed")
+
+
+def run_ends(columns: dict) -> np.ndarray:
+    """How each run ended (module docstring), from its row's columns: its status, but a
+    run not converged becomes ``barrier_stall`` (its joints at rest, slower than
+    :data:`STALL_SPEED`, with the joint barrier active, ``final_joint_barrier`` > 0),
+    ``stalled`` (at rest, the barrier inactive) or ``moving``; it stays
+    ``not_converged`` where the joints' speed is unknown (NaN: no arm)."""
+    status = np.asarray(columns["status"], dtype=object)
+    speed = np.asarray(columns["final_joint_speed"], float)
+    barrier = np.asarray(columns["final_joint_barrier"], float)
+    end = status.copy()
+    open_ = status == "not_converged"
+    still = open_ & (speed < STALL_SPEED)  # NaN compares False: unknown stays open
+    end[still & (barrier > 0)] = "barrier_stall"
+    end[still & ~(barrier > 0)] = "stalled"
+    end[open_ & (speed >= STALL_SPEED)] = "moving"
+    return end
 
 
 def distance_edges(config: ScenarioConfig) -> np.ndarray:
@@ -87,6 +123,9 @@ class SweepSummary:
     #: that failed, by status.
     covered: int = 0
     covered_failed: dict[str, int] = field(default_factory=lambda: dict.fromkeys(FAILED, 0))
+    #: How the runs ended (:func:`run_ends`), by end: :data:`ENDS`, then the other
+    #: statuses present.
+    ends: dict[str, int] = field(default_factory=dict)
     min_margins: dict[str, float] = field(
         default_factory=lambda: dict.fromkeys(("fov", "lambda", "occlusion"), math.inf)
     )
@@ -119,6 +158,9 @@ class SweepSummary:
         for name in (*names, *sorted(set(status) - set(names))):
             s.counts[name] = int(np.sum(status == name))
         failed = (*FAILED, *_ARM_FAILED) if arm else FAILED
+        end = np.asarray(columns["end"], dtype=object) if "end" in columns else run_ends(columns)
+        for name in (*ENDS, *sorted(set(end) - set(ENDS))):
+            s.ends[name] = int(np.sum(end == name))
         covered = np.asarray(columns["initial_energy_ratio"], float) < 1
         s.covered = int(np.sum(covered))
         for name in failed:
@@ -169,6 +211,8 @@ class SweepSummary:
         self.covered += other.covered
         for name, count in other.covered_failed.items():
             self.covered_failed[name] = self.covered_failed.get(name, 0) + count
+        for name, count in other.ends.items():
+            self.ends[name] = self.ends.get(name, 0) + count
         for key in self.min_margins:
             self.min_margins[key] = min(self.min_margins[key], other.min_margins[key])
         self.max_energy_ratio = max(self.max_energy_ratio, other.max_energy_ratio)
@@ -201,6 +245,7 @@ class SweepSummary:
             "counts": self.counts,
             "covered": self.covered,
             "covered_failed": self.covered_failed,
+            "ends": self.ends,
             "min_margins": {k: _finite_or_none(v) for k, v in self.min_margins.items()},
             "max_energy_ratio": _finite_or_none(self.max_energy_ratio),
             "monotone": self.monotone,
@@ -218,6 +263,7 @@ class SweepSummary:
         s.counts = {k: int(v) for k, v in data["counts"].items()}
         s.covered = int(data["covered"])
         s.covered_failed = {k: int(v) for k, v in data["covered_failed"].items()}
+        s.ends = {k: int(v) for k, v in data.get("ends", {}).items()}  # none in older parts
         s.min_margins = {k: math.inf if v is None else v for k, v in data["min_margins"].items()}
         ratio = data["max_energy_ratio"]
         s.max_energy_ratio = -math.inf if ratio is None else ratio
@@ -242,6 +288,7 @@ class SweepSummary:
         return {
             "finished": self.finished,
             "counts": dict(self.counts),
+            "ends": dict(self.ends),
             "t_converged_s": quantiles,
             "t_converged_resolution_s": self.duration / (2 * TIME_BINS),
             "worst_margins": {k: _finite_or_none(v) for k, v in self.min_margins.items()},
