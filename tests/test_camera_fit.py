@@ -100,7 +100,7 @@ def test_a_gain_the_camera_cannot_carry_gets_one_warning_line(run_cli):
         )
     )
     edge = fit.largest_stable_gain
-    warning = [line for line in run.err.splitlines() if "warning" in line]
+    warning = [line for line in run.err.splitlines() if "warning: the 30 Hz camera" in line]
     assert len(warning) == 1, run.err
     assert "the 30 Hz camera, 1 frames late, on the dynamic arm" in warning[0]
     assert "predicts the loop unstable" in warning[0]
@@ -128,7 +128,7 @@ def test_a_gain_the_camera_cannot_carry_gets_one_warning_line(run_cli):
     ids=["free rig", "arm", "free rig held", "arm held"],
 )
 def test_the_defaults_with_a_30_hz_camera_keep_the_margin_and_warn_nothing(config):
-    from geovs_drake.loop.camera_fit import fit_gains
+    from geovs_drake.loop.build import fit_gains
 
     fit = camera_fit(resolve(fit_gains(config)))
     assert fit.stable and fit.margin >= GAIN_MARGIN and fit.warning() is None
@@ -160,7 +160,7 @@ def test_the_kinematic_plant_takes_a_camera_and_the_warning_names_its_gain():
 
 
 def test_auto_gain_scale_is_the_nominal_where_nothing_limits_it():
-    from geovs_drake.loop.camera_fit import fit_gains
+    from geovs_drake.loop.build import fit_gains
     from geovs_drake.scenario import NOMINAL_GAIN_SCALES, Dynamic
 
     assert Arm().gain_scale == "auto" and NOMINAL_GAIN_SCALES[Dynamic] == 10.0
@@ -178,7 +178,7 @@ def test_auto_gain_scale_keeps_the_margin_and_the_loop_converges_at_it():
     """Issue 31: gain_scale auto picks a gain the sampled-data model calls stable with the
     margin (the largest stable over GAIN_MARGIN where the camera limits the nominal),
     and the simulated loop converges at it (the same start leaves D at the nominal 10)."""
-    from geovs_drake.loop.camera_fit import fit_gains
+    from geovs_drake.loop.build import fit_gains
 
     config = ScenarioConfig(
         carrier=Arm(), sensor=Pinhole(latency_frames=1, **HELD), initial=NEAR_GOAL, duration=10.0

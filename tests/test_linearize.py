@@ -392,10 +392,15 @@ def test_cli_bad_at_is_one_line_and_exit_2(run_cli, at, expected):
     assert "Traceback" not in run.err
 
 
+#: The camera's held frame (no prediction between frames): the sampled loop these studies
+#: are about (the default camera predicts, and its model is the continuous loop's).
+HELD = "sensor: !Pinhole {prediction: none}"
+
+
 def test_cli_studies_in_the_json_and_the_root_locus_written(run_cli, tmp_path):
     run = run_cli(
         "linearize", "--settling-time", "2", "--damping-ratio", "0.6", "--latency", "1",
-        "--json", "--out", str(tmp_path),
+        "--json", "--out", str(tmp_path), "--scenario-text", HELD,
     )  # fmt: skip
     assert run.code == 0, run.err
     out = json.loads(run.out)
@@ -430,7 +435,9 @@ def test_cli_camera_study_of_the_scenarios_gains_at_another_rate(run_cli):
     stable rate is reported at any --camera-rate (it was dropped away from 30 Hz)."""
     from geovs_drake.analysis.linear.latency import sampled_model
 
-    run = run_cli("linearize", "--latency", "0", "--camera-rate", "60", "--json")
+    run = run_cli(
+        "linearize", "--latency", "0", "--camera-rate", "60", "--json", "--scenario-text", HELD
+    )
     assert run.code == 0 and run.err == "", run.err
     camera = json.loads(run.out)["camera"]
     model = sampled_model(ScenarioConfig())
@@ -491,23 +498,42 @@ def test_cli_linearize_on_the_arm_is_drakes_model_at_the_goal_and_its_camera_stu
     sampled model at the arm's own gain (auto, chosen for this camera and latency), which
     keeps the margin; the free rig's studies are refused in one line."""
     from geovs_drake.analysis.linear.arm_study import linearize_arm_at_goal
-    from geovs_drake.loop.camera_fit import GAIN_MARGIN, camera_fit, fit_gains
+    from geovs_drake.loop.build import fit_gains
+    from geovs_drake.loop.camera_fit import GAIN_MARGIN, camera_fit
     from geovs_drake.scenario import Arm, resolve
 
-    run = run_cli("linearize", "--carrier", "arm", "--latency", "1", "--json")
+    held = "sensor: !Pinhole {prediction: none}"
+    run = run_cli(
+        "linearize", "--carrier", "arm", "--latency", "1", "--json", "--scenario-text", held
+    )
     assert run.code == 0, run.err
     out = json.loads(run.out)
     assert out["carrier"] == "arm" and out["stable"]
     closed = linearize_arm_at_goal(ScenarioConfig(carrier=Arm())).A_closed
     eigenvalues = np.array([complex(re, im) for re, im in out["eigenvalues"]])
     assert_spectra_close(eigenvalues, np.linalg.eigvals(closed), rtol=0, atol=1e-8)
-    fit = camera_fit(
-        resolve(fit_gains(ScenarioConfig(carrier=Arm(), sensor=Pinhole(latency_frames=1))))
-    )
+    sensor = Pinhole(latency_frames=1, prediction="none")
+    fit = camera_fit(resolve(fit_gains(ScenarioConfig(carrier=Arm(), sensor=sensor))))
     camera = out["camera"]
+    assert camera["prediction"] == "none"
     assert camera["gain_scale"] == pytest.approx(fit.gain_value)
     assert camera["spectral_radius"] == pytest.approx(fit.spectral_radius) and camera["stable"]
     assert fit.margin == pytest.approx(GAIN_MARGIN, rel=1e-6)
+    # The default camera predicts between frames: the continuous loop, sampled, at 10.
+    predicted = json.loads(
+        run_cli("linearize", "--carrier", "arm", "--latency", "1", "--json").out
+    )["camera"]
+    assert predicted["prediction"] == "odometry" and predicted["gain_scale"] == 10.0
+    from geovs_drake.loop.camera_fit import goal_sampled_model
+
+    held_model = goal_sampled_model(
+        resolve(fit_gains(ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=sensor)))
+    )
+    A = held_model.A_c + held_model.B_n @ held_model.C_xi  # the continuous loop's
+    slowest = np.max(np.linalg.eigvals(A).real)
+    assert predicted["spectral_radius"] == pytest.approx(
+        np.exp(slowest / predicted["rate"]), rel=1e-9
+    )
     refused = run_cli("linearize", "--carrier", "arm", "--settling-time", "2")
     assert refused.code == 2 and "--settling-time is the free rig's study" in refused.err
     assert refused.err.count("\n") == 1

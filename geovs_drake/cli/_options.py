@@ -364,7 +364,7 @@ def load_resolved(args: argparse.Namespace) -> ResolvedScenario:
     built from it trusts it."""
     config = load_layers(args)
     # Here, not at the top: the command line starts without the loop's modules.
-    from geovs_drake.loop.camera_fit import fit_gains
+    from geovs_drake.loop.build import fit_gains
 
     return resolve(fit_gains(config))  # the arm's gain_scale: auto, chosen once
 

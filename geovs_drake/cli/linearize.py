@@ -189,14 +189,17 @@ def _camera(config, args, design) -> dict:
     chosen for this camera)."""
     from geovs_drake.analysis.linear.latency import camera_of, sampled_model
     from geovs_drake.linear_model import check_camera
-    from geovs_drake.scenario import Arm, camera_like
+    from geovs_drake.scenario import PREDICTIONS, Arm, camera_like
 
     camera = camera_of(config)
+    # With a predictor between frames the law reads the continuous loop's y at the goal.
+    continuous = PREDICTIONS[camera.prediction].continuous
     rate = camera.rate if args.camera_rate is None else args.camera_rate
     check_camera(rate, args.latency)
     studied = config
     if isinstance(config.carrier, Arm):
-        from geovs_drake.loop.camera_fit import fit_gains, goal_sampled_model
+        from geovs_drake.loop.build import fit_gains
+        from geovs_drake.loop.camera_fit import goal_sampled_model
         from geovs_drake.scenario import resolve
 
         camera_config = copy.deepcopy(config)
@@ -204,13 +207,23 @@ def _camera(config, args, design) -> dict:
             camera, type(camera), rate=rate, latency_frames=args.latency
         )
         resolved = resolve(fit_gains(camera_config))
-        summary = goal_sampled_model(resolved).summary(rate, args.latency)
-        return {"gains": "scenario", "gain_scale": resolved.gain_scale, **summary}
+        summary = goal_sampled_model(resolved, continuous=continuous).summary(rate, args.latency)
+        return {
+            "gains": "scenario",
+            "gain_scale": resolved.gain_scale,
+            "prediction": camera.prediction,
+            **summary,
+        }
     if design is not None:
         studied = copy.deepcopy(design.config)
         studied.sensor = camera_like(camera, type(camera), damping=list(studied.control.damping))
-    out = sampled_model(studied).summary(rate, args.latency)
-    return {"gains": "designed" if design is not None else "scenario", **out}
+    model = sampled_model(studied)
+    out = (model.continuous() if continuous else model).summary(rate, args.latency)
+    return {
+        "gains": "designed" if design is not None else "scenario",
+        "prediction": camera.prediction,
+        **out,
+    }
 
 
 def _region(config, certify: bool, solver: str) -> dict:

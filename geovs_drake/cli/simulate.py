@@ -266,7 +266,10 @@ def simulate(resolved, progress=None):
     line's start (``--help``, ``--version``, bad input) stays free of the loop's imports."""
     from geovs_drake.simulation import simulate as run_loop
 
-    return run_loop(resolved, progress=progress)
+    def warn(line: str) -> None:  # before the run: a long run's user reads it meanwhile
+        print(f"geovs-drake: warning: {line}", file=sys.stderr, flush=True)
+
+    return run_loop(resolved, progress=progress, on_warning=warn)
 
 
 def _start_outside_domain() -> type[Exception]:
@@ -288,9 +291,6 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     finally:
         progress.close()
-    for warning in (result.step_warning, result.camera_warning):
-        if warning is not None:
-            print(f"geovs-drake: warning: {warning}", file=sys.stderr)
     if args.json:
         print(json.dumps(result.summary()))
     else:

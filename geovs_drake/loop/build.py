@@ -36,27 +36,42 @@ the sensor's y before the NF and the law read it; the outputs ``image_features``
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 from dataclasses import dataclass
 
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import Adder, LogVectorOutput
 
-from geovs_drake.loop.camera_fit import fit_gains
+from geovs_drake.loop.camera_fit import GAIN_MARGIN, camera_fit
 from geovs_drake.loop.carriers import CARRIERS, CarrierParts, carrier_key
+from geovs_drake.loop.effort_fit import EffortFit, effort_fit
 from geovs_drake.loop.laws import LAWS
 from geovs_drake.loop.sensors import SENSORS, add_feature_loggers
 from geovs_drake.scenario import (
+    AUTO,
+    NOMINAL_GAIN_SCALES,
+    Arm,
     Exact,
     FixedCamera,
     ResolvedScenario,
     ScenarioConfig,
+    radius_error_of,
     resolve,
     variant_name,
 )
 from geovs_drake.systems import NavigationController, SphericalCamera, VelocityTrackingForce
 
-__all__ = ["DISTURBANCES", "FEATURE_SIZE", "Loop", "build_loop", "refusal"]
+__all__ = [
+    "DISTURBANCES",
+    "FEATURE_SIZE",
+    "Loop",
+    "build_loop",
+    "effort_check",
+    "fit_gains",
+    "refusal",
+]
 
 #: The size of y = (Q, lambda, s) as the ports carry it (Q as 9 entries).
 FEATURE_SIZE = 13
@@ -257,3 +272,41 @@ class _DisturbedForce:
     @property
     def wrench_C_output(self) -> OutputPort:
         return self._disturbed(self._force.wrench_C_output, "wrench_C")
+
+
+def fit_gains(config: ScenarioConfig) -> ScenarioConfig:
+    """``config`` with the arm's ``gain_scale: auto`` chosen (a copy), any other config as
+    it is: the plant's :data:`~geovs_drake.scenario.NOMINAL_GAIN_SCALES`, at most the
+    largest stable gain scale at the camera's rate and latency over ``GAIN_MARGIN``
+    (:func:`~geovs_drake.loop.camera_fit.camera_fit` of the nominal gains; the nominal
+    where no scale is stable, and the run's warning says so) and, with ``torque_limits:
+    respect`` on the dynamic arm, at most the largest scale whose torques over the
+    start's energy level set stay inside the effort limits (:func:`effort_check`). What
+    ``build_loop`` and ``simulate`` resolve; a config that is not valid is left to
+    :func:`~geovs_drake.scenario.resolve` to name."""
+    carrier = config.carrier
+    if not (isinstance(carrier, Arm) and carrier.gain_scale == AUTO):
+        return config
+    fitted = copy.deepcopy(config)
+    fitted.carrier.gain_scale = NOMINAL_GAIN_SCALES[type(fitted.plant)]
+    fit = camera_fit(resolve(fitted))
+    if fit is not None and 0 < fit.margin < GAIN_MARGIN:
+        fitted.carrier.gain_scale = fit.largest_stable_gain / GAIN_MARGIN
+    if fitted.carrier.torque_limits == "respect":
+        effort = effort_check(resolve(fitted))
+        if effort is not None and 0 < effort.largest_scale < fitted.carrier.gain_scale:
+            fitted.carrier.gain_scale = effort.largest_scale
+    return fitted
+
+
+def effort_check(resolved: ResolvedScenario) -> EffortFit | None:
+    """The dynamic arm's torques over its start's energy level set against its effort
+    limits (:func:`~geovs_drake.loop.effort_fit.effort_fit`, on this scenario's loop
+    with the exact sensor: the law read at each configuration's own y); None off the
+    dynamic arm."""
+    config = resolved.config
+    if not (isinstance(config.carrier, Arm) and config.dynamic):
+        return None
+    exact = copy.deepcopy(config)
+    exact.sensor = Exact(radius_error=radius_error_of(config.sensor))
+    return effort_fit(build_loop(dataclasses.replace(resolved, config=exact), log=False))

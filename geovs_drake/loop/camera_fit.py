@@ -24,7 +24,6 @@ this local model is what is left to check.
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass
 
@@ -38,20 +37,16 @@ from geovs_drake.linear_model import (
 )
 from geovs_drake.loop.arm import arm_goal_model
 from geovs_drake.scenario import (
-    AUTO,
-    NOMINAL_GAIN_SCALES,
     PREDICTIONS,
     Arm,
     CameraModel,
     FreeRig,
     Nf,
     ResolvedScenario,
-    ScenarioConfig,
-    resolve,
     variant_name,
 )
 
-__all__ = ["GAIN_MARGIN", "CameraFit", "camera_fit", "fit_gains", "goal_sampled_model"]
+__all__ = ["GAIN_MARGIN", "CameraFit", "camera_fit", "goal_sampled_model"]
 
 #: The factor by which a run's gains must stay below the largest stable ones at its
 #: camera's rate and latency (a gain margin of 2, 6 dB, the classic figure): less, and
@@ -259,22 +254,3 @@ def _largest_stable_scale(radius) -> float:
                 return 0.0
         stable = unstable / _SCAN_STEP
     return log_bisection(lambda scale: radius(scale) < 1, stable, unstable, _BISECTIONS)
-
-
-def fit_gains(config: ScenarioConfig) -> ScenarioConfig:
-    """``config`` with the arm's ``gain_scale: auto`` chosen (a copy), any other config as
-    it is: the plant's :data:`~geovs_drake.scenario.NOMINAL_GAIN_SCALES`, at most the
-    largest stable
-    gain scale at the camera's rate and latency over :data:`GAIN_MARGIN`
-    (:func:`camera_fit` of the nominal gains; the nominal where no scale is stable, and
-    the run's warning says so). What ``build_loop`` and ``simulate`` resolve; a config
-    that is not valid is left to :func:`~geovs_drake.scenario.resolve` to name."""
-    carrier = config.carrier
-    if not (isinstance(carrier, Arm) and carrier.gain_scale == AUTO):
-        return config
-    fitted = copy.deepcopy(config)
-    fitted.carrier.gain_scale = NOMINAL_GAIN_SCALES[type(fitted.plant)]
-    fit = camera_fit(resolve(fitted))
-    if fit is not None and 0 < fit.margin < GAIN_MARGIN:
-        fitted.carrier.gain_scale = fit.largest_stable_gain / GAIN_MARGIN
-    return fitted

@@ -165,6 +165,10 @@ class SimulationResult:
     #: closed form models; and one line where they keep less than the gain margin.
     camera_fit: object | None = None
     camera_warning: str | None = None
+    #: The dynamic arm's torques over its energy level set against its effort limits
+    #: (loop.effort_fit), and the warning line where they pass one (else None).
+    effort_fit: object | None = None
+    effort_warning: str | None = None
     #: Drake's continuous states at ``times`` (for the linearisation along the run).
     states: np.ndarray | None = None
 
@@ -328,6 +332,18 @@ class SimulationResult:
                     ),
                     "this_run": fit.gain_value,
                 }
+        effort = self.effort_fit
+        if effort is not None:  # the torques over the energy level set (loop.effort_fit)
+            out["effort"] = {
+                "level": effort.level,
+                "worst_ratio": effort.worst_ratio,
+                "joint": effort.joint,
+                "largest_gain_scale": (
+                    effort.largest_scale if math.isfinite(effort.largest_scale) else None
+                ),
+                "this_run": effort.gain_scale,
+                "samples": effort.samples,
+            }
         out["radius_error"] = radius_error_of(cam)
         if self.arm is not None:
             out.update(self.arm.summary())

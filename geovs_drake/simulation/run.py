@@ -8,7 +8,7 @@ from collections.abc import Callable
 import numpy as np
 from pydrake.math import RigidTransform
 
-from geovs_drake.geometry.joint_barrier import combine
+from geovs_drake.geometry.joint_barrier import combine, joint_widths
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.loop.arm import (
     joint_barrier_values,
@@ -17,8 +17,8 @@ from geovs_drake.loop.arm import (
     self_motion_speeds,
     smallest_singular_values,
 )
-from geovs_drake.loop.build import Loop, build_loop
-from geovs_drake.loop.camera_fit import camera_fit, fit_gains
+from geovs_drake.loop.build import Loop, build_loop, effort_check, fit_gains
+from geovs_drake.loop.camera_fit import camera_fit
 from geovs_drake.planning import plan_for_scenario
 from geovs_drake.scenario import (
     Nf,
@@ -39,6 +39,7 @@ from geovs_drake.simulation.result import (
     saddle_note,
 )
 from geovs_drake.simulation.step_limit import step_limit
+from geovs_drake.systems._arm_model import arm_plant
 
 __all__ = ["StartOutsideDomain", "arm_trace", "check_start", "simulate"]
 
@@ -79,7 +80,14 @@ def arm_trace(loop: Loop, root, states: np.ndarray) -> ArmTrace:
         for k, x in enumerate(states):
             context.SetContinuousState(x)
             scale[k] = arm.velocity_scale_output.Eval(arm.GetMyContextFromRoot(context))[0]
-    barrier = loop.resolved.config.carrier.joint_barrier_width
+    # The barrier's width per joint, as ArmCamera has it (None: no barrier).
+    carrier, plant = loop.resolved.config.carrier, arm_plant(model)
+    widths = joint_widths(
+        plant.GetPositionLowerLimits(),
+        plant.GetPositionUpperLimits(),
+        carrier.joint_barrier_width,
+        carrier.joint_barrier_fraction,
+    )
     # A redundant torque-driven arm: its state carries v, whose self-motion is shown.
     redundant = nq > 6 and states.shape[1] == 2 * nq
     return ArmTrace(
@@ -87,7 +95,7 @@ def arm_trace(loop: Loop, root, states: np.ndarray) -> ArmTrace:
         joint_limit_margin=np.min(joint_limit_margins(model, q), axis=1),
         jacobian_singular_value=smallest_singular_values(model, q),
         velocity_scale=scale,
-        joint_barrier=joint_barrier_values(model, q, barrier) if barrier > 0 else None,
+        joint_barrier=None if widths is None else joint_barrier_values(model, q, widths),
         self_motion_speed=self_motion_speeds(model, q, states[:, nq:]) if redundant else None,
     )
 
@@ -96,6 +104,7 @@ def simulate(
     config: ScenarioConfig | ResolvedScenario | None = None,
     meshcat=None,
     progress: Callable[[float], None] | None = None,
+    on_warning: Callable[[str], None] | None = None,
 ) -> SimulationResult:
     """Simulate the configured loop (``config.carrier``, ``config.plant``, ``config.sensor``,
     ``config.controller``) for
@@ -114,6 +123,9 @@ def simulate(
     :class:`geovs_drake.progress.HorizonProgress`. It does not change the run.
     The logs are sampled at ``config.log_rate`` from the recorded steps (see
     :class:`SafeDomainMonitor`); ``wall_time_s`` times the integration alone.
+    ``on_warning``, if given, is called with each warning line before the run starts
+    (the step limit's, the camera's, the effort limits'; the result keeps them too), so
+    that a long run's user reads them while it runs.
     """
     if not isinstance(config, ResolvedScenario):  # the arm's gain_scale: auto, chosen once
         config = fit_gains(ScenarioConfig() if config is None else config)
@@ -124,6 +136,15 @@ def simulate(
     diagram = loop.diagram
     limit = step_limit(resolved)
     fit = camera_fit(resolved)  # the gains against the camera, before the run (issue 31)
+    effort = effort_check(resolved)  # and against the arm's effort limits
+    warnings = (
+        limit.warning(config.simulator.integration_scheme),
+        None if fit is None else fit.warning(),
+        None if effort is None else effort.warning(),
+    )
+    for line in warnings:
+        if line is not None and on_warning is not None:
+            on_warning(line)
     simulator, monitor = make_simulator(
         loop,
         record=True,
@@ -211,10 +232,10 @@ def simulate(
         arm=arm,
     )
     result.step_limit = limit
-    # A limit the user chose beyond the goal's bound: one line to say so (None otherwise).
-    result.step_warning = limit.warning(config.simulator.integration_scheme)
+    # Each check's one warning line, None where it has nothing to say.
+    result.step_warning, result.camera_warning, result.effort_warning = warnings
     result.camera_fit = fit
-    result.camera_warning = None if fit is None else fit.warning()
+    result.effort_fit = effort
     if result.energy_guarantee is False:
         result.message += f" ({energy_note(result.initial_energy, result.energy_bound)})"
     if isinstance(resolved.law, PathFollowing):  # what the planner found (cached)

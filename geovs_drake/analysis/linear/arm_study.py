@@ -30,12 +30,19 @@ from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
 from geovs_drake._json import json_ready
-from geovs_drake.geometry.navigation import NavigationFunction
-from geovs_drake.linear_model import chart_jacobian, navigation_hessian
 from geovs_drake.loop import build_loop
 from geovs_drake.loop.arm import arm_goal_model, arm_model, solve_joints
-from geovs_drake.loop.camera_fit import fit_gains
-from geovs_drake.scenario import Arm, Dynamic, Rendered, ScenarioConfig, camera_like, resolve
+from geovs_drake.loop.build import fit_gains
+from geovs_drake.scenario import (
+    Arm,
+    Dynamic,
+    Rendered,
+    ScenarioConfig,
+    camera_like,
+    exact_twin,
+    resolve,
+)
+from geovs_drake.simulation.step_limit import arm_goal_A
 from geovs_drake.spectrum import EigenvalueFacts, canonical_eigenvalues
 
 __all__ = [
@@ -83,7 +90,7 @@ class ArmLinearization(EigenvalueFacts):
 def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
     """Drake's ``Linearize`` of the dynamic arm loop at rest at the goal (the joints by
     IK of the goal pose), and the closed form (module docstring)."""
-    config = copy.deepcopy(config)
+    config = exact_twin(config)  # a sampled camera has discrete state: no A
     if not (isinstance(config.carrier, Arm) and config.dynamic):
         raise ValueError(
             f"linearize_arm_at_goal needs carrier Arm and plant Dynamic, got "
@@ -104,23 +111,13 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
         output_port_index=OutputPortSelection.kNoOutput,
     ).A()
 
-    c = resolved.config  # the arm's gains (Arm.gain_scale applied)
-    y = resolved.y_goal
-    H = navigation_hessian(NavigationFunction(resolved.domain, y, resolved.gains), y)
-    Cc = chart_jacobian(y, resolved.believed_radius)
-    K = c.control.potential_gain * Cc.T @ H @ Cc
-    J, M, nv = goal.J, goal.M, len(q_goal)
-    K_q = J.T @ K @ J
-    D_q = J.T @ np.diag(resolved.damping) @ J + goal.D_joint
-    A_closed = np.zeros((2 * nv, 2 * nv))
-    A_closed[:nv, nv:] = np.eye(nv)
-    A_closed[nv:, :nv] = -np.linalg.solve(M, K_q)
-    A_closed[nv:, nv:] = -np.linalg.solve(M, D_q)
+    # The closed form the step limit reads (the arm's gains, Arm.gain_scale applied).
+    A_closed = arm_goal_A(resolved).A
     return ArmLinearization(
         q_goal=q_goal,
         A_drake=A_drake,
         A_closed=A_closed,
-        jacobian_singular_value=float(np.linalg.svd(J, compute_uv=False)[-1]),
+        jacobian_singular_value=float(np.linalg.svd(goal.J, compute_uv=False)[-1]),
         eigenvalues=canonical_eigenvalues(A_drake),
     )
 
