@@ -27,7 +27,8 @@ from geovs_drake.scenario import Kinematic, Pinhole, ScenarioConfig
 
 
 def _camera_config() -> ScenarioConfig:
-    return ScenarioConfig(sensor=Pinhole())
+    """The 30 Hz pinhole camera on the held frame (no prediction): the sampled loop."""
+    return ScenarioConfig(sensor=Pinhole(prediction="none"))
 
 
 def test_the_continuous_part_is_the_rigs_kinematics_and_damping():
@@ -62,6 +63,21 @@ def test_margins_one_frame_for_the_default_gains_three_for_the_soft_ones():
     model = sampled_model(config)
     assert model.spectral_radius(rate * 1.001, 0) < 1 <= model.spectral_radius(rate * 0.999, 0)
     assert np.isnan(slowest_stable_rate(config, 1))  # 30 Hz itself is unstable there
+
+
+def test_with_prediction_the_model_is_the_continuous_loops_at_any_latency():
+    """The odometry predictor: the robustness study's model and this module's agree, the
+    radius is exp(max Re(lambda) / rate) of the continuous loop, and no latency up to the
+    search's end is unstable."""
+    config = ScenarioConfig(sensor=Pinhole(prediction="odometry"))
+    held = sampled_model(config)
+    slowest = np.max(np.linalg.eigvals(held.A_c + held.B_n @ held.C_xi).real)
+    for latency in (0, 1, 3):
+        c = copy.deepcopy(config)
+        c.sensor.latency_frames = latency
+        assert spectral_radius(c) == pytest.approx(np.exp(slowest / 30.0), rel=1e-9)
+        assert spectral_radius(c) == pytest.approx(sampled_spectral_radius(c), rel=1e-8)
+    assert latency_margin(config, max_frames=10) == 10
 
 
 def test_bad_camera_settings_are_one_line():

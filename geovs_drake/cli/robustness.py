@@ -20,6 +20,7 @@ from geovs_drake.cli._options import (
     check_out,
     load_config,
 )
+from geovs_drake.scenario import PREDICTIONS, Pinhole, camera_like
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -59,6 +60,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="pinhole: the extractor's measurement on exact image points; rendered: "
         "through Drake's rendered frames, slow (default: pinhole)",
     )
+    p.add_argument(
+        "--prediction",
+        choices=list(PREDICTIONS),
+        default=None,
+        help="what the law sees between frames: none, the held frame; odometry, the held "
+        "frame moved by the rig's motion since its capture (default: the config's "
+        "camera's, else odometry)",
+    )
     add_workers(p, 1)
     p.add_argument(
         "--only",
@@ -97,6 +106,8 @@ def run(args: argparse.Namespace) -> int:
 
     _check(args)
     config = load_config(args)
+    if args.prediction is not None:  # the camera of every case keeps the config's fields
+        config.sensor = camera_like(config.sensor, Pinhole, prediction=args.prediction)
     start = time.perf_counter()
     runs = {"done": 0}
 

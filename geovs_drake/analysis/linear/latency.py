@@ -47,6 +47,7 @@ __all__ = [
     "LatencyCase",
     "MapCase",
     "camera_map",
+    "camera_model",
     "map_table",
     "camera_of",
     "latency_margin",
@@ -86,26 +87,33 @@ def sampled_model(config: ScenarioConfig) -> SampledModel:
     return SampledModel(A_c=lin.A - B_n @ C_xi, B_n=B_n, C_xi=C_xi)
 
 
+def camera_model(config: ScenarioConfig) -> SampledModel:
+    """The goal's model of ``config``'s loop as its camera runs it: :func:`sampled_model`,
+    made continuous where the camera predicts between frames (``sensor.prediction``)."""
+    model = sampled_model(config)
+    return model.continuous() if PREDICTIONS[camera_of(config).prediction].continuous else model
+
+
 def spectral_radius(config: ScenarioConfig, rate: float | None = None, latency_frames=None):
     """The spectral radius at ``rate`` [Hz] and ``latency_frames`` (default: the
-    scenario's camera)."""
+    scenario's camera), of the loop as its camera runs it (:func:`camera_model`)."""
     rate = camera_of(config).rate if rate is None else rate
     L = camera_of(config).latency_frames if latency_frames is None else latency_frames
-    return sampled_model(config).spectral_radius(rate, L)
+    return camera_model(config).spectral_radius(rate, L)
 
 
 def latency_margin(config: ScenarioConfig, rate: float | None = None, max_frames: int = 30) -> int:
-    """:meth:`SampledModel.latency_margin` of ``config``'s loop at ``rate`` (default: the
-    scenario's camera rate)."""
+    """:meth:`SampledModel.latency_margin` of ``config``'s loop (:func:`camera_model`) at
+    ``rate`` (default: the scenario's camera rate)."""
     rate = camera_of(config).rate if rate is None else rate
-    return sampled_model(config).latency_margin(rate, max_frames)
+    return camera_model(config).latency_margin(rate, max_frames)
 
 
 def slowest_stable_rate(config: ScenarioConfig, latency_frames: int | None = None) -> float:
-    """:meth:`SampledModel.slowest_stable_rate` of ``config``'s loop below the scenario's
-    camera rate, at ``latency_frames`` (default: the scenario's)."""
+    """:meth:`SampledModel.slowest_stable_rate` of ``config``'s loop (:func:`camera_model`)
+    below the scenario's camera rate, at ``latency_frames`` (default: the scenario's)."""
     L = camera_of(config).latency_frames if latency_frames is None else latency_frames
-    return sampled_model(config).slowest_stable_rate(L, camera_of(config).rate)
+    return camera_model(config).slowest_stable_rate(L, camera_of(config).rate)
 
 
 @dataclass
