@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydrake.autodiffutils import ExtractGradient, InitializeAutoDiff
 
 from geovs_drake.geometry.joint_barrier import combine, joint_barrier, smooth_step
 from geovs_drake.loop.arm import arm_model, joint_barrier_values
@@ -19,6 +20,31 @@ from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacob
 
 LOWER, UPPER = np.array([-1.0, -2.0, -0.5]), np.array([1.0, 2.0, 3.0])
 WIDTH = 0.4
+
+
+def _assert_torque_gradient_is_central_differences(system, q: np.ndarray) -> None:
+    """ArmCamera's torque at (q, v) with a fixed wrench, phi and k_p: its AutoDiffXd
+    gradient in the state equals central differences of the float system."""
+    ad = system.ToAutoDiffXd()
+    v = np.array([0.1, -0.2, 0.3, 0.0, 0.1, -0.1])
+    wrench, phi = np.array([0.5, -0.2, 0.1, 2.0, -1.0, 0.5]), np.array([0.3])
+
+    def tau(sys, x):
+        context = sys.CreateDefaultContext()
+        sys.arm_state_input.FixValue(context, x)
+        sys.wrench_C_input.FixValue(context, wrench)
+        sys.phi_input.FixValue(context, phi)
+        sys.potential_gain_input.FixValue(context, [4.0])
+        return sys.actuation_output.Eval(context)
+
+    x = np.concatenate([q, v])
+    gradient = ExtractGradient(tau(ad, InitializeAutoDiff(x).ravel()))
+    h = 1e-6
+    fd = np.stack(
+        [(tau(system, x + h * e) - tau(system, x - h * e)) / (2 * h) for e in np.eye(len(x))],
+        axis=1,
+    )
+    assert np.allclose(gradient, fd, rtol=1e-6, atol=1e-5)
 
 
 def test_the_barrier_is_zero_away_from_the_limits_and_one_at_them():
@@ -142,33 +168,14 @@ def test_the_barrier_torque_differentiates_by_autodiff_as_by_central_differences
     """ArmCamera with the barrier converts to AutoDiffXd (Drake's Linearize needs it);
     d tau / d q by AutoDiffXd against central differences of the float system, at a q
     inside the barrier."""
-    from pydrake.autodiffutils import ExtractGradient, InitializeAutoDiff
 
     from geovs_drake.systems import ArmCamera
 
     config = arm_config
     model = arm_model(config)
     system = ArmCamera(model=model, joint_barrier_width=2.5)
-    ad = system.ToAutoDiffXd()
     q = np.array([-0.3, -0.25, 2.2, 1.87, 0.49, -1.08])  # the elbow 0.94 rad from its limit
-    v = np.array([0.1, -0.2, 0.3, 0.0, 0.1, -0.1])
-    wrench, phi = np.array([0.5, -0.2, 0.1, 2.0, -1.0, 0.5]), np.array([0.3])
-
-    def tau(sys, x):
-        context = sys.CreateDefaultContext()
-        sys.arm_state_input.FixValue(context, x)
-        sys.wrench_C_input.FixValue(context, wrench)
-        sys.phi_input.FixValue(context, phi)
-        sys.potential_gain_input.FixValue(context, [4.0])
-        return sys.actuation_output.Eval(context)
-
-    x = np.concatenate([q, v])
-    gradient = ExtractGradient(tau(ad, InitializeAutoDiff(x).ravel()))
-    h = 1e-6
-    fd = np.stack(
-        [(tau(system, x + h * e) - tau(system, x - h * e)) / (2 * h) for e in np.eye(12)], axis=1
-    )
-    assert np.allclose(gradient, fd, rtol=1e-6, atol=1e-5)
+    _assert_torque_gradient_is_central_differences(system, q)
     assert joint_barrier_values(model, q, 2.5)[0] > 0.1  # the barrier term is in play
 
 
@@ -318,7 +325,6 @@ def test_the_per_joint_barrier_torque_differentiates_by_autodiff_as_by_central_d
     """ArmCamera with a width per joint (10 % of each range: 1.26 rad, the elbow 0.63)
     converts to AutoDiffXd; d tau / d q against central differences of the float system,
     at a q where the elbow and wrist 1 are inside their own widths."""
-    from pydrake.autodiffutils import ExtractGradient, InitializeAutoDiff
 
     from geovs_drake.geometry.joint_barrier import joint_widths
     from geovs_drake.systems import ArmCamera
@@ -329,26 +335,8 @@ def test_the_per_joint_barrier_torque_differentiates_by_autodiff_as_by_central_d
     widths = joint_widths(lower, upper, fraction=0.1)
     assert widths[2] == pytest.approx(0.2 * np.pi) and widths[0] == pytest.approx(0.4 * np.pi)
     system = ArmCamera(model=model, joint_barrier_width=widths)
-    ad = system.ToAutoDiffXd()
     q = np.array([-0.3, -0.25, 2.7, 5.4, 0.49, -1.08])  # elbow 0.44, wrist 1 0.88 from limits
-    v = np.array([0.1, -0.2, 0.3, 0.0, 0.1, -0.1])
-    wrench, phi = np.array([0.5, -0.2, 0.1, 2.0, -1.0, 0.5]), np.array([0.3])
-
-    def tau(sys, x):
-        context = sys.CreateDefaultContext()
-        sys.arm_state_input.FixValue(context, x)
-        sys.wrench_C_input.FixValue(context, wrench)
-        sys.phi_input.FixValue(context, phi)
-        sys.potential_gain_input.FixValue(context, [4.0])
-        return sys.actuation_output.Eval(context)
-
-    x = np.concatenate([q, v])
-    gradient = ExtractGradient(tau(ad, InitializeAutoDiff(x).ravel()))
-    h = 1e-6
-    fd = np.stack(
-        [(tau(system, x + h * e) - tau(system, x - h * e)) / (2 * h) for e in np.eye(12)], axis=1
-    )
-    assert np.allclose(gradient, fd, rtol=1e-6, atol=1e-5)
+    _assert_torque_gradient_is_central_differences(system, q)
     _, dphi_q = joint_barrier(q, lower, upper, widths, min)
     # Both near their upper limits (phi_q grows towards them); joint 1 outside its width.
     assert dphi_q[2] > 0 and dphi_q[3] > 0 and dphi_q[0] == 0
