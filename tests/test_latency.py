@@ -134,3 +134,26 @@ def test_prediction_between_frames_carries_the_gains_the_held_frame_cannot():
 def test_a_prediction_the_study_does_not_know_is_one_line():
     with pytest.raises(ValueError, match="predictions must be in none, odometry: got 'smith'"):
         latency_study({"default": _camera_config()}, predictions=("smith",))
+
+
+def test_the_arms_map_in_a_small_case_prediction_is_where_they_differ():
+    """camera_map's smallest cell (issue 31's maps): the UR5 at gain_scale 10, 30 Hz, one
+    frame late, 6 s. On the held frame the goal model says unstable and the run leaves D;
+    with the predictor it says stable and the run converges; the table writes both."""
+    from geovs_drake.analysis.linear.latency import camera_map, map_table
+    from geovs_drake.scenario import Arm
+
+    cases = camera_map(
+        ScenarioConfig(carrier=Arm(), sensor=Pinhole()),
+        (10.0,),
+        rates=(30.0,),
+        latencies=(1,),
+        duration=6.0,
+    )
+    outcome = {c.prediction: (c.predicted_stable, c.status) for c in cases}
+    assert outcome == {"none": (False, "left_domain"), "odometry": (True, "converged")}
+    table = map_table(cases)
+    assert "prediction: none" in table and "| 10 | 1 | left D (1.32" in table
+    assert "prediction: odometry" in table and "| 10 | 1 | ok (0.975)" in table
+    with pytest.raises(ValueError, match="camera_map scales an arm's gain_scale"):
+        camera_map(ScenarioConfig(), (1.0,))

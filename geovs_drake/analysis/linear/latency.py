@@ -44,6 +44,7 @@ from geovs_drake.scenario import (
 from geovs_drake.simulation import simulate
 
 __all__ = [
+    "CameraCase",
     "LatencyCase",
     "MapCase",
     "camera_map",
@@ -117,23 +118,33 @@ def slowest_stable_rate(config: ScenarioConfig, latency_frames: int | None = Non
 
 
 @dataclass
-class LatencyCase:
+class CameraCase:
     """One camera (rate, latency, what the law sees between frames) with the model's
-    verdict and the pinhole loop's outcome."""
+    spectral radius and verdict, and the pinhole loop's outcome."""
 
-    gains: str
     rate: float
     latency_frames: int
     prediction: str
     spectral_radius: float
-    predicted_stable: bool
     status: str
     final_position_error_m: float
 
     @property
+    def predicted_stable(self) -> bool:
+        """The model's verdict: a spectral radius below 1."""
+        return self.spectral_radius < 1
+
+    @property
     def agrees(self) -> bool:
-        """The prediction (radius below 1) matches the run (converged)."""
+        """The model's verdict matches the run (converged)."""
         return self.predicted_stable == (self.status == "converged")
+
+
+@dataclass
+class LatencyCase(CameraCase):
+    """A :class:`CameraCase` of :func:`latency_study`, with the name of its gain set."""
+
+    gains: str = ""
 
 
 #: The start of the check: a small move from the goal (local), at rest.
@@ -161,46 +172,49 @@ def latency_study(
             model = held.continuous() if PREDICTIONS[prediction].continuous else held
             for rate in rates:
                 for L in latencies:
-                    c = copy.deepcopy(config)
-                    c.sensor = camera_like(
-                        c.sensor,
-                        Pinhole,
-                        rate=float(rate),
-                        latency_frames=int(L),
-                        pixel_noise=0.0,
-                        prediction=prediction,
-                    )
-                    c.initial, c.duration = copy.deepcopy(start), duration
-                    result = simulate(c)
-                    rho = model.spectral_radius(rate, L)
-                    goal = c.X_BC_goal.translation()
-                    err = float(np.linalg.norm(result.final_X_BC.translation() - goal))
-                    cases.append(
-                        LatencyCase(
-                            name, float(rate), int(L), prediction, rho, rho < 1, result.status, err
-                        )
-                    )
+                    fields = _run_case(config, model, rate, L, prediction, duration, start)
+                    cases.append(LatencyCase(**fields, gains=name))
     return cases
 
 
 @dataclass
-class MapCase:
-    """One cell of :func:`camera_map`: the arm's ``gain_scale``, the camera (rate,
-    latency, prediction), the goal model's verdict and the pinhole loop's outcome."""
+class MapCase(CameraCase):
+    """A :class:`CameraCase` of :func:`camera_map`, with the arm's ``gain_scale``."""
 
-    gain_scale: float
-    rate: float
-    latency_frames: int
-    prediction: str
-    spectral_radius: float
-    predicted_stable: bool
-    status: str
-    final_position_error_m: float
+    gain_scale: float = 1.0
 
-    @property
-    def agrees(self) -> bool:
-        """The model's verdict (radius below 1) matches the run (converged)."""
-        return self.predicted_stable == (self.status == "converged")
+
+def _run_case(
+    config: ScenarioConfig,
+    model: SampledModel,
+    rate: float,
+    latency: int,
+    prediction: str,
+    duration: float,
+    start: PoseConfig,
+) -> dict:
+    """The pinhole loop of ``config`` at this camera (no noise) from ``start``, and the
+    model's radius there: a :class:`CameraCase`'s fields."""
+    c = copy.deepcopy(config)
+    c.sensor = camera_like(
+        c.sensor,
+        Pinhole,
+        rate=float(rate),
+        latency_frames=int(latency),
+        pixel_noise=0.0,
+        prediction=prediction,
+    )
+    c.initial, c.duration = copy.deepcopy(start), duration
+    result = simulate(c)
+    goal = c.X_BC_goal.translation()
+    return dict(
+        rate=float(rate),
+        latency_frames=int(latency),
+        prediction=prediction,
+        spectral_radius=model.spectral_radius(rate, latency),
+        status=result.status,
+        final_position_error_m=float(np.linalg.norm(result.final_X_BC.translation() - goal)),
+    )
 
 
 def camera_map(
@@ -224,35 +238,23 @@ def camera_map(
         raise ValueError(f"camera_map scales an arm's gain_scale: carrier = {config.carrier!r}")
     cases = []
     for scale in gain_scales:
+        scaled = copy.deepcopy(config)
+        scaled.carrier.gain_scale = float(scale)
         for prediction in predictions:
             if prediction not in PREDICTIONS:
                 raise ValueError(f"prediction must be in {', '.join(PREDICTIONS)}: {prediction!r}")
             for rate in rates:
                 for L in latencies:
-                    c = copy.deepcopy(config)
-                    c.carrier.gain_scale = float(scale)
-                    c.sensor = camera_like(
-                        c.sensor,
-                        Pinhole,
-                        rate=float(rate),
-                        latency_frames=int(L),
-                        pixel_noise=0.0,
+                    camera = copy.deepcopy(scaled)
+                    camera.sensor = camera_like(
+                        camera.sensor, Pinhole, rate=float(rate), latency_frames=int(L),
                         prediction=prediction,
-                    )
-                    c.initial, c.duration = copy.deepcopy(start), duration
-                    model = goal_sampled_model(
-                        resolve(c), continuous=PREDICTIONS[prediction].continuous
-                    )
-                    rho = model.spectral_radius(rate, L)
-                    result = simulate(c)
-                    goal = c.X_BC_goal.translation()
-                    err = float(np.linalg.norm(result.final_X_BC.translation() - goal))
-                    cases.append(
-                        MapCase(
-                            float(scale), float(rate), int(L), prediction, rho, rho < 1,
-                            result.status, err,
-                        )
                     )  # fmt: skip
+                    model = goal_sampled_model(
+                        resolve(camera), continuous=PREDICTIONS[prediction].continuous
+                    )
+                    fields = _run_case(scaled, model, rate, L, prediction, duration, start)
+                    cases.append(MapCase(**fields, gain_scale=float(scale)))
     return cases
 
 
