@@ -154,6 +154,7 @@ def test_the_stiff_arm_gets_one_warning_line_naming_the_mode_and_the_remedy(run_
     assert run.code == 3 and "stiff" not in run.err and "radau3" not in run.err, run.err
 
 
+@pytest.mark.slow  # 5 s; the warning's test above keeps the stiff arm in make test
 def test_rk3s_steps_on_the_stiff_arm_are_held_by_the_bound_and_the_remedys_are_not():
     """0.4 s from the small move: RK3 takes at least duration / stable_step steps (the
     bound holds them, whatever the accuracy asks) and at most 15% more; radau3 (the

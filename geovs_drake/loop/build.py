@@ -309,4 +309,15 @@ def effort_check(resolved: ResolvedScenario) -> EffortFit | None:
         return None
     exact = copy.deepcopy(config)
     exact.sensor = Exact(radius_error=radius_error_of(config.sensor))
-    return effort_fit(build_loop(dataclasses.replace(resolved, config=exact), log=False))
+    twin = dataclasses.replace(resolved, config=exact)
+    # Per process, by the resolved scenario's repr (every field that decides the check):
+    # a sweep's worker or a test session checks the same scenario many times, and a check
+    # builds a loop and reads it at some 300 configurations (0.3-0.5 s).
+    key = repr(twin)
+    if key not in _EFFORT_CHECKS:
+        _EFFORT_CHECKS[key] = effort_fit(build_loop(twin, log=False))
+    return _EFFORT_CHECKS[key]
+
+
+#: :func:`effort_check`'s results in this process, by the resolved scenario's repr.
+_EFFORT_CHECKS: dict[str, EffortFit] = {}
