@@ -250,8 +250,8 @@ def test_the_arms_with_a_30_hz_pinhole_camera_and_default_gains_from_the_small_m
     inside the joint limits, with no warning and the nominal gains (the predictor makes
     the goal's model the continuous loop's). Without prediction the dynamic cases one frame
     late needed auto's 0.17 of the nominal and had not converged in 30 s, and the
-    Panda's left D at the nominal (docs/arm.md). Three cases run in make test, the rest
-    are marked slow (make test-slow)."""
+    Panda's left D at the nominal (docs/arm.md). Two cases run in make test (the two that
+    failed before), the rest are marked slow (make test-slow)."""
     if model == "panda" and not _has_panda():
         pytest.skip('the Panda needs its model: pip install "geovs-drake[panda]"')
     from geovs_drake.scenario import PLANT_VARIANTS

@@ -7,7 +7,7 @@ starts on the UR5 at gain_scale 10 the one start that left D, and every start wh
 energy rose, asked for 1.8 times or more of an effort limit at t = 0 (docs/arm.md).
 
 The arm's torque (:class:`~geovs_drake.systems.ArmCamera`) at a state (q, v) splits by
-how it scales with the law's gain scale s (k_p and B both times s):
+how it scales with the law's gain scale s (k_p and B both times s)::
 
     tau(q, v) = -tau_g(q) + s a(q) - (s P(q) + D(q)) v
 
@@ -16,7 +16,7 @@ rest (and the joint barrier's, also times k_p), ``P = J_C^T B J_C / s`` and ``D`
 damping that reads the joints alone (``B_q``, the model's own, a redundant arm's
 ``d N``). The level set ``E = 1/2 v^T M v + k_p phi < k_p`` holds, at each q, the
 velocities of the ellipsoid ``1/2 v^T M v < k_p (1 - phi(q))``; over it the largest
-``|tau_i|`` is exactly
+``|tau_i|`` is exactly::
 
     |-tau_g,i + s a_i| + sqrt(2 k_p (1 - phi)) |M^-1/2 (s P + D)^T e_i|,
 
@@ -65,8 +65,8 @@ class EffortFit:
     ``gain_scale``: the run's; ``largest_scale``: the largest gain scale whose sampled
     torques stay within every joint's limit (inf where every scale up to 1e3 times the
     run's does, 0 where gravity alone breaks one); ``joint``: the joint that sets it;
-    ``samples``: the configurations drawn; ``worst_ratio``: the largest |tau_i| /
-    limit_i at the run's gain scale over the samples."""
+    ``samples``: the configurations drawn; ``worst_ratio``: the largest ``|tau_i| /
+    limit_i`` at the run's gain scale over the samples."""
 
     gain_scale: float
     #: The energy level checked, E / k_p (the run's start's E0 / k_p, or 1: every start).
@@ -124,7 +124,7 @@ class TorqueTerms:
         return self.compensation + scale * self.a - (scale * self.P + self.D) @ v
 
     def largest(self, scale: float, k_p: float, level: float) -> np.ndarray:
-        """Each joint's largest |torque| over the velocities ``1/2 v^T M v <= k_p (level -
+        """Each joint's largest ``|torque|`` over the velocities ``1/2 v^T M v <= k_p (level -
         phi)`` at gain scale ``scale`` (``k_p`` is that scale's)."""
         K = scale * self.P + self.D
         reach = np.sqrt(np.einsum("ij,jk,ik->i", K, self.M_inv, K))

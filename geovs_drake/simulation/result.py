@@ -166,7 +166,8 @@ class SimulationResult:
     camera_fit: object | None = None
     camera_warning: str | None = None
     #: The dynamic arm's torques over its energy level set against its effort limits
-    #: (loop.effort_fit), and the warning line where they pass one (else None).
+    #: (loop.effort_fit; None where not checked: see simulate's ``on_warning``), and the
+    #: warning line where they pass one (else None).
     effort_fit: object | None = None
     effort_warning: str | None = None
     #: Drake's continuous states at ``times`` (for the linearisation along the run).

@@ -125,7 +125,9 @@ def simulate(
     :class:`SafeDomainMonitor`); ``wall_time_s`` times the integration alone.
     ``on_warning``, if given, is called with each warning line before the run starts
     (the step limit's, the camera's, the effort limits'; the result keeps them too), so
-    that a long run's user reads them while it runs.
+    that a long run's user reads them while it runs. The dynamic arm's effort check
+    (:func:`~geovs_drake.loop.build.effort_check`, ``result.effort_fit``) runs where it
+    is read: with ``on_warning`` or ``torque_limits: respect``; else it is None.
     """
     if not isinstance(config, ResolvedScenario):  # the arm's gain_scale: auto, chosen once
         config = fit_gains(ScenarioConfig() if config is None else config)
@@ -136,7 +138,14 @@ def simulate(
     diagram = loop.diagram
     limit = step_limit(resolved)
     fit = camera_fit(resolved)  # the gains against the camera, before the run (issue 31)
-    effort = effort_check(resolved)  # and against the arm's effort limits
+    # And against the arm's effort limits, where someone reads it: the command line (a
+    # warning line) or torque_limits: respect (then fit_gains has checked it already, and
+    # this is its cached result). Not in a sweep's every start: 0.3-0.5 s each.
+    effort = (
+        effort_check(resolved)
+        if on_warning is not None or getattr(config.carrier, "torque_limits", "") == "respect"
+        else None
+    )
     warnings = (
         limit.warning(config.simulator.integration_scheme),
         None if fit is None else fit.warning(),
