@@ -227,7 +227,13 @@ def test_scenario_yaml_round_trip_and_partial_files(tmp_path):
 
 
 # ------------------------------------------------------------- Monte-Carlo
-@pytest.mark.parametrize("controller", [Dynamic(), Kinematic()], ids=variant_name)
+@pytest.mark.parametrize(
+    "controller",
+    # The dynamic plant's case spawns a process pool (9 s): marked slow for make test's
+    # budget, the kinematic one stays.
+    [pytest.param(Dynamic(), marks=pytest.mark.slow), Kinematic()],
+    ids=variant_name,
+)
 def test_monte_carlo_random_starts_converge_inside_domain(controller):
     """2000 seeded random starts in D through the batch engine (the Drake systems'
     kernels): all converge, none leaves D, the Lyapunov function never rises; and

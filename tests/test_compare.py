@@ -211,6 +211,7 @@ def test_bad_suites_are_one_line_errors(suite, match):
         suite.validate()
 
 
+@pytest.mark.slow  # 7 s: make test's budget; the mini suite's test keeps compare in it
 def test_compare_on_the_arm_shows_how_ibvs_fails_at_180_deg(tmp_path, run_cli):
     """`compare --carrier arm` on the conundrum: both point-IBVS baselines take the
     camera out of the field of view (left D), neither reaches a joint limit first;

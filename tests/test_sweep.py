@@ -94,6 +94,7 @@ def test_starts_lie_in_D_and_below_the_energy_bound():
 # ------------------------------------------------------------------- rows and summaries
 # dask's own Parquet reader uses a keyword that pandas 3.1 deprecates: not ours to fix.
 @pytest.mark.filterwarnings("ignore:The inplace keyword")
+@pytest.mark.slow  # 9 s: make test's budget; the sweep's other row tests stay in it
 def test_rows_do_not_depend_on_workers_or_chunks(tmp_path):
     """40 starts x 3 s: in this process in one part, in parts of 7 written to Parquet,
     and on a 2-process LocalCluster in parts of 7 give bit-identical rows and the same
