@@ -304,10 +304,10 @@ def test_demo_progress_is_sparse_in_a_log(tmp_path, run_cli):
     """`demo` with stderr to a file (not a TTY): plain progress lines, no tqdm bar."""
     out = tmp_path / "demo"
     run = run_cli(
-        "demo", "--out", str(out), "--duration", "2", "--no-meshcat", "--no-rendered",
+        "demo", "--out", str(out), "--duration", "0.5", "--no-meshcat", "--no-rendered",
         subprocess=True,
     )  # fmt: skip
-    assert run.code == cli.EXIT_NOT_CONVERGED, run.err  # 2 s is too short
+    assert run.code == cli.EXIT_NOT_CONVERGED, run.err  # 0.5 s is too short
     assert "\r" not in run.err
     assert "dynamic servo: 100/100 %" in run.err
 
@@ -400,7 +400,12 @@ def test_readme_synopsis_names_real_options_and_their_choices(capsys):
     assert checked >= 2  # sweep's --velocity and --engine at least
 
 
-@pytest.mark.parametrize("buffered", [True, False], ids=["buffered", "unbuffered"])
+@pytest.mark.parametrize(
+    "buffered",
+    # One stays in make test (its budget), both run in make test-slow.
+    [pytest.param(True, marks=pytest.mark.slow), False],
+    ids=["buffered", "unbuffered"],
+)
 def test_a_closed_pipe_ends_quietly_with_its_own_exit_code(buffered):
     """`geovs-drake ... | head` closes stdout early: no traceback, exit code 141, whether
     stdout is block-buffered (a pipe's default: the write fails at the last flush) or

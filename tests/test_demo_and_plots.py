@@ -178,6 +178,7 @@ def test_demo_without_the_vision_extra_skips_the_rendered_run_and_says_so(
     assert not (tmp_path / "rendered_vs_exact.png").exists()
 
 
+@pytest.mark.slow  # 8 s (the arm's meshes in Meshcat): make test's budget; the demo's test stays
 def test_demo_on_the_arm_records_the_arm_servoing(tmp_path, run_cli):
     """`demo --carrier arm`: the same hard start, IK to the arm's joints, the Meshcat
     recording of the arm (the rendered run left out here: the arm's camera loops are held

@@ -478,6 +478,7 @@ def test_a_worker_runs_its_part_without_building_or_importing_a_diagram():
     pd.testing.assert_frame_equal(table, here.to_pandas())
 
 
+@pytest.mark.slow  # 4 s: make test's budget; the arm's camera sweep below keeps the engine in it
 def test_the_drake_engine_runs_the_arm_keeping_each_starts_energy_ratio():
     """`sweep --engine drake` on the arm: IK for each start (``unreachable`` where there
     is none), the sampled twist carried to the joints at the kinetic energy that keeps
