@@ -1,5 +1,6 @@
 """Whether the arm's gains stay inside its effort limits (issue 31): the largest gain
-scale whose torques stay within the limits over the energy level set E < k_p.
+scale whose torques stay within the limits over the run's energy level set E <= E0 (E0 <
+k_p: the states the run can reach), or over all of E < k_p.
 
 Why: MultibodyPlant clamps each joint's torque at its effort limit, and a clamped torque
 no longer does the work the energy argument counts on (Appendix C): over 1000 moving
