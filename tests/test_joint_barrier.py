@@ -47,6 +47,22 @@ def _assert_torque_gradient_is_central_differences(system, q: np.ndarray) -> Non
     assert np.allclose(gradient, fd, rtol=1e-6, atol=1e-5)
 
 
+def _assert_barrier_gradient_is_central_differences(q: np.ndarray, width) -> None:
+    """dphi_q/dq of the barrier (one width, or one per joint) at q equals its central
+    differences."""
+    _, grad = joint_barrier(q, LOWER, UPPER, width, min)
+    h = 1e-7
+    fd = [
+        (
+            joint_barrier(q + h * e, LOWER, UPPER, width, min)[0]
+            - joint_barrier(q - h * e, LOWER, UPPER, width, min)[0]
+        )
+        / (2 * h)
+        for e in np.eye(len(q))
+    ]
+    assert np.allclose(grad, fd, atol=1e-6), (q, grad, fd)
+
+
 def test_the_barrier_is_zero_away_from_the_limits_and_one_at_them():
     phi, grad = joint_barrier([0.0, 0.0, 1.0], LOWER, UPPER, WIDTH, min)
     assert phi == 0.0 and np.allclose(grad, 0.0)
@@ -71,17 +87,7 @@ def test_the_barrier_gradient_is_its_central_difference():
     rng = np.random.default_rng(0)
     for _ in range(20):
         q = rng.uniform(LOWER + 1e-3, UPPER - 1e-3)
-        _, grad = joint_barrier(q, LOWER, UPPER, WIDTH, min)
-        h = 1e-7
-        fd = [
-            (
-                joint_barrier(q + h * e, LOWER, UPPER, WIDTH, min)[0]
-                - joint_barrier(q - h * e, LOWER, UPPER, WIDTH, min)[0]
-            )
-            / (2 * h)
-            for e in np.eye(3)
-        ]
-        assert np.allclose(grad, fd, atol=1e-6)
+        _assert_barrier_gradient_is_central_differences(q, WIDTH)
     assert combine(0.3, 0.0) == 0.3 and combine(0.0, 0.4) == 0.4 and combine(1.0, 0.2) == 1.0
 
 
@@ -274,17 +280,7 @@ def test_the_per_joint_barrier_gradient_is_its_central_difference():
         # Each joint 0.01 to 0.6 from a limit: inside its own width, or just outside it.
         margin = rng.uniform(0.01, 0.6, 3)
         q = np.where(rng.random(3) < 0.5, LOWER + margin, UPPER - margin)
-        _, grad = joint_barrier(q, LOWER, UPPER, WIDTHS, min)
-        h = 1e-7
-        fd = [
-            (
-                joint_barrier(q + h * e, LOWER, UPPER, WIDTHS, min)[0]
-                - joint_barrier(q - h * e, LOWER, UPPER, WIDTHS, min)[0]
-            )
-            / (2 * h)
-            for e in np.eye(3)
-        ]
-        assert np.allclose(grad, fd, atol=1e-6), (q, grad, fd)
+        _assert_barrier_gradient_is_central_differences(q, WIDTHS)
 
 
 def test_the_fraction_gives_each_joint_that_share_of_its_range():
