@@ -42,7 +42,13 @@ def _drake_state_at(config: ScenarioConfig, x0: np.ndarray, t: float) -> np.ndar
 
 
 @pytest.mark.parametrize(
-    "controller,moving", [("dynamic", False), ("dynamic", True), ("kinematic", False)]
+    "controller,moving",
+    # The moving start is marked slow for make test's budget; both plants stay in it.
+    [
+        ("dynamic", False),
+        pytest.param("dynamic", True, marks=pytest.mark.slow),
+        ("kinematic", False),
+    ],
 )
 def test_batch_states_at_one_second_match_the_drake_loop(controller, moving):
     """16 starts (dynamic: camera off the rig's centre of mass, anisotropic inertia):

@@ -371,6 +371,7 @@ def test_cli_line_names_the_guarantee_of_its_plant_and_the_legend_counts(
     assert labels[3] == f"left D / failed ({failed})"
 
 
+@pytest.mark.slow  # 3 s (a Dask cluster of its own): make test's budget
 def test_local_cluster_says_nothing_when_the_dashboard_port_is_taken(capfd):
     """Port 8787 busy (another sweep, any Dask session): no UserWarning on stderr."""
     import socket
