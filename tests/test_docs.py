@@ -131,6 +131,7 @@ def test_each_benchmark_record_holds_its_baselines_and_is_on_the_performance_pag
     assert data["title"] in (HTML / "performance.html").read_text()
 
 
+@pytest.mark.slow  # 7 s (a Sphinx build of its own): make test's budget
 def test_a_failing_notebook_is_reported_with_its_cell_and_line(tmp_path):
     """The docs build's one line for a notebook whose cell raises: the cell's place, the
     failing line of that cell (not of a function an earlier cell defined) and the error.

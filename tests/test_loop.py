@@ -46,9 +46,11 @@ COMBINATIONS = [
 
 def _suite_case(carrier: tuple[type, type], sensor: type, law: str):
     """The combination as a test case: the long ones (a rendered camera, the arm with a
-    twist law, a few seconds each) are marked slow, each keeping its NF case in the
+    twist law, a few seconds each) are marked slow, the arm keeping its NF case in the
     suite (make test-slow runs them all)."""
-    long = (sensor is Rendered or carrier[0] is Arm) and law != "nf"
+    # The rendered NF case too (5 s; make test's budget): test_rendered.py runs the rendered
+    # loop against the pinhole one, and test_arm.py the rendered arm.
+    long = sensor is Rendered or (carrier[0] is Arm and law != "nf")
     name = "-".join([*(variant_name(kind()) for kind in (*carrier, sensor)), law])
     marks = [pytest.mark.slow] if long else []
     return pytest.param(carrier, sensor, law, marks=marks, id=name)
