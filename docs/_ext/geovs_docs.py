@@ -35,6 +35,7 @@ from pathlib import Path
 
 from docutils import nodes
 from docutils.parsers.rst import directives
+from pydrake.systems.scalar_conversion import TemplateSystem
 from sphinx.application import Sphinx
 from sphinx.directives.other import Include
 from sphinx.util import logging
@@ -248,7 +249,7 @@ def _skip_member(app, what, name, obj, skip, options):
         )
         return True
     module = getattr(obj, "__module__", "") or ""
-    if type(obj).__name__ == "TemplateSystem" or (
+    if isinstance(obj, TemplateSystem) or (
         name.endswith("_") and module.startswith("geovs_drake.systems")
     ):
         return True

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pydrake.math as pm
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry.joint_barrier import joint_barrier, per_joint
 from geovs_drake.systems._arm_model import (
@@ -17,6 +16,7 @@ from geovs_drake.systems._arm_model import (
     default_arm_model,
 )
 from geovs_drake.systems._parameters import STATE_SIZE, param_vector
+from geovs_drake.systems._template import template_system
 
 __all__ = [
     "NULL_SPACE_MU",
@@ -52,7 +52,7 @@ def actuation_permutation(plant) -> np.ndarray:
     return B
 
 
-@TemplateSystem.define("ArmCamera_")
+@template_system("ArmCamera_")
 def ArmCamera_(T):
     class Impl(LeafSystem_[T]):
         """The interface between the camera's laws and a torque-driven arm (eye-in-hand).

@@ -39,7 +39,6 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 from pydrake.systems.sensors import ImageRgba8U
 
 from geovs_drake._optional import require
@@ -52,6 +51,7 @@ from geovs_drake.geometry.features import (
 )
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
 from geovs_drake.systems._held_frames import declare_sampled_features, frame_index
+from geovs_drake.systems._template import template_system
 
 #: OpenCV (the ``vision`` extra), imported on first use by :func:`_require_cv2`, so that
 #: the rest of the package works without it.
@@ -219,7 +219,7 @@ def extract_features(
 _K, _ARROW_ANGLE, _NOISE, _SEED = slice(0, 4), 4, 5, 6
 
 
-@TemplateSystem.define("FeatureExtractor_", T_list=[float])
+@template_system("FeatureExtractor_", T_list=[float])
 def FeatureExtractor_(T):
     class Impl(LeafSystem_[T]):
         """The image features y from the camera's colour image, once per frame.

@@ -4,17 +4,17 @@ from __future__ import annotations
 
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.rigid import fixed_camera_relative_pose, target_twist_from_camera
 from geovs_drake.systems._parameters import POSE_SIZE, read
+from geovs_drake.systems._template import template_system
 from geovs_drake.systems.fixed_camera_mount import fixed_camera_param
 
 __all__ = ["FixedCameraKinematicMount", "FixedCameraKinematicMount_"]
 
 
-@TemplateSystem.define("FixedCameraKinematicMount_")
+@template_system("FixedCameraKinematicMount_")
 def FixedCameraKinematicMount_(T):
     class Impl(LeafSystem_[T]):
         """A camera fixed in the world; the target's body twist is commanded (eye-to-hand).

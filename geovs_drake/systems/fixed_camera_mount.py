@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.rigid import camera_state_in_target, target_wrench_from_camera
 from geovs_drake.systems._parameters import STATE_SIZE, pose_to_param, read
+from geovs_drake.systems._template import template_system
 
 __all__ = ["FixedCameraMount", "FixedCameraMount_", "fixed_camera_param"]
 
@@ -22,7 +22,7 @@ def fixed_camera_param(X_WC: RigidTransform) -> list[float]:
     return pose_to_param(X_WC) + X_WC.rotation().ToQuaternion().wxyz().tolist()
 
 
-@TemplateSystem.define("FixedCameraMount_")
+@template_system("FixedCameraMount_")
 def FixedCameraMount_(T):
     class Impl(LeafSystem_[T]):
         """A camera fixed in the world, looking at the free target body (eye-to-hand).

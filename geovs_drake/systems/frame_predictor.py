@@ -7,12 +7,12 @@ import math
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry._ops import MATH
 from geovs_drake.geometry.prediction import predicted_image
 from geovs_drake.geometry.rigid import quaternion_to_rotation
 from geovs_drake.systems._parameters import POSE_SIZE, pose_to_param
+from geovs_drake.systems._template import template_system
 
 __all__ = ["FramePredictor", "FramePredictor_"]
 
@@ -22,7 +22,7 @@ _RADIUS, _R_RC, _P_RC = 0, slice(1, 10), slice(10, 13)
 _QUATERNION, _POSITION = slice(0, 4), slice(4, 7)
 
 
-@TemplateSystem.define("FramePredictor_", T_list=[float])
+@template_system("FramePredictor_", T_list=[float])
 def FramePredictor_(T):
     class Impl(LeafSystem_[T]):
         """The held frame's y moved to the camera's pose now: a Smith predictor.

@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry.baselines import (
     DEFAULT_SQUARE_SIDE,
@@ -23,6 +22,7 @@ from geovs_drake.systems._parameters import (
     read,
     twist_law_parameters,
 )
+from geovs_drake.systems._template import template_system
 
 __all__ = ["IbvsController", "IbvsController_"]
 
@@ -30,7 +30,7 @@ __all__ = ["IbvsController", "IbvsController_"]
 _GOAL, _RHO, _GAIN, _SIDE = slice(0, 13), 13, 14, 15
 
 
-@TemplateSystem.define("IbvsController_")
+@template_system("IbvsController_")
 def IbvsController_(T):
     class Impl(LeafSystem_[T]):
         """Point image-based visual servoing on four points of the target.

@@ -7,7 +7,6 @@ import math
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry.kernels import for_scalar_type, servo_force
 from geovs_drake.systems._parameters import (
@@ -16,6 +15,7 @@ from geovs_drake.systems._parameters import (
     param_vector,
     pose_to_param,
 )
+from geovs_drake.systems._template import template_system
 
 __all__ = ["ImageJacobianForce", "ImageJacobianForce_"]
 
@@ -30,7 +30,7 @@ def _check_damping(damping) -> list[float]:
     return d.tolist()
 
 
-@TemplateSystem.define("ImageJacobianForce_")
+@template_system("ImageJacobianForce_")
 def ImageJacobianForce_(T):
     _servo_force = for_scalar_type(servo_force, T)
 

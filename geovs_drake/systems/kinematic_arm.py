@@ -6,7 +6,6 @@ import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
 from pydrake.math import inv
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.systems._arm_model import (
     CAMERA_FRAME,
@@ -16,6 +15,7 @@ from geovs_drake.systems._arm_model import (
     default_arm_model,
 )
 from geovs_drake.systems._parameters import POSE_SIZE, param_vector
+from geovs_drake.systems._template import template_system
 
 __all__ = ["KinematicArm", "KinematicArm_"]
 
@@ -27,7 +27,7 @@ _MU, _SINGULAR, _NULL_GAIN, _LIMITS = 0, 1, 2, slice(3, None)
 
 # float and AutoDiffXd (Linearize) only: the pseudo-inverse and the velocity scaling do
 # not take Expression (a symbolic inverse, a comparison).
-@TemplateSystem.define("KinematicArm_", T_list=[float, AutoDiffXd])
+@template_system("KinematicArm_", T_list=[float, AutoDiffXd])
 def KinematicArm_(T):
     class Impl(LeafSystem_[T]):
         """A first-order arm: the camera's commanded body twist, made joint velocities.

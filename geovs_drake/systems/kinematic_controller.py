@@ -5,15 +5,15 @@ from __future__ import annotations
 import math
 
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry.kernels import for_scalar_type, kinematic_velocity
 from geovs_drake.systems._parameters import inputs_and_parameters, param_vector
+from geovs_drake.systems._template import template_system
 
 __all__ = ["KinematicController", "KinematicController_"]
 
 
-@TemplateSystem.define("KinematicController_")
+@template_system("KinematicController_")
 def KinematicController_(T):
     _kinematic_velocity = for_scalar_type(kinematic_velocity, T)
 

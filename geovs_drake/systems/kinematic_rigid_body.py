@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry.kernels import for_scalar_type, kinematic_body
 from geovs_drake.systems._parameters import POSE_SIZE
+from geovs_drake.systems._template import template_system
 
 __all__ = ["KinematicRigidBody", "KinematicRigidBody_", "pose_state"]
 
@@ -19,7 +19,7 @@ def pose_state(X_WC: RigidTransform) -> np.ndarray:
     return np.concatenate([[q.w(), q.x(), q.y(), q.z()], X_WC.translation()])
 
 
-@TemplateSystem.define("KinematicRigidBody_")
+@template_system("KinematicRigidBody_")
 def KinematicRigidBody_(T):
     _kinematic_body = for_scalar_type(kinematic_body, T)
 

@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry.camera import ImageFeatures, image_violation
 from geovs_drake.geometry.domain import DEFAULT_DOMAIN, SafeDomain
@@ -25,6 +24,7 @@ from geovs_drake.systems._parameters import (
     read,
     values_or_none,
 )
+from geovs_drake.systems._template import template_system
 
 __all__ = ["NavigationController", "NavigationController_"]
 
@@ -47,7 +47,7 @@ def _nf_parameters_of_bytes(values: bytes) -> tuple:
     return _nf_parameters(tuple(np.frombuffer(values).tolist()))
 
 
-@TemplateSystem.define("NavigationController_")
+@template_system("NavigationController_")
 def NavigationController_(T):
     _navigation = for_scalar_type(navigation, T)
 

@@ -5,13 +5,13 @@ from __future__ import annotations
 import math
 
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.camera import image_violation
 from geovs_drake.geometry.image_path import image_error
 from geovs_drake.geometry.servo import path_following_velocity
 from geovs_drake.systems._parameters import inputs_and_parameters, read, values_or_none
+from geovs_drake.systems._template import template_system
 
 __all__ = ["PathFollowingController", "PathFollowingController_", "check_path_gains"]
 
@@ -28,7 +28,7 @@ def check_path_gains(radius: float, gain: float) -> tuple[float, float]:
     return float(radius), float(gain)
 
 
-@TemplateSystem.define("PathFollowingController_")
+@template_system("PathFollowingController_")
 def PathFollowingController_(T):
     class Impl(LeafSystem_[T]):
         """The camera velocity that moves the image along a planned path (Sec. 4, Eq. 18).

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from pydrake.systems.scalar_conversion import TemplateSystem
-
 from geovs_drake.geometry.baselines import pbvs_velocity
 from geovs_drake.systems._goal_image_law import goal_image_law_class
+from geovs_drake.systems._template import template_system
 
 __all__ = ["PbvsController", "PbvsController_"]
 
@@ -33,7 +32,7 @@ rho, lambda]``: the goal image, the radius [m], the gain [1/s].
 """
 
 
-@TemplateSystem.define("PbvsController_")
+@template_system("PbvsController_")
 def PbvsController_(T):
     return goal_image_law_class(T, pbvs_velocity, _DOC)
 

@@ -7,7 +7,6 @@ import math
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry._ops import MATH
 from geovs_drake.geometry.features import TargetMarks, pinhole_measurement
@@ -15,6 +14,7 @@ from geovs_drake.geometry.pinhole import PinholeIntrinsics
 from geovs_drake.geometry.rigid import cross, quaternion_to_rotation, target_in_camera
 from geovs_drake.systems._held_frames import declare_sampled_features, frame_index
 from geovs_drake.systems._parameters import POSE_SIZE, pose_to_param
+from geovs_drake.systems._template import template_system
 
 __all__ = ["PinholeFeatureSensor", "PinholeFeatureSensor_"]
 
@@ -31,7 +31,7 @@ _RADIUS, _X_WB, _X_RC, _K, _K_BELIEVED, _ARROW_ANGLE, _NOISE, _SEED = (
 )
 
 
-@TemplateSystem.define("PinholeFeatureSensor_", T_list=[float])
+@template_system("PinholeFeatureSensor_", T_list=[float])
 def PinholeFeatureSensor_(T):
     class Impl(LeafSystem_[T]):
         """A pinhole camera's feature measurement from the rig's pose, once per frame.

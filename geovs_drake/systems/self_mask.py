@@ -8,9 +8,9 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import RenderLabel
 from pydrake.systems.framework import LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 from pydrake.systems.sensors import ImageLabel16I, ImageRgba8U
 
+from geovs_drake.systems._template import template_system
 from geovs_drake.systems.feature_extractor import SCENE_COLOURS
 
 __all__ = ["MASK_GROWTH_PX", "SelfMask", "SelfMask_"]
@@ -25,7 +25,7 @@ MASK_GROWTH_PX = 2
 _EMPTY = int(RenderLabel.kEmpty)
 
 
-@TemplateSystem.define("SelfMask_", T_list=[float])
+@template_system("SelfMask_", T_list=[float])
 def SelfMask_(T):
     class Impl(LeafSystem_[T]):
         """The colour image with the robot's own pixels painted the background's colour.

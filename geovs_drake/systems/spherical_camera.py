@@ -7,7 +7,6 @@ import math
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.domain import DEFAULT_DOMAIN, SafeDomain
@@ -23,6 +22,7 @@ from geovs_drake.systems._parameters import (
     read,
     scalar_value,
 )
+from geovs_drake.systems._template import template_system
 
 __all__ = ["SphericalCamera", "SphericalCamera_"]
 
@@ -36,7 +36,7 @@ _ROTATION, _TRANSLATION = slice(0, 9), slice(9, 12)
 CAMERA_OFFSET = _X_RC
 
 
-@TemplateSystem.define("SphericalCamera_")
+@template_system("SphericalCamera_")
 def SphericalCamera_(T):
     _camera_image = for_scalar_type(camera_image, T)
 

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from pydrake.systems.scalar_conversion import TemplateSystem
-
 from geovs_drake.geometry.baselines import spherical_velocity
 from geovs_drake.systems._goal_image_law import goal_image_law_class
+from geovs_drake.systems._template import template_system
 
 __all__ = ["SphericalFeatureController", "SphericalFeatureController_"]
 
@@ -39,7 +38,7 @@ rho, lambda]``: the goal image, the radius [m], the gain [1/s].
 """
 
 
-@TemplateSystem.define("SphericalFeatureController_")
+@template_system("SphericalFeatureController_")
 def SphericalFeatureController_(T):
     return goal_image_law_class(T, spherical_velocity, _DOC)
 

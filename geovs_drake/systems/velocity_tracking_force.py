@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
-from pydrake.systems.scalar_conversion import TemplateSystem
 
 from geovs_drake.geometry.kernels import for_scalar_type, tracking_force
 from geovs_drake.systems._parameters import (
@@ -14,6 +13,7 @@ from geovs_drake.systems._parameters import (
     param_vector,
     pose_to_param,
 )
+from geovs_drake.systems._template import template_system
 
 __all__ = ["VelocityTrackingForce", "VelocityTrackingForce_", "check_tracking_gains"]
 
@@ -29,7 +29,7 @@ def check_tracking_gains(gains) -> list[float]:
     return b.tolist()
 
 
-@TemplateSystem.define("VelocityTrackingForce_")
+@template_system("VelocityTrackingForce_")
 def VelocityTrackingForce_(T):
     _tracking_force = for_scalar_type(tracking_force, T)
 
