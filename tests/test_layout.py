@@ -83,6 +83,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("geovs_drake.linear_model", "geovs_drake.planning", "geovs_drake.visualization"),
     ("geovs_drake.loop",),
     ("geovs_drake.simulation",),
+    # The Panda over LCM (issue 34): the loop's parts and simulate's tolerances, behind a bus.
+    ("geovs_drake.hardware",),
     ("geovs_drake.batch", "geovs_drake.plotting"),
     ("geovs_drake.analysis._pool", "geovs_drake.analysis.linear"),
     ("geovs_drake.analysis.studies", "geovs_drake.analysis.sweep", "geovs_drake.analysis"),

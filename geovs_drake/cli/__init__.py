@@ -1,5 +1,6 @@
 """Command line: ``geovs-drake simulate``, ``demo``, ``sweep``, ``compare``, ``robustness``,
-``camera-accuracy`` and ``linearize``; one module per command, the shared options in ``_options``.
+``camera-accuracy``, ``linearize``, ``station`` and ``controller`` (the Panda over LCM, issue
+34); one module per command, the shared options in ``_options``.
 
 Examples::
 
@@ -17,6 +18,7 @@ Examples::
     geovs-drake camera-accuracy --poses 200 --resolution 320x240
     geovs-drake linearize --plant kinematic --json
     geovs-drake linearize --at=0.02,-0.01,-0.52,0.02,-0.01,0.1
+    geovs-drake station --json &  geovs-drake controller --json
 
 A scenario is read once, in layers: ``--config FILE``, then ``--scenario-text YAML``,
 then each option that sets a field (``--plant kinematic`` is ``{plant: kinematic}``, the
@@ -39,10 +41,12 @@ from geovs_drake._optional import MissingExtra
 from geovs_drake.cli import (
     camera_accuracy,
     compare,
+    controller,
     demo,
     linearize,
     robustness,
     simulate,
+    station,
     sweep,
 )
 from geovs_drake.cli._options import (
@@ -94,6 +98,8 @@ def build_parser() -> argparse.ArgumentParser:
     robustness.add_parser(sub)
     camera_accuracy.add_parser(sub)
     linearize.add_parser(sub)
+    station.add_parser(sub)
+    controller.add_parser(sub)
     return parser
 
 

@@ -1,0 +1,55 @@
+"""``geovs-drake controller``: the NF law on PANDA_STATUS and the camera's frames,
+commanding PANDA_COMMAND; what it saw as one line (or one JSON object) at the end."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from geovs_drake.cli._options import EXIT_CONVERGED, EXIT_NOT_CONVERGED, add_command, add_json
+from geovs_drake.cli.station import add_hardware_options, setup_of
+from geovs_drake.hardware.config import MODES
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """The ``controller`` command."""
+    p = add_command(
+        sub,
+        "controller",
+        "run the NF law on a Panda's LCM channels (a station's or a real robot's)",
+        "Run the NF law on what a real Panda gives: joint state from PANDA_STATUS, frames "
+        "from the camera channel (predicted between frames from the joints' motion), and "
+        "command PANDA_COMMAND. With no status or no frame within its timeout it stops "
+        "commanding and says so; it refuses to start from an image it cannot invert (exit "
+        "2). At the end: frames received and dropped, its own estimate of the image error.",
+    )
+    add_hardware_options(p)
+    p.add_argument(
+        "--mode",
+        choices=tuple(MODES),
+        help="what PANDA_COMMAND carries: "
+        + "; ".join(f"{name}: {text}" for name, text in MODES.items())
+        + " (default: the config's, else torque)",
+    )
+    add_json(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the controller; the exit code (0 when it ran its duration, 3 when it stopped)."""
+    setup = setup_of(args, mode=args.mode)
+    from geovs_drake.hardware.controller import build_controller
+    from geovs_drake.hardware.run import open_lcm, run_controller
+
+    controller = build_controller(setup.resolved, setup.hardware, open_lcm(setup.hardware.lcm_url))
+    summary = run_controller(controller, setup.resolved.config.duration)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        why = f" ({summary['stop_reason']})" if summary["stop_reason"] else ""
+        print(
+            f"{summary['status']}{why}: {summary['frames_received']} frames "
+            f"({summary['frames_dropped']} dropped), {summary['commands_sent']} commands, "
+            f"image error {summary['final_image_error']:.3g}"
+        )
+    return EXIT_CONVERGED if summary["status"] == "completed" else EXIT_NOT_CONVERGED

@@ -1,0 +1,130 @@
+"""``geovs-drake station``: the simulated Panda, its camera and the target behind LCM;
+its ground truth as one line (or one JSON object) at the end."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from geovs_drake.cli._options import (
+    EXIT_CONVERGED,
+    EXIT_NOT_CONVERGED,
+    _apply_variant_fields,
+    add_command,
+    add_config,
+    add_field,
+    add_json,
+    add_variant_field,
+    pose_arg,
+)
+from geovs_drake.hardware.config import DEFAULT_LCM_URL, check_lcm_url
+
+
+def add_hardware_options(p: argparse.ArgumentParser) -> None:
+    """What ``station`` and ``controller`` share: the station file, the arm, the bus and
+    the duration."""
+    add_config(p)
+    add_variant_field(
+        p,
+        "--arm",
+        "carrier",
+        ("arm",),
+        "model",
+        "the arm (panda: drake-franka-driver's channels)",
+        metavar="panda",
+    )
+    p.add_argument(
+        "--lcm",
+        metavar="URL",
+        help="the LCM bus: udpm://ADDRESS:PORT?ttl=N between processes, memq:// in one "
+        f"(default: the config's hardware.lcm_url, else {DEFAULT_LCM_URL})",
+    )
+    add_field(p, "--duration", ("duration",), "run time [s]", type=float, metavar="T")
+
+
+def hardware_changes(args: argparse.Namespace, **extra) -> dict:
+    """The hardware fields the flags set (``--lcm`` checked here: one line, exit 2)."""
+    changes = {k: v for k, v in extra.items() if v is not None}
+    if args.lcm is not None:
+        check_lcm_url(args.lcm)
+        changes["lcm_url"] = args.lcm
+    return changes
+
+
+def setup_of(args: argparse.Namespace, **extra):
+    """The resolved scenario and hardware config of ``args``: the station file
+    (``--config``, default the shipped panda_lcm.yaml), ``--scenario-text``, the flags."""
+    from geovs_drake.hardware.run import load_setup
+
+    layers = []
+    if args.scenario_text is not None:
+        layers.append(("--scenario-text", args.scenario_text))
+    layers += args.layers or []
+    return load_setup(
+        args.config,
+        layers,
+        hardware_changes(args, **extra),
+        adjust=lambda config: _apply_variant_fields(config, args.variant_fields or []),
+    )
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """The ``station`` command."""
+    p = add_command(
+        sub,
+        "station",
+        "simulate the Panda, its camera and the target behind LCM",
+        "Simulate the Panda, its camera and the target, publishing PANDA_STATUS at 1 kHz "
+        "and the camera's frames on the camera channel, and applying PANDA_COMMAND "
+        "(drake-franka-driver's channels). The arm is held at rest until the first "
+        "command; after it, no command for --command-timeout seconds holds the arm "
+        "(joint damping, gravity compensated) and ends the run with status command_lost. "
+        "At the end, the ground truth: one line, or one JSON object with --json.",
+    )
+    add_hardware_options(p)
+    add_field(
+        p,
+        "--initial",
+        ("initial",),
+        "initial camera pose X_BC in the target frame [m, rad]; write negative first "
+        "values as --initial=-0.2,...",
+        type=pose_arg,
+        metavar="x,y,z,roll,pitch,yaw",
+    )
+    add_field(
+        p,
+        "--sensor",
+        ("sensor",),
+        "the camera: pinhole (y on exact image points, sent as lcmt_scope)",
+        choices=("pinhole",),
+    )
+    p.add_argument(
+        "--command-timeout",
+        type=float,
+        metavar="S",
+        help="after the first command, none for this long holds the arm [s] (default: "
+        "the config's, else 0.1, drake-franka-driver's expire_sec)",
+    )
+    add_json(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the station; the exit code (0 converged, 3 otherwise)."""
+    if args.command_timeout is not None and not args.command_timeout > 0:
+        raise ValueError(f"--command-timeout must be > 0 [s]: {args.command_timeout}")
+    setup = setup_of(args, command_timeout=args.command_timeout)
+    from geovs_drake.hardware.run import open_lcm, run_station
+    from geovs_drake.hardware.station import build_station
+
+    station = build_station(setup.resolved, setup.hardware, open_lcm(setup.hardware.lcm_url))
+    summary = run_station(station, setup.resolved.config.duration)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(
+            f"{summary['status']}: position error {summary['final_position_error_m']:.3g} m, "
+            f"{summary['commands_received']} commands, joint speed "
+            f"{summary['final_joint_speed']:.3g} rad/s after {summary['sim_time_s']:.3g} s"
+        )
+    return EXIT_CONVERGED if summary["status"] == "converged" else EXIT_NOT_CONVERGED

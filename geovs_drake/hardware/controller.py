@@ -1,0 +1,458 @@
+"""``build_controller``: the NF law on what a real Panda and its camera give, over LCM.
+
+Its diagram holds no model of the world: no MultibodyPlant, no target. Its inputs are
+LCM subscribers alone; the arm's kinematics come from :class:`~geovs_drake.systems.ArmCamera`'s
+own model of the arm (a plant of the arm alone, inside that system). A straight line::
+
+    status   = LcmSubscriberSystem(PANDA_STATUS) -> StatusDecoder -> (q, v)
+    camera   = ArmCamera(q, v): the camera's pose and velocity (its kinematics)
+    frames   = LcmSubscriberSystem(camera channel) -> FrameTracker: the frame moved by the
+               camera's motion since its capture time (the FramePredictor's prediction)
+    nav      = NavigationController(y)
+    wrench   = ImageJacobianForce(y, dphi, camera state): Eq. (45)
+    torque   = ArmCamera's J_C^T F_C - B_q v (- d N v), gravity left to the robot
+    command  = CommandPublisher -> PANDA_COMMAND at the command rate, while fresh
+
+Why its own predictor, not :class:`~geovs_drake.systems.FramePredictor`: that system
+keeps the camera's pose at its own clock's frame times, which in another process are
+not the station's; :class:`FrameTracker` keeps the poses of the last statuses by their
+``utime`` and takes the one at the frame's capture ``utime``, then predicts with the
+same kernel, :func:`~geovs_drake.geometry.prediction.predicted_image`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from drake import lcmt_panda_command, lcmt_panda_status, lcmt_scope
+from pydrake.common.value import AbstractValue
+from pydrake.lcm import DrakeLcm
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.lcm import LcmInterfaceSystem, LcmSubscriberSystem
+from pydrake.systems.primitives import Demultiplexer
+
+from geovs_drake.geometry._ops import MATH
+from geovs_drake.geometry.camera import inverse_pose
+from geovs_drake.geometry.prediction import predicted_image
+from geovs_drake.geometry.rigid import quaternion_to_rotation
+from geovs_drake.hardware.config import HardwareConfig
+from geovs_drake.hardware.station import FRAME_INDEX, FRAME_STATUS, FRAME_Y, US_PER_S
+from geovs_drake.loop.arm import arm_model
+from geovs_drake.scenario import ResolvedScenario
+from geovs_drake.systems import (
+    ArmCamera,
+    ImageJacobianForce,
+    KinematicController,
+    NavigationController,
+)
+from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmModel, arm_plant, camera_jacobian
+from geovs_drake.systems.arm_camera import actuation_permutation
+
+__all__ = [
+    "POSE_HISTORY",
+    "STOP_REASONS",
+    "CommandPublisher",
+    "Controller",
+    "FrameTracker",
+    "JointVelocityLaw",
+    "StatusDecoder",
+    "build_controller",
+]
+
+#: How many statuses' camera poses the tracker keeps (at 1 kHz, 0.5 s): a frame whose
+#: capture is older than that is predicted from the oldest kept.
+POSE_HISTORY = 512
+#: Why the controller stopped commanding, by its code.
+STOP_REASONS: dict[int, str] = {
+    0: "",
+    1: "no status within the status timeout",
+    2: "no frame within the frame timeout",
+    3: "no status and frame within the startup timeout",
+    4: "the camera lost the target (its frame is not valid)",
+    5: "the image cannot be inverted (y outside I)",
+}
+_NO_STATUS, _NO_FRAME, _NO_START, _FEATURE_LOST, _NOT_INVERTIBLE = 1, 2, 3, 4, 5
+#: The pose's layout: quaternion (w, x, y, z), then position.
+_QUATERNION, _POSITION = slice(0, 4), slice(4, 7)
+POSE_SIZE = 7
+_IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+_ORIGIN = (0.0, 0.0, 0.0)
+
+
+class StatusDecoder(LeafSystem):
+    """``lcmt_panda_status`` -> ``arm_state`` (q, v), zeros before the first status (no
+    command is sent before it), and ``status_utime`` [s] (0 before it)."""
+
+    def __init__(self, num_joints: int) -> None:
+        super().__init__()
+        self._n = num_joints
+        self.status_input = self.DeclareAbstractInputPort(
+            "lcmt_panda_status", AbstractValue.Make(lcmt_panda_status())
+        )
+        self.arm_state_output = self.DeclareVectorOutputPort(
+            "arm_state", 2 * num_joints, self._state
+        )
+        self.status_utime_output = self.DeclareVectorOutputPort("status_utime", 1, self._utime)
+
+    def _state(self, context: Context, output) -> None:
+        message = self.status_input.Eval(context)
+        if message.num_joints != self._n:
+            output.SetFromVector(np.zeros(2 * self._n))
+            return
+        output.SetFromVector(np.concatenate([message.joint_position, message.joint_velocity]))
+
+    def _utime(self, context: Context, output) -> None:
+        output.SetFromVector([self.status_input.Eval(context).utime / US_PER_S])
+
+
+class FrameTracker(LeafSystem):
+    """The camera's frames as they arrive, moved to the camera's pose now.
+
+    Inputs ``frame`` (the latest ``lcmt_scope`` of the camera channel, its ``utime`` the
+    capture time), ``status_utime`` [s] and ``body_pose`` (the camera's pose
+    ``[q_WC, p_WC]`` at that status, from the joints). At the status rate it records
+    each new status's pose by its utime (:data:`POSE_HISTORY` of them) and, on a new
+    frame, the pose at the frame's capture utime (the latest status not after it).
+    ``predicted_image_features``: the held frame's y carried from that pose to
+    ``body_pose`` (:func:`~geovs_drake.geometry.prediction.predicted_image`, the
+    believed ``radius``); NaN before a first frame. ``link``: ``[statuses, frames
+    received, frames dropped (gaps in the frames' indices), last status's arrival [s],
+    last frame's arrival [s], the frame's valid flag]``.
+    """
+
+    def __init__(self, radius: float, period: float) -> None:
+        super().__init__()
+        self._radius = radius
+        self.frame_input = self.DeclareAbstractInputPort("frame", AbstractValue.Make(lcmt_scope()))
+        self.status_utime_input = self.DeclareVectorInputPort("status_utime", 1)
+        self.body_pose_input = self.DeclareVectorInputPort("body_pose", POSE_SIZE)
+        # The history of (utime, pose) and its next slot.
+        self._history = self.DeclareDiscreteState(np.full(POSE_HISTORY * (1 + POSE_SIZE), -1.0))
+        self._frame = self.DeclareDiscreteState(
+            np.concatenate([[-1.0], np.full(13, math.nan), np.zeros(POSE_SIZE), [-1.0]])
+        )
+        # statuses, frames, dropped, status arrival, frame arrival, valid, head, last utime
+        self._link = self.DeclareDiscreteState(np.array([0, 0, 0, -1, -1, 0, 0, -1.0]))
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.predicted_image_features_output = self.DeclareVectorOutputPort(
+            "predicted_image_features",
+            13,
+            self._predict,
+            prerequisites_of_calc={self.all_input_ports_ticket(), self.xd_ticket()},
+        )
+        self.link_output = self.DeclareVectorOutputPort(
+            "link", 6, self._link_out, prerequisites_of_calc={self.xd_ticket()}
+        )
+
+    def _update(self, context: Context, state) -> None:
+        t = context.get_time()
+        history = context.get_discrete_state(self._history).get_value().copy()
+        frame = context.get_discrete_state(self._frame).get_value().copy()
+        link = context.get_discrete_state(self._link).get_value().copy()
+        rows = history.reshape(POSE_HISTORY, 1 + POSE_SIZE)
+        utime = float(self.status_utime_input.Eval(context)[0])
+        if utime > 0 and utime != link[7]:
+            head = int(link[6])
+            rows[head, 0], rows[head, 1:] = utime, self.body_pose_input.Eval(context)
+            link[6], link[7] = (head + 1) % POSE_HISTORY, utime
+            link[0] += 1
+            link[3] = t
+        message = self.frame_input.Eval(context)
+        capture = message.utime / US_PER_S
+        if message.size == len(message.value) and message.size > FRAME_INDEX:
+            if message.utime != 0 or frame[0] < 0:
+                if capture != frame[0] and link[0] > 0:
+                    value = np.asarray(message.value)
+                    index = value[FRAME_INDEX]
+                    if frame[-1] >= 0 and index > frame[-1] + 1:
+                        link[2] += index - frame[-1] - 1
+                    kept = rows[rows[:, 0] >= 0]
+                    before = kept[kept[:, 0] <= capture + 0.5 / US_PER_S]
+                    pick = before if len(before) else kept
+                    pose = (
+                        pick[np.argmax(pick[:, 0])] if len(before) else pick[np.argmin(pick[:, 0])]
+                    )
+                    frame[0], frame[1:14], frame[14:21], frame[-1] = (
+                        capture,
+                        value[FRAME_Y],
+                        pose[1:],
+                        index,
+                    )
+                    link[1] += 1
+                    link[4] = t
+                    link[5] = value[FRAME_STATUS][0]
+        state.get_mutable_vector(self._history).SetFromVector(history)
+        state.get_mutable_vector(self._frame).SetFromVector(frame)
+        state.get_mutable_vector(self._link).SetFromVector(link)
+
+    def held_frame(self, context: Context) -> tuple[float, np.ndarray]:
+        """The held frame's capture time [s] (-1: none yet) and its y."""
+        frame = context.get_discrete_state(self._frame).get_value()
+        return float(frame[0]), frame[1:14].copy()
+
+    def _predict(self, context: Context, output) -> None:
+        frame = context.get_discrete_state(self._frame).get_value()
+        y = frame[1:14]
+        if frame[0] < 0 or not np.all(np.isfinite(y)):
+            output.SetFromVector(np.full(13, math.nan))
+            return
+        then = frame[14:21].tolist()
+        now = self.body_pose_input.Eval(context).tolist()
+        output.SetFromVector(
+            predicted_image(
+                tuple(y.tolist()),
+                self._radius,
+                quaternion_to_rotation(then[_QUATERNION], MATH),
+                tuple(then[_POSITION]),
+                quaternion_to_rotation(now[_QUATERNION], MATH),
+                tuple(now[_POSITION]),
+                _IDENTITY,
+                _ORIGIN,
+                MATH,
+            )
+        )
+
+    def _link_out(self, context: Context, output) -> None:
+        output.SetFromVector(context.get_discrete_state(self._link).get_value()[:6])
+
+
+class JointVelocityLaw(LeafSystem):
+    """Velocity mode: the kinematic law's camera twist (Omega, V) carried to the joints,
+    ``v_cmd = J_C(q)^+ (Omega, V)`` (the arm's own model). Inputs ``arm_state``,
+    ``camera_velocity``; output ``joint_velocity``."""
+
+    def __init__(self, model: ArmModel) -> None:
+        super().__init__()
+        self._plant = arm_plant(model)
+        self._context = self._plant.CreateDefaultContext()
+        self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
+        nq, nv = self._plant.num_positions(), self._plant.num_velocities()
+        self.arm_state_input = self.DeclareVectorInputPort("arm_state", nq + nv)
+        self.camera_velocity_input = self.DeclareVectorInputPort("camera_velocity", 6)
+        self.joint_velocity_output = self.DeclareVectorOutputPort("joint_velocity", nv, self._calc)
+
+    def _calc(self, context: Context, output) -> None:
+        self._plant.SetPositionsAndVelocities(self._context, self.arm_state_input.Eval(context))
+        J = camera_jacobian(self._plant, self._context, self._camera)
+        output.SetFromVector(np.linalg.pinv(J) @ self.camera_velocity_input.Eval(context))
+
+
+class CommandPublisher(LeafSystem):
+    """PANDA_COMMAND at the command rate, while the link is fresh.
+
+    Inputs ``command`` (torque mode: ArmCamera's actuation, gravity compensation
+    included, which is taken back out here since the robot adds its own; velocity mode:
+    the joint velocities), ``arm_state`` and ``link`` (:class:`FrameTracker`'s). It
+    starts once a status and a frame have come and the frame's y is finite; it stops for
+    good (:data:`STOP_REASONS`) when the last status is older than ``status_timeout``,
+    the last frame older than ``frame_timeout``, the frame is not valid, or no start
+    came within ``startup_timeout``. State: ``[started, stopped, reason, sent]``.
+    """
+
+    def __init__(self, model: ArmModel, hardware: HardwareConfig, lcm: DrakeLcm) -> None:
+        super().__init__()
+        self._lcm, self._hardware = lcm, hardware
+        self._plant = arm_plant(model)
+        self._context = self._plant.CreateDefaultContext()
+        self._B = actuation_permutation(self._plant)
+        nq, nv = self._plant.num_positions(), self._plant.num_velocities()
+        self._nv = nv
+        self._velocity_mode = hardware.mode == "velocity"
+        self.command_input = self.DeclareVectorInputPort("command", nv)
+        self.arm_state_input = self.DeclareVectorInputPort("arm_state", nq + nv)
+        self.link_input = self.DeclareVectorInputPort("link", 6)
+        self.image_features_input = self.DeclareVectorInputPort("image_features", 13)
+        self._state = self.DeclareDiscreteState(np.zeros(4))
+        period = 1.0 / hardware.command_rate
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.DeclarePeriodicPublishEvent(period, 0.0, self._publish)
+
+    def _update(self, context: Context, discrete_state) -> None:
+        started, stopped, reason, sent = context.get_discrete_state(self._state).get_value()
+        t = context.get_time()
+        statuses, frames, _dropped, status_t, frame_t, valid = self.link_input.Eval(context)
+        h = self._hardware
+        if not stopped:
+            if not started:
+                if statuses > 0 and frames > 0:
+                    y = self.image_features_input.Eval(context)
+                    started = 1.0
+                    if not np.all(np.isfinite(y)):
+                        stopped, reason = 1.0, _NOT_INVERTIBLE
+                elif t > h.startup_timeout:
+                    stopped, reason = 1.0, _NO_START
+            else:
+                if t - status_t > h.status_timeout:
+                    stopped, reason = 1.0, _NO_STATUS
+                elif t - frame_t > h.frame_timeout:
+                    stopped, reason = 1.0, _NO_FRAME
+                elif valid < 1:
+                    stopped, reason = 1.0, _FEATURE_LOST
+            if started and not stopped:
+                sent += 1
+        discrete_state.get_mutable_vector(self._state).SetFromVector(
+            [started, stopped, reason, sent]
+        )
+
+    def _publish(self, context: Context) -> None:
+        started, stopped, _reason, _sent = context.get_discrete_state(self._state).get_value()
+        if not started or stopped:
+            return
+        message = lcmt_panda_command()
+        message.utime = int(round(context.get_time() * US_PER_S))
+        command = self.command_input.Eval(context)
+        if self._velocity_mode:
+            message.num_joint_velocity = self._nv
+            message.joint_velocity = [float(v) for v in command]
+            message.control_mode_expected = _PANDA_VELOCITY
+        else:
+            self._plant.SetPositionsAndVelocities(self._context, self.arm_state_input.Eval(context))
+            # ArmCamera compensated gravity (-g); the robot does it itself: add g back.
+            gravity = self._plant.CalcGravityGeneralizedForces(self._context)
+            tau = self._B @ command + gravity
+            message.num_joint_torque = self._nv
+            message.joint_torque = [float(v) for v in tau]
+            message.control_mode_expected = _PANDA_TORQUE
+        self._lcm.Publish(self._hardware.channels.command, message.encode(), context.get_time())
+
+    def stop_reason(self, context: Context) -> str:
+        """Why it stopped, in words ("" while it commands or waits)."""
+        code = int(context.get_discrete_state(self._state).get_value()[2])
+        return STOP_REASONS[code]
+
+    def commands_sent(self, context: Context) -> int:
+        """How many commands it has sent."""
+        return int(context.get_discrete_state(self._state).get_value()[3])
+
+    def started(self, context: Context) -> bool:
+        """Whether it has started commanding."""
+        return bool(context.get_discrete_state(self._state).get_value()[0])
+
+    def stopped(self, context: Context) -> bool:
+        """Whether it has stopped for good."""
+        return bool(context.get_discrete_state(self._state).get_value()[1])
+
+
+#: drake-franka-driver's control mode constants (PandaControlMode's kVelocity, kTorque).
+_PANDA_VELOCITY, _PANDA_TORQUE = 2, 4
+
+
+@dataclass
+class Controller:
+    """A built controller: its ``diagram``, the scenario it believes, the
+    ``tracker`` (:class:`FrameTracker`), the ``publisher`` (:class:`CommandPublisher`)
+    and the ``navigation`` controller."""
+
+    diagram: Diagram
+    resolved: ResolvedScenario
+    hardware: HardwareConfig
+    tracker: FrameTracker
+    publisher: CommandPublisher
+    navigation: LeafSystem
+
+    def image_error(self, root: Context) -> tuple[float, float]:
+        """Its own estimate of the image error now: ``|y - y*|`` of the held frame moved
+        to now, and the distance [m] of the camera from the goal that y implies
+        (``c^-1(y)``, Eq. 23); NaN without a frame."""
+        context = self.tracker.GetMyContextFromRoot(root)
+        y = self.tracker.predicted_image_features_output.Eval(context)
+        if not np.all(np.isfinite(y)):
+            return math.nan, math.nan
+        goal = self.resolved.y_goal.to_vector()
+        p_BC, p_BC_goal = (_camera_in_target(v, self.resolved.believed_radius) for v in (y, goal))
+        return float(np.linalg.norm(y - goal)), float(np.linalg.norm(p_BC - p_BC_goal))
+
+
+def _camera_in_target(y: np.ndarray, radius: float) -> np.ndarray:
+    """p_BC, the camera's position in the target frame that y implies: X_CB = c^-1(y)
+    (Eq. 23, R_CB's columns r1, r2, r3 and p_CB = d), so p_BC = -R_CB^T d."""
+    r1, r2, r3, d = inverse_pose(tuple(y.tolist()), radius, MATH)
+    R_CB = np.column_stack([r1, r2, r3])
+    return -R_CB.T @ np.asarray(d)
+
+
+def build_controller(
+    resolved: ResolvedScenario, hardware: HardwareConfig, lcm: DrakeLcm
+) -> Controller:
+    """The controller of a Panda scenario on the bus ``lcm``: only the arm's own model
+    (inside :class:`~geovs_drake.systems.ArmCamera`), no plant of the world."""
+    config = resolved.config
+    model = arm_model(config)
+    nv = arm_plant(model).num_velocities()
+    builder = DiagramBuilder()
+    interface = builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
+    status = builder.AddNamedSystem(
+        "status_subscriber",
+        LcmSubscriberSystem.Make(hardware.channels.status, lcmt_panda_status, interface),
+    )
+    decoder = builder.AddNamedSystem("status_decoder", StatusDecoder(nv))
+    builder.Connect(status.get_output_port(), decoder.status_input)
+    carrier = config.carrier
+    barrier = carrier.joint_barrier_width > 0 or carrier.joint_barrier_fraction > 0
+    if barrier:
+        raise ValueError("the controller over LCM does not take a joint barrier yet")
+    arm = builder.AddNamedSystem(
+        "arm_camera",
+        ArmCamera(
+            model=model,
+            joint_damping=carrier.joint_damping,
+            null_space_damping=carrier.null_space_damping,
+        ),
+    )
+    builder.Connect(decoder.arm_state_output, arm.arm_state_input)
+    pose = builder.AddNamedSystem("camera_state_demux", Demultiplexer([POSE_SIZE, 6]))
+    builder.Connect(arm.camera_state_output, pose.get_input_port())
+    frames = builder.AddNamedSystem(
+        "camera_subscriber",
+        LcmSubscriberSystem.Make(hardware.channels.camera, lcmt_scope, interface),
+    )
+    tracker = builder.AddNamedSystem(
+        "frame_predictor",
+        FrameTracker(radius=resolved.believed_radius, period=1.0 / hardware.status_rate),
+    )
+    builder.Connect(frames.get_output_port(), tracker.frame_input)
+    builder.Connect(decoder.status_utime_output, tracker.status_utime_input)
+    builder.Connect(pose.get_output_port(0), tracker.body_pose_input)
+    y = tracker.predicted_image_features_output
+    nav = builder.AddNamedSystem(
+        "navigation_controller",
+        NavigationController(goal=resolved.y_goal, domain=resolved.domain, gains=resolved.gains),
+    )
+    builder.Connect(y, nav.image_features_input)
+    publisher = builder.AddNamedSystem("command_publisher", CommandPublisher(model, hardware, lcm))
+    if hardware.mode == "torque":
+        force = builder.AddNamedSystem(
+            "image_jacobian_force",
+            ImageJacobianForce(
+                radius=resolved.believed_radius,
+                potential_gain=config.control.potential_gain,
+                damping=np.asarray(resolved.damping),
+                X_RC=None,
+            ),
+        )
+        builder.Connect(y, force.image_features_input)
+        builder.Connect(nav.dphi_output, force.dphi_input)
+        builder.Connect(arm.camera_state_output, force.body_state_input)
+        builder.Connect(force.wrench_C_output, arm.wrench_C_input)
+        builder.Connect(arm.actuation_output, publisher.command_input)
+    else:
+        law = builder.AddNamedSystem(
+            "kinematic_controller",
+            KinematicController(
+                radius=resolved.believed_radius, gain=config.control.kinematic_gain
+            ),
+        )
+        builder.Connect(y, law.image_features_input)
+        builder.Connect(nav.dphi_output, law.dphi_input)
+        joints = builder.AddNamedSystem("joint_velocity_law", JointVelocityLaw(model))
+        builder.Connect(decoder.arm_state_output, joints.arm_state_input)
+        builder.Connect(law.camera_velocity_output, joints.camera_velocity_input)
+        builder.Connect(joints.joint_velocity_output, publisher.command_input)
+    builder.Connect(decoder.arm_state_output, publisher.arm_state_input)
+    builder.Connect(tracker.link_output, publisher.link_input)
+    builder.Connect(y, publisher.image_features_input)
+    diagram = builder.Build()
+    diagram.set_name("panda_controller")
+    return Controller(diagram, resolved, hardware, tracker, publisher, nav)

@@ -1,0 +1,170 @@
+"""Running a station or a controller: the setup from a station file and layers, the
+simulator, and the summary each prints (``geovs-drake station`` / ``controller``)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydrake.lcm import DrakeLcm
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+from pydrake.systems.framework import EventStatus
+
+from geovs_drake.hardware.config import (
+    HardwareConfig,
+    check_lcm_url,
+    load_hardware,
+    split_station_file,
+)
+from geovs_drake.hardware.controller import Controller
+from geovs_drake.hardware.station import Station
+from geovs_drake.loop.build import fit_gains
+from geovs_drake.scenario import ResolvedScenario, ScenarioConfig, load_scenario, resolve
+from geovs_drake.simulation.result import convergence_tolerance, pose_error
+
+__all__ = [
+    "Setup",
+    "default_station_file",
+    "load_setup",
+    "open_lcm",
+    "run_controller",
+    "run_station",
+]
+
+
+def default_station_file() -> Path:
+    """The shipped station file, ``geovs_drake/scenarios/panda_lcm.yaml``."""
+    from geovs_drake import scenarios
+
+    return scenarios.path("panda_lcm")
+
+
+@dataclass
+class Setup:
+    """A station's or a controller's scenario (resolved once) and hardware config."""
+
+    resolved: ResolvedScenario
+    hardware: HardwareConfig
+
+
+def load_setup(
+    path: str | Path | None,
+    layers: Sequence[tuple[str, Any]] = (),
+    hardware_changes: Mapping[str, Any] | None = None,
+    adjust: Callable[[ScenarioConfig], None] | None = None,
+) -> Setup:
+    """The station file at ``path`` (default :func:`default_station_file`), its scenario
+    with ``layers`` over it (:func:`~geovs_drake.scenario.load_scenario`'s overrides)
+    and its ``hardware`` section with ``hardware_changes`` set; ``adjust`` then changes
+    the loaded scenario in place (the command line's variant flags); validated and
+    resolved once. ValueError in one line for bad input."""
+    path = default_station_file() if path is None else Path(path)
+    scenario, section = split_station_file(path)
+    config = load_scenario(overrides=[(str(path), scenario), *layers])
+    if adjust is not None:
+        adjust(config)
+    hardware = load_hardware({**section, **(hardware_changes or {})}, f"{path}: hardware")
+    return Setup(resolve(fit_gains(config)), hardware)
+
+
+def _simulator(diagram, setup: Setup, root_setter=None) -> Simulator:
+    simulator = Simulator(diagram)
+    hardware = setup.hardware
+    # Status and commands at 1 kHz cut every step there anyway.
+    ApplySimulatorConfig(
+        setup.resolved.config.simulator.to_drake(1.0 / hardware.status_rate), simulator
+    )
+    simulator.set_target_realtime_rate(hardware.real_time_rate)
+    if root_setter is not None:
+        root_setter(simulator.get_mutable_context())
+    return simulator
+
+
+def run_station(station: Station, duration: float) -> dict:
+    """Run the station for ``duration`` [s] (less if commands are lost: then until the
+    arm has been held ``hold_time``); its ground truth as a dict: ``status``
+    (``converged``, ``not_converged`` or ``command_lost``), ``final_position_error_m``,
+    ``final_rotation_error_rad``, ``commands_received``, ``command_timeouts``,
+    ``final_joint_speed`` [rad/s], ``sim_time_s``."""
+    setup = Setup(station.resolved, station.hardware)
+    simulator = _simulator(station.diagram, setup, station.set_initial_state)
+    gate = station.gate
+    hold = station.hardware.hold_time
+
+    def monitor(root) -> EventStatus:
+        context = gate.GetMyContextFromRoot(root)
+        if gate.lost(context) and root.get_time() >= gate.lost_time(context) + hold:
+            return EventStatus.ReachedTermination(gate, "command_lost")
+        return EventStatus.Succeeded()
+
+    simulator.set_monitor(monitor)
+    simulator.Initialize()
+    simulator.AdvanceTo(duration)
+    root = simulator.get_context()
+    context = gate.GetMyContextFromRoot(root)
+    config = station.resolved.config
+    dp, dr = pose_error(station.X_BC(root), config.X_BC_goal)
+    tol_p, tol_r = convergence_tolerance(config)
+    if gate.lost(context):
+        status = "command_lost"
+    else:
+        status = "converged" if dp <= tol_p and dr <= tol_r else "not_converged"
+    nq = station.plant.num_positions()
+    return {
+        "status": status,
+        "final_position_error_m": dp,
+        "final_rotation_error_rad": dr,
+        "commands_received": gate.commands_received(context),
+        "command_timeouts": gate.command_timeouts(context),
+        "final_joint_speed": float(np.linalg.norm(station.arm_state(root)[nq:])),
+        "sim_time_s": root.get_time(),
+    }
+
+
+def run_controller(controller: Controller, duration: float) -> dict:
+    """Run the controller for ``duration`` [s] or until it stops commanding; a dict:
+    ``status`` (``completed`` or ``stopped``), ``stop_reason``, ``frames_received``,
+    ``frames_dropped``, ``commands_sent``, ``final_image_error`` (``|y - y*|``) and
+    ``estimated_position_error_m`` (its own estimates, from the frames). ValueError
+    when its first frame's image cannot be inverted (it never commanded)."""
+    setup = Setup(controller.resolved, controller.hardware)
+    simulator = _simulator(controller.diagram, setup)
+    publisher = controller.publisher
+
+    def monitor(root) -> EventStatus:
+        if publisher.stopped(publisher.GetMyContextFromRoot(root)):
+            return EventStatus.ReachedTermination(publisher, "stopped")
+        return EventStatus.Succeeded()
+
+    simulator.set_monitor(monitor)
+    simulator.Initialize()
+    simulator.AdvanceTo(duration)
+    root = simulator.get_context()
+    context = publisher.GetMyContextFromRoot(root)
+    reason = publisher.stop_reason(context)
+    if publisher.stopped(context) and publisher.commands_sent(context) == 0 and "invert" in reason:
+        _, y = controller.tracker.held_frame(controller.tracker.GetMyContextFromRoot(root))
+        raise ValueError(
+            f"controller: refuses to start a command: {reason}: first y = {y.tolist()}"
+        )
+    link = controller.tracker.link_output.Eval(controller.tracker.GetMyContextFromRoot(root))
+    image_error, position_error = controller.image_error(root)
+    return {
+        "status": "stopped" if publisher.stopped(context) else "completed",
+        "stop_reason": reason,
+        "frames_received": int(link[1]),
+        "frames_dropped": int(link[2]),
+        "commands_sent": publisher.commands_sent(context),
+        "final_image_error": image_error,
+        "estimated_position_error_m": position_error,
+        "sim_time_s": root.get_time(),
+    }
+
+
+def open_lcm(url: str) -> DrakeLcm:
+    """The bus at ``url`` (checked first: DrakeLcm takes a bad URL without raising)."""
+    check_lcm_url(url)
+    return DrakeLcm(url)
