@@ -205,7 +205,7 @@ def camera_fit(resolved: ResolvedScenario) -> CameraFit | None:
     parts = _goal_parts(resolved) if isinstance(camera, CameraModel) else None
     if parts is None:
         return None
-    rate, latency = float(camera.rate), int(camera.latency_frames)
+    rate, latency = float(camera.rate), camera.model_latency_frames
     continuous = PREDICTIONS[camera.prediction].continuous
 
     def radius(scale: float) -> float:

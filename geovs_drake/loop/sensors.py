@@ -16,25 +16,29 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
+from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
-    ClippingRange,
-    ColorRenderCamera,
-    DepthRange,
-    DepthRenderCamera,
     LightParameter,
     MakeRenderEngineVtk,
-    RenderCameraCore,
     RenderEngineVtkParams,
+    Rgba,
 )
-from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
-from pydrake.systems.primitives import LogVectorOutput
-from pydrake.systems.sensors import CameraInfo, RgbdSensor
+from pydrake.systems.primitives import LogVectorOutput, ZeroOrderHold
+from pydrake.systems.sensors import CameraConfig, CameraInfo, ImageRgba8U, RgbdSensor
 
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
 from geovs_drake.loop.carriers import CarrierParts
-from geovs_drake.scenario import Exact, Pinhole, Rendered, ResolvedScenario
-from geovs_drake.systems import FeatureExtractor, FramePredictor, PinholeFeatureSensor, SelfMask
+from geovs_drake.scenario import Arm, Exact, Pinhole, Rendered, ResolvedScenario
+from geovs_drake.systems import (
+    FeatureExtractor,
+    FramePredictor,
+    FrameWait,
+    PinholeFeatureSensor,
+    SelfMask,
+)
+from geovs_drake.systems._parameters import POSE_SIZE
 from geovs_drake.systems.feature_extractor import SCENE_COLOURS
 
 __all__ = [
@@ -43,6 +47,7 @@ __all__ = [
     "SENSORS",
     "VTK_PRINCIPAL_POINT_SHIFT",
     "Sensor",
+    "camera_config",
     "scene_lights",
     "vtk_camera_info",
 ]
@@ -82,14 +87,16 @@ def _sampled_settings(resolved: ResolvedScenario) -> dict:
     )
 
 
-def _held(builder, resolved, carrier, held: OutputPort) -> OutputPort:
+def _held(builder, resolved, carrier, held: OutputPort, capture_pose=None) -> OutputPort:
     """The held frame as it is (``prediction: none``)."""
     return held
 
 
-def _odometry(builder, resolved, carrier, held: OutputPort) -> OutputPort:
+def _odometry(builder, resolved, carrier, held: OutputPort, capture_pose=None) -> OutputPort:
     """The held frame moved by the carrier's pose since its capture (``prediction:
-    odometry``): :class:`~geovs_drake.systems.FramePredictor` on the camera's clock."""
+    odometry``): :class:`~geovs_drake.systems.FramePredictor` on the camera's clock. A
+    camera whose frames arrive after their capture gives the capture's pose
+    (``capture_pose``, X_WC); otherwise the frame was taken when it is read."""
     cam = resolved.config.sensor
     predictor = builder.AddNamedSystem(
         "frame_predictor",
@@ -98,26 +105,52 @@ def _odometry(builder, resolved, carrier, held: OutputPort) -> OutputPort:
             X_RC=carrier.X_RC,
             period=1.0 / cam.rate,
             latency_frames=int(cam.latency_frames),
+            offset=getattr(cam, "first_frame_time", 0.0),
         ),
     )
     builder.Connect(held, predictor.image_features_input)
     builder.Connect(carrier.body_pose, predictor.body_pose_input)
+    if capture_pose is not None:
+        builder.Connect(capture_pose, predictor.capture_pose_input)
     return predictor.predicted_image_features_output
 
 
 #: What the law sees between a camera's frames, by ``sensor.prediction``
-#: (:data:`~geovs_drake.scenario.PREDICTIONS`): ``add(builder, resolved, carrier, held)``
-#: returns the y port the law reads.
-PREDICTORS: dict[
-    str, Callable[[DiagramBuilder, ResolvedScenario, CarrierParts, OutputPort], OutputPort]
-] = {
+#: (:data:`~geovs_drake.scenario.PREDICTIONS`): ``add(builder, resolved, carrier, held,
+#: capture_pose)`` returns the y port the law reads (``capture_pose``: the camera's X_WC
+#: at the held frame's capture, from a camera whose frames arrive later; else None).
+PREDICTORS: dict[str, Callable[..., OutputPort]] = {
     "none": _held,
     "odometry": _odometry,
 }
 
 
-def _between_frames(builder, resolved, carrier, held: OutputPort) -> OutputPort:
-    return PREDICTORS[resolved.config.sensor.prediction](builder, resolved, carrier, held)
+def _between_frames(
+    builder, resolved, carrier, held: OutputPort, capture_pose: OutputPort | None = None
+) -> OutputPort:
+    return PREDICTORS[resolved.config.sensor.prediction](
+        builder, resolved, carrier, held, capture_pose
+    )
+
+
+def _held_from_capture(builder, cam, port: OutputPort, model, name: str) -> OutputPort:
+    """``port`` sampled at each capture (``capture_offset + k / rate``) and held: what a
+    frame shows, and the body's pose it was taken from, until the frame is read
+    ``output_delay`` later (``model``: the vector size or the abstract value)."""
+    hold = builder.AddNamedSystem(name, ZeroOrderHold(1.0 / cam.rate, model, cam.capture_offset))
+    builder.Connect(port, hold.get_input_port())
+    return hold.get_output_port()
+
+
+def _wait_for_first_frame(builder, resolved, sensor, y: OutputPort) -> OutputPort:
+    """``y``, or the goal image before a camera's first frame arrives (after t = 0):
+    :class:`~geovs_drake.systems.FrameWait`."""
+    if resolved.config.sensor.first_frame_time == 0:
+        return y
+    wait = builder.AddNamedSystem("frame_wait", FrameWait(np.asarray(resolved.y_goal)))
+    builder.Connect(y, wait.image_features_input)
+    builder.Connect(sensor.feature_status_output, wait.feature_status_input)
+    return wait.image_features_or_goal_output
 
 
 def _pinhole(builder, resolved, carrier, camera) -> OutputPort:
@@ -133,11 +166,20 @@ def _pinhole(builder, resolved, carrier, camera) -> OutputPort:
             believed=config.sensor.believed_intrinsics(theta),
             X_WB=carrier.X_WB,
             X_RC=carrier.X_RC,
+            offset=config.sensor.first_frame_time,
             **_sampled_settings(resolved),
         ),
     )
-    builder.Connect(carrier.body_pose, sensor.body_pose_input)
-    return _between_frames(builder, resolved, carrier, sensor.image_features_output)
+    # A frame read output_delay after its capture shows the pose then (held, as the
+    # rendered camera holds its image).
+    cam = config.sensor
+    pose = carrier.body_pose
+    capture_pose = None
+    if cam.output_delay > 0:
+        pose = capture_pose = _held_from_capture(builder, cam, pose, POSE_SIZE, "capture_pose")
+    builder.Connect(pose, sensor.body_pose_input)
+    y = _between_frames(builder, resolved, carrier, sensor.image_features_output, capture_pose)
+    return _wait_for_first_frame(builder, resolved, sensor, y)
 
 
 def vtk_camera_info(intrinsics: PinholeIntrinsics) -> CameraInfo:
@@ -169,16 +211,55 @@ def scene_lights() -> list[LightParameter]:
     ]
 
 
+def camera_config(resolved: ResolvedScenario) -> CameraConfig:
+    """The rendered camera as Drake's ``CameraConfig``: its size and intrinsics
+    (:meth:`~geovs_drake.scenario.CameraModel.intrinsics`, in RenderEngineVtk's pixel
+    convention, :func:`vtk_camera_info`), clipping, renderer and frame clock (``fps``,
+    ``capture_offset``, ``output_delay``). The label image is rendered for an arm,
+    whose own pixels it masks."""
+    config = resolved.config
+    cam = config.sensor
+    info = vtk_camera_info(cam.intrinsics(resolved.domain.fov_half_angle))
+    # Clip well short of the nearest sphere of D and well beyond the farthest.
+    d = config.domain
+    near = 0.5 * config.radius * (1 / d.lam_max - 1)
+    far = 2.0 * config.radius * (1 / d.lam_min + 1)
+    return CameraConfig(
+        width=info.width(),
+        height=info.height(),
+        focal=CameraConfig.FocalLength(x=info.focal_x(), y=info.focal_y()),
+        center_x=info.center_x(),
+        center_y=info.center_y(),
+        clipping_near=near,
+        clipping_far=far,
+        z_near=1.01 * near,
+        z_far=0.99 * far,
+        renderer_name=RENDERER_NAME,
+        background=Rgba(*SCENE_COLOURS["background"], 1.0),
+        name="camera",
+        fps=cam.rate,
+        capture_offset=cam.capture_offset,
+        output_delay=cam.output_delay,
+        rgb=True,
+        depth=False,
+        label=isinstance(config.carrier, Arm),
+    )
+
+
 def _rendered(builder, resolved, carrier, camera) -> OutputPort:
-    """SceneGraph -> ``RgbdSensor`` (RenderEngineVtk, EGL backend: headless) -> the
-    extractor, a frame every ``1 / sensor.rate`` s. The camera's intrinsics are
+    """SceneGraph -> Drake's camera (RenderEngineVtk, EGL backend: headless) -> the
+    extractor, a frame every ``1 / sensor.rate`` s. The camera is built from
+    :func:`camera_config`: Drake's ``RgbdSensor`` drawn at each capture
+    (``capture_offset + k / fps``) and, where frames arrive ``output_delay`` later, held
+    by a ``ZeroOrderHold`` until then, the timing of Drake's ``RgbdSensorAsync``. The
+    camera's intrinsics are
     :meth:`~geovs_drake.scenario.CameraModel.intrinsics` (its inscribed cone is D's
     field of view, so no pose of D cuts the sphere), the extractor's those times
-    ``1 + sensor.focal_error``. Double only (``RgbdSensor`` does not convert)."""
+    ``1 + sensor.focal_error``. Double only (Drake's cameras do not convert)."""
     config = resolved.config
     cam = config.sensor
     theta = resolved.domain.fov_half_angle
-    intrinsics = cam.intrinsics(theta)
+    drake_camera = camera_config(resolved)
     carrier.scene_graph.AddRenderer(
         RENDERER_NAME,
         MakeRenderEngineVtk(
@@ -189,43 +270,51 @@ def _rendered(builder, resolved, carrier, camera) -> OutputPort:
             )
         ),
     )
-    # Clip well short of the nearest sphere of D and well beyond the farthest.
-    d = config.domain
-    near = 0.5 * config.radius * (1 / d.lam_max - 1)
-    far = 2.0 * config.radius * (1 / d.lam_min + 1)
-    core = RenderCameraCore(
-        RENDERER_NAME, vtk_camera_info(intrinsics), ClippingRange(near, far), RigidTransform()
-    )
+    color_camera, depth_camera = drake_camera.MakeCameras()
+    parent = carrier.plant.GetBodyFrameIdOrThrow(carrier.body.index())
+    X_PC = carrier.X_RC if carrier.X_BodyC is None else carrier.X_BodyC
     rgbd = builder.AddNamedSystem(
-        "rgbd_sensor",
-        RgbdSensor(
-            carrier.plant.GetBodyFrameIdOrThrow(carrier.body.index()),
-            carrier.X_RC if carrier.X_BodyC is None else carrier.X_BodyC,
-            ColorRenderCamera(core, False),
-            DepthRenderCamera(core, DepthRange(1.01 * near, 0.99 * far)),
-        ),
+        "rgbd_sensor", RgbdSensor(parent, X_PC, color_camera, depth_camera)
     )
     builder.Connect(carrier.scene_graph.get_query_output_port(), rgbd.query_object_input_port())
-    sensor = builder.AddNamedSystem(
-        "feature_sensor",
-        FeatureExtractor(intrinsics=cam.believed_intrinsics(theta), **_sampled_settings(resolved)),
-    )
     color = rgbd.color_image_output_port()
     if carrier.arm is not None:  # the arm's own pixels out of its camera's view
         plant = carrier.plant
         mask = builder.AddNamedSystem(
             "self_mask",
             SelfMask(
-                intrinsics.width,
-                intrinsics.height,
+                drake_camera.width,
+                drake_camera.height,
                 [int(i) for i in plant.GetBodyIndices(carrier.body.model_instance())],
             ),
         )
         builder.Connect(color, mask.color_image_input)
         builder.Connect(rgbd.label_image_output_port(), mask.label_image_input)
         color = mask.masked_color_image_output
+    capture_pose = None
+    if cam.output_delay > 0:
+        # The frame taken at the capture and delivered output_delay later, as Drake's
+        # RgbdSensorAsync does, but drawn here, on the simulation's thread: the async
+        # sensor draws on a worker thread, where RenderEngineVtk's EGL context cannot be
+        # made current ("Unable to eglMakeCurrent: 12290", EGL_BAD_ACCESS), and in the
+        # servo loop its frames after the first came back without the sphere (measured,
+        # docs/real-camera.md).
+        model = AbstractValue.Make(ImageRgba8U(drake_camera.width, drake_camera.height))
+        color = _held_from_capture(builder, cam, color, model, "frame_capture")
+        capture_pose = _held_from_capture(
+            builder, cam, carrier.body_pose, POSE_SIZE, "capture_pose"
+        )
+    sensor = builder.AddNamedSystem(
+        "feature_sensor",
+        FeatureExtractor(
+            intrinsics=cam.believed_intrinsics(theta),
+            offset=cam.first_frame_time,
+            **_sampled_settings(resolved),
+        ),
+    )
     builder.Connect(color, sensor.color_image_input)
-    return _between_frames(builder, resolved, carrier, sensor.image_features_output)
+    y = _between_frames(builder, resolved, carrier, sensor.image_features_output, capture_pose)
+    return _wait_for_first_frame(builder, resolved, sensor, y)
 
 
 #: The sensors, by the type of ``config.sensor``.

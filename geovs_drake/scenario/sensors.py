@@ -64,6 +64,13 @@ class CameraModel:
     (:class:`~geovs_drake.systems.FramePredictor`, a Smith predictor: exact for a still
     target), which gives the law the continuous loop's stability at any rate and latency.
 
+    The frame clock is Drake's ``CameraConfig``'s: frames are taken at
+    ``capture_offset + k / rate`` [s] and reach the law ``output_delay`` [s] later, both
+    shorter than a frame (a delay of a frame or more is ``latency_frames``, on top).
+    Before the first frame arrives the law has no image: it holds (its y is the goal's,
+    :class:`~geovs_drake.systems.FrameWait`, so only the damping acts) and
+    ``feature_status`` says it is waiting, not lost.
+
     ``damping``: the damping B of a loop with a camera, rotational first, in place of
     ``control.damping``. Why a second one: the default gains give the exact loop a mode
     at 36 rad/s damped only 0.19 of critical; a 30 Hz zero-order hold delays the force
@@ -83,6 +90,21 @@ class CameraModel:
     seed: int = 0
     prediction: str = "odometry"
     damping: list[float] = field(default_factory=lambda: [0.6, 0.6, 0.6, 4.0, 4.0, 4.0])
+    capture_offset: float = 0.0
+    output_delay: float = 0.0
+
+    @property
+    def first_frame_time(self) -> float:
+        """When the first frame reaches the law [s]: 0 for a camera read at t = 0."""
+        return self.capture_offset + self.output_delay
+
+    @property
+    def model_latency_frames(self) -> int:
+        """The whole frames of latency the sampled-data model counts
+        (:mod:`geovs_drake.loop.camera_fit`): ``latency_frames``, plus one for a
+        sub-frame ``output_delay`` (rounded up: a longer delay only makes the sampled
+        loop less stable, so the fit errs on the safe side)."""
+        return int(self.latency_frames) + (1 if self.output_delay > 0 else 0)
 
     def intrinsics(self, fov_half_angle: float) -> PinholeIntrinsics:
         """The true camera: its inscribed cone (``border_px`` in) is ``fov_half_angle``."""
@@ -185,3 +207,11 @@ def check_sensor(sensor: object) -> None:
         value = getattr(sensor, name)
         if isinstance(value, bool) or not (value == int(value) and value >= 0):
             raise ValueError(f"sensor.{name} must be an integer >= 0, got {value!r}")
+    period = 1.0 / sensor.rate
+    for name in ("capture_offset", "output_delay"):
+        value = getattr(sensor, name)
+        if not (isinstance(value, int | float) and math.isfinite(value) and 0 <= value < period):
+            raise ValueError(
+                f"sensor.{name} must be in [0, 1/rate = {period:.4g}) [s] (a frame or more "
+                f"of delay is latency_frames): {name} = {value}"
+            )

@@ -30,6 +30,7 @@ from geovs_drake.geometry.rigid import quaternion_to_rotation
 from geovs_drake.loop.build import Loop
 from geovs_drake.simulation.result import MARGIN_NAMES
 from geovs_drake.simulation.step_limit import step_limit
+from geovs_drake.systems._held_frames import waiting
 
 __all__ = [
     "FeaturePointCheck",
@@ -156,6 +157,12 @@ class SafeDomainMonitor:
             else None
         )
         self._record = record
+        # A camera's frames are where the law's y, hence the force, may jump: the log's
+        # spline is cut there (resample).
+        sensor = loop.resolved.config.sensor
+        self._frame_clock = (
+            (1.0 / sensor.rate, sensor.first_frame_time) if self._sensor is not None else None
+        )
         self._feature_points = feature_points
         self._on_step = on_step
         self._reason: dict[str, str] = {}
@@ -232,7 +239,7 @@ class SafeDomainMonitor:
         status = self._sensor.feature_status_output.Eval(
             self._sensor.GetMyContextFromRoot(root_context)
         )
-        if status[0] > 0:
+        if status[0] > 0 or waiting(status):  # a frame to act on, or the first to come
             return EventStatus.Succeeded()
         code, lost = int(status[1]), int(status[2])
         reason = FEATURE_FAILURES[code] if 0 < code < len(FEATURE_FAILURES) else f"code {code}"
@@ -247,21 +254,53 @@ class SafeDomainMonitor:
 
         A cubic spline with continuous second derivatives through the steps
         (Drake's ``PiecewisePolynomial``): its error is fourth order in the
-        step, below the integrator's own at its accuracy setting. Quaternions
-        are interpolated componentwise; every consumer normalises them.
+        step, below the integrator's own at its accuracy setting. In a loop with
+        a camera the spline is cut at each frame's read, a step boundary where
+        the law's y and so the acceleration may jump: one spline across such a
+        kink rings (a loop that waits 30 ms for its first frame, at rest until
+        then, logged a velocity of 0.46 at t = 0.02 s). Quaternions are
+        interpolated componentwise; every consumer normalises them.
         """
         T = np.asarray(self.times)
-        X = np.asarray(self.states).T
+        X = np.asarray(self.states)
         end = T[-1]
         times = np.arange(0.0, end, 1.0 / rate)
         times = np.append(times[times < end - 1e-9], end)
-        if len(T) >= 3:
-            spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(T, X, False)
-        elif len(T) == 2:
-            spline = PiecewisePolynomial.FirstOrderHold(T, X)
-        else:
-            return T, X.T
-        return times, spline.vector_values(times).T
+        if len(T) < 2:
+            return T, X
+        out = np.empty((len(times), X.shape[1]))
+        cuts = self._frame_reads(T)
+        for lo, hi in zip(cuts[:-1], cuts[1:], strict=True):  # knots lo..hi, shared ends
+            inside = (times >= T[lo]) & (times <= T[hi])
+            out[inside] = _spline(T[lo : hi + 1], X[lo : hi + 1], times[inside])
+        return times, out
+
+    def _frame_reads(self, T: np.ndarray) -> list[int]:
+        """Indices of the recorded steps that end at a frame's read, with the first and
+        the last: where :meth:`resample` cuts its spline."""
+        cuts = [0]
+        if self._frame_clock is not None:
+            period, offset = self._frame_clock
+            k = (T - offset) / period
+            on_read = (np.abs(k - np.round(k)) * period < _READ_TOLERANCE_S) & (k > -0.5)
+            cuts += [int(i) for i in np.flatnonzero(on_read) if 0 < i < len(T) - 1]
+        return cuts + [len(T) - 1]
+
+
+#: How close [s] a step's end must be to a frame's read time to count as that read (the
+#: simulator ends a step exactly at a discrete update; this only absorbs the rounding of
+#: offset + k period).
+_READ_TOLERANCE_S = 1e-9
+
+
+def _spline(T: np.ndarray, X: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """``X`` (rows at ``T``) at ``times``: a C2 cubic through three knots or more, a line
+    through two."""
+    if len(T) >= 3:
+        spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(T, X.T, False)
+    else:
+        spline = PiecewisePolynomial.FirstOrderHold(T, X.T)
+    return spline.vector_values(times).T
 
 
 def make_simulator(

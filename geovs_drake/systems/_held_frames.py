@@ -5,7 +5,11 @@ A camera delivers y once per frame, not continuously. :class:`FeatureExtractor`
 exact projected points) both:
 
 * measure at t = 0 (an initialization event, so the loop starts from a frame)
-  and then every ``period`` seconds (a periodic discrete update);
+  and then every ``period`` seconds (a periodic discrete update); or, for a camera
+  whose frames arrive at ``offset + k period`` (``offset > 0``: Drake's
+  ``RgbdSensorAsync`` delivers a frame ``output_delay`` after its capture), at those
+  times only, *waiting* until the first: y NaN and ``feature_status`` ``[0, 0, 0]``
+  (no frame, none lost), which :func:`waiting` recognises;
 * keep the last ``latency_frames + 1`` measurements in their discrete state and
   output the oldest: the controller acts on the frame taken ``latency_frames``
   periods ago, held constant between frames (a zero-order hold);
@@ -39,21 +43,35 @@ ENTRY_SIZE = 16
 _Y, _HAS_Y, _CODE, _LOST = slice(0, 13), 13, 14, 15
 
 
-def frame_index(t: float, period: float) -> int:
-    """The frame taken at time t (frames at 0, period, 2 period, ...)."""
-    return int(round(t / period))
+def frame_index(t: float, period: float, offset: float = 0.0) -> int:
+    """The frame read at time t (frames read at offset, offset + period, ...)."""
+    return int(round((t - offset) / period))
+
+
+def waiting(status) -> bool:
+    """Whether ``feature_status`` ``[valid, code, lost]`` is a camera's before its first
+    frame: nothing valid, no failure, nothing lost."""
+    return status[0] == 0 and status[1] == 0 and status[2] == 0
 
 
 def declare_sampled_features(
-    system, period: float, latency_frames: int, max_lost_frames: int, measure: Callable
+    system,
+    period: float,
+    latency_frames: int,
+    max_lost_frames: int,
+    measure: Callable,
+    offset: float = 0.0,
 ) -> tuple[object, object]:
     """Declare the state, events and the ``image_features`` and ``feature_status`` outputs.
 
-    ``measure(context) -> (y tuple | None, code)`` takes the current frame.
+    ``measure(context) -> (y tuple | None, code)`` takes the current frame; frames are
+    read at ``offset + k period`` (and at t = 0 where ``offset`` is 0).
     Returns the two output ports.
     """
     if not (math.isfinite(period) and period > 0):
         raise ValueError(f"camera period must be finite and > 0 [s], got {period}")
+    if not (math.isfinite(offset) and offset >= 0):
+        raise ValueError(f"frame offset must be finite and >= 0 [s], got {offset}")
     for name, value in (("latency_frames", latency_frames), ("max_lost_frames", max_lost_frames)):
         if isinstance(value, bool) or not (isinstance(value, int) and value >= 0):
             raise ValueError(f"{name} must be an integer >= 0, got {value!r}")
@@ -83,8 +101,9 @@ def declare_sampled_features(
         first = entry(context, empty)
         discrete_state.get_mutable_vector(state).SetFromVector(np.tile(first, n))
 
-    system.DeclareInitializationDiscreteUpdateEvent(on_start)
-    system.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, on_frame)
+    if offset == 0:  # the frame at t = 0 is there at the start
+        system.DeclareInitializationDiscreteUpdateEvent(on_start)
+    system.DeclarePeriodicDiscreteUpdateEvent(period, offset, on_frame)
 
     def features(context, output) -> None:
         output.SetFromVector(context.get_discrete_state(state).get_value()[_Y])

@@ -235,7 +235,9 @@ def FeatureExtractor_(T):
 
         ``color_image`` is an ``ImageRgba8U`` of the scene of
         :data:`SCENE_COLOURS` (from an ``RgbdSensor``). Every ``period``
-        seconds (and at t = 0) the image is read and
+        seconds from ``offset`` (and at t = 0 where ``offset`` is 0: see
+        :mod:`geovs_drake.systems._held_frames` for the wait before a later first
+        frame) the image is read and
         :func:`extract_features` gives y; ``image_features`` is the 13-vector
         ``[q1, q2, q3, lambda, s]`` of the frame taken ``latency_frames``
         periods ago, held between frames; ``feature_status`` is ``[valid,
@@ -266,6 +268,7 @@ def FeatureExtractor_(T):
             max_lost_frames: int = 3,
             pixel_noise: float = 0.0,
             seed: int = 0,
+            offset: float = 0.0,
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
@@ -281,9 +284,10 @@ def FeatureExtractor_(T):
                 max_lost_frames,
                 pixel_noise,
                 seed,
+                offset,
             )
             self._size = (intrinsics.width, intrinsics.height)
-            self._period = period
+            self._period, self._offset = period, offset
             self._params_index = self.DeclareNumericParameter(
                 BasicVector_[T](
                     list(intrinsics.K) + [marks.arrow_angle, float(pixel_noise), float(seed)]
@@ -293,7 +297,7 @@ def FeatureExtractor_(T):
                 "color_image", AbstractValue.Make(ImageRgba8U(*self._size))
             )
             self.image_features_output, self.feature_status_output = declare_sampled_features(
-                self, period, latency_frames, max_lost_frames, self._measure
+                self, period, latency_frames, max_lost_frames, self._measure, offset
             )
 
         def _construct_copy(self, other, converter=None):
@@ -322,7 +326,7 @@ def FeatureExtractor_(T):
             sigma = float(p[_NOISE])
             noise = None
             if sigma > 0:
-                frame = frame_index(context.get_time(), self._period)
+                frame = frame_index(context.get_time(), self._period, self._offset)
                 noise = np.random.default_rng([int(p[_SEED]), frame])
             y, code = extract_features(
                 image.data, self.believed_intrinsics(context), float(p[_ARROW_ANGLE]), noise, sigma

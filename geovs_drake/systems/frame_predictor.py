@@ -33,6 +33,7 @@ def FramePredictor_(T):
             input_ports:
             - image_features
             - body_pose
+            - capture_pose
             output_ports:
             - predicted_image_features
 
@@ -48,7 +49,15 @@ def FramePredictor_(T):
         is the one the held frame was taken from. Its output is
         :func:`~geovs_drake.geometry.prediction.predicted_image`: that frame inverted
         (Eq. 23, the believed ``radius``), carried by the body's motion since, and
-        mapped back (Eqs. 3, 6, 7). It reads ``body_pose`` now, so the law sees y
+        mapped back (Eqs. 3, 6, 7).
+
+        A camera whose frames arrive after their capture (``output_delay``) is read at
+        ``offset + k period``, when the body has moved on: ``capture_pose``, where
+        connected, is the body's pose ``[q, p]`` at the newest frame's capture (held from
+        then, as the frame is), and the predictor stores that; unconnected, the frame
+        was taken when it is read, at ``body_pose``.
+
+        It reads ``body_pose`` now, so the law sees y
         continuously: exact for a still target and an exact camera, the hold and the
         latency removed (the sampled-data model of the loop becomes the continuous
         one's, :mod:`geovs_drake.loop.camera_fit`). NaN in, NaN out (no frame yet).
@@ -61,6 +70,7 @@ def FramePredictor_(T):
             X_RC: RigidTransform | None = None,
             period: float = 1.0 / 30.0,
             latency_frames: int = 0,
+            offset: float = 0.0,
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
@@ -73,16 +83,20 @@ def FramePredictor_(T):
                 isinstance(latency_frames, int) and latency_frames >= 0
             ):
                 raise ValueError(f"latency_frames must be an integer >= 0, got {latency_frames!r}")
-            self._defaults = (radius, X_RC, period, latency_frames)
+            if not (math.isfinite(offset) and offset >= 0):
+                raise ValueError(f"offset must be finite and >= 0 [s], got {offset}")
+            self._defaults = (radius, X_RC, period, latency_frames, offset)
             self._line = latency_frames + 1
             self._params_index = self.DeclareNumericParameter(
                 BasicVector_[T]([radius] + pose_to_param(X_RC))
             )
             self.image_features_input = self.DeclareVectorInputPort("image_features", 13)
             self.body_pose_input = self.DeclareVectorInputPort("body_pose", POSE_SIZE)
+            self.capture_pose_input = self.DeclareVectorInputPort("capture_pose", POSE_SIZE)
             self._poses = self.DeclareDiscreteState(np.zeros(self._line * POSE_SIZE))
-            self.DeclareInitializationDiscreteUpdateEvent(self._on_start)
-            self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._on_frame)
+            if offset == 0:  # the sensor's frame at t = 0, taken from the pose then
+                self.DeclareInitializationDiscreteUpdateEvent(self._on_start)
+            self.DeclarePeriodicDiscreteUpdateEvent(period, offset, self._on_frame)
             self.predicted_image_features_output = self.DeclareVectorOutputPort(
                 "predicted_image_features",
                 13,
@@ -102,9 +116,15 @@ def FramePredictor_(T):
             pose = self.body_pose_input.Eval(context)
             discrete_state.get_mutable_vector(self._poses).SetFromVector(np.tile(pose, self._line))
 
+        def _frame_taken_from(self, context) -> np.ndarray:
+            """The body's pose ``[q, p]`` at the newest frame's capture."""
+            if self.capture_pose_input.HasValue(context):
+                return self.capture_pose_input.Eval(context)
+            return self.body_pose_input.Eval(context)  # read at its capture: the pose now
+
         def _on_frame(self, context, discrete_state) -> None:
             line = context.get_discrete_state(self._poses).get_value().reshape(self._line, -1)
-            new = np.vstack([line[1:], self.body_pose_input.Eval(context)])
+            new = np.vstack([line[1:], self._frame_taken_from(context)])
             discrete_state.get_mutable_vector(self._poses).SetFromVector(new.ravel())
 
         def frame_pose(self, context) -> np.ndarray:

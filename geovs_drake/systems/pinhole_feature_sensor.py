@@ -58,9 +58,10 @@ def PinholeFeatureSensor_(T):
         random noise; nothing to differentiate).
 
         ``body_pose`` is the rig's ``[qw, qx, qy, qz, x, y, z]`` (as for
-        :class:`SphericalCamera`). One numeric parameter vector: ``[rho, X_WB
-        (12), X_RC (12), K (fx, fy, cx, cy), believed K (4), arrow_angle,
-        pixel_noise, seed]``.
+        :class:`SphericalCamera`); frames are read at ``offset + k period`` (a camera
+        whose frames arrive after their capture reads the pose held from the capture).
+        One numeric parameter vector: ``[rho, X_WB (12), X_RC (12), K (fx, fy, cx, cy),
+        believed K (4), arrow_angle, pixel_noise, seed]``.
         """
 
         def _construct(
@@ -76,6 +77,7 @@ def PinholeFeatureSensor_(T):
             max_lost_frames: int = 3,
             pixel_noise: float = 0.0,
             seed: int = 0,
+            offset: float = 0.0,
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
@@ -101,9 +103,10 @@ def PinholeFeatureSensor_(T):
                 max_lost_frames,
                 pixel_noise,
                 seed,
+                offset,
             )
             self._size = (intrinsics.width, intrinsics.height)
-            self._period = period
+            self._period, self._offset = period, offset
             self._marks = marks
             self._params_index = self.DeclareNumericParameter(
                 BasicVector_[T](
@@ -117,7 +120,7 @@ def PinholeFeatureSensor_(T):
             )
             self.body_pose_input = self.DeclareVectorInputPort(name="body_pose", size=POSE_SIZE)
             self.image_features_output, self.feature_status_output = declare_sampled_features(
-                self, period, latency_frames, max_lost_frames, self._measure
+                self, period, latency_frames, max_lost_frames, self._measure, offset
             )
 
         def _construct_copy(self, other, converter=None):
@@ -135,7 +138,7 @@ def PinholeFeatureSensor_(T):
             noise = None
             if sigma > 0:
                 noise = np.random.default_rng(
-                    [int(p[_SEED]), frame_index(context.get_time(), self._period)]
+                    [int(p[_SEED]), frame_index(context.get_time(), self._period, self._offset)]
                 )
             marks = TargetMarks(
                 self._marks.mark_radius, p[_ARROW_ANGLE], self._marks.arrow_mark_radius

@@ -99,7 +99,7 @@ def spectral_radius(config: ScenarioConfig, rate: float | None = None, latency_f
     """The spectral radius at ``rate`` [Hz] and ``latency_frames`` (default: the
     scenario's camera), of the loop as its camera runs it (:func:`camera_model`)."""
     rate = camera_of(config).rate if rate is None else rate
-    L = camera_of(config).latency_frames if latency_frames is None else latency_frames
+    L = camera_of(config).model_latency_frames if latency_frames is None else latency_frames
     return camera_model(config).spectral_radius(rate, L)
 
 
@@ -113,7 +113,7 @@ def latency_margin(config: ScenarioConfig, rate: float | None = None, max_frames
 def slowest_stable_rate(config: ScenarioConfig, latency_frames: int | None = None) -> float:
     """:meth:`SampledModel.slowest_stable_rate` of ``config``'s loop (:func:`camera_model`)
     below the scenario's camera rate, at ``latency_frames`` (default: the scenario's)."""
-    L = camera_of(config).latency_frames if latency_frames is None else latency_frames
+    L = camera_of(config).model_latency_frames if latency_frames is None else latency_frames
     return camera_model(config).slowest_stable_rate(L, camera_of(config).rate)
 
 

@@ -204,7 +204,7 @@ def sampled_spectral_radius(config: ScenarioConfig) -> float:
     model = SampledModel(A_c=A_d, B_n=B_n, C_xi=C_xi)
     if PREDICTIONS[config.sensor.prediction].continuous:
         model = model.continuous()
-    return model.spectral_radius(config.sensor.rate, int(config.sensor.latency_frames))
+    return model.spectral_radius(config.sensor.rate, config.sensor.model_latency_frames)
 
 
 def predicted_equilibrium(config: ScenarioConfig) -> dict:
