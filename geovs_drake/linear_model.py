@@ -35,6 +35,7 @@ from geovs_drake.geometry.navigation import (
     navigation_differential,
 )
 from geovs_drake.geometry.so3 import hat
+from geovs_drake.geometry.target_motion import frame_wrench
 from geovs_drake.scenario import FreeRig, Kinematic, PlantConfig, ScenarioConfig
 
 __all__ = [
@@ -50,6 +51,7 @@ __all__ = [
     "navigation_hessian",
     "rig_spatial_inertia",
     "second_order_A",
+    "tracking_lag",
     "velocity_adjoint",
 ]
 
@@ -150,6 +152,50 @@ def closed_form_A(
         return -config.control.kinematic_gain * KC
     Bd = np.diag(config.control.damping if damping is None else damping)
     return second_order_A(rig_spatial_inertia(config), config.control.potential_gain * K1, Bd)
+
+
+def tracking_lag(
+    config: ScenarioConfig,
+    twist_B: np.ndarray,
+    damping: tuple[float, ...] | None = None,
+) -> np.ndarray:
+    """eps_ss (6): where the linearised loop settles, without feed-forward, behind a
+    target moving with the constant body twist ``twist_B`` = (omega, v) in B.
+
+    The loop runs in the target's frame (:mod:`geovs_drake.loop.targets`); at the goal
+    the target's twist carried to the camera is ``nu_B = Ad_{X_C*B} xi_B`` (C* the goal's
+    camera frame), and it enters as an input, ``x' = A x + E u``, A the closed form
+    (:func:`closed_form_A`):
+
+    * kinematic (Eq. 17 in the target's frame): ``eps' = A eps - nu_B``, so
+      ``eps_ss = A^-1 nu_B``: Chaumette & Hutchinson's tracking lag (2007, Part II:
+      ``e = b / lambda`` for ``e' = -lambda e + b``) with the loop's own gain matrix;
+    * dynamic (Eq. 45 in the target's frame): the still target's law damps the rig's
+      own twist, ``-B (nu + nu_B)``, and the moving frame adds its centripetal wrench
+      at rest relative to the target, F_frame
+      (:func:`~geovs_drake.geometry.target_motion.frame_wrench` at V_r = 0, carried from
+      the rig's centre to C); so ``E u = [0,
+      M^-1 (-B nu_B + F_frame)]`` and ``eps_ss = K^-1 (-B nu_B + F_frame)``.
+
+    ``eps_ss = -A^-1 E u`` in both, with ``X_BC = X_BC* exp(eps^)`` (rotation first):
+    the position error is ``|eps_ss[3:]|`` to first order. ``damping``: the B the loop
+    runs with (:attr:`ResolvedScenario.damping`), by default ``control.damping``.
+    """
+    twist_B = np.asarray(twist_B, dtype=float)
+    X_CB = config.X_BC_goal.inverse()
+    nu_B = velocity_adjoint(X_CB) @ twist_B
+    A = closed_form_A(config, damping=damping)
+    if isinstance(config.plant, Kinematic):
+        return np.linalg.solve(A, nu_B)
+    rig = config.carrier  # a FreeRig (closed_form_refusal)
+    xi_R = velocity_adjoint(config.X_RC @ X_CB) @ twist_B
+    F_R = frame_wrench(np.zeros(6), xi_R, np.zeros(6), np.diag(rig.inertia_diagonal), rig.mass)
+    F_C = velocity_adjoint(config.X_RC).T @ F_R  # the same wrench about C, in C
+    Bd = np.diag(config.control.damping if damping is None else damping)
+    Eu = np.concatenate(
+        [np.zeros(6), np.linalg.solve(rig_spatial_inertia(config), F_C - Bd @ nu_B)]
+    )
+    return -np.linalg.solve(A, Eu)[:6]
 
 
 # --- The goal's model split at the camera: what a sampled, delayed image does to it.

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 
@@ -29,11 +30,15 @@ from geovs_drake.progress import HorizonProgress
 from geovs_drake.scenario import (
     AXES,
     CONTROLLERS,
+    FEEDFORWARD_MODES,
     IBVS_DEPTHS,
     PREDICTIONS,
     FixedCamera,
     FreeRig,
     ScenarioConfig,
+    Still,
+    Twist,
+    variant_layer,
 )
 
 
@@ -98,6 +103,28 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         metavar="x,y,z,roll,pitch,yaw",
     )
     add_field(p, "--duration", ("duration",), "simulated time [s]", type=float, metavar="T")
+    # The moving target (issue 32).
+    add_field(
+        p,
+        "--target-twist",
+        ("target_motion",),
+        "the target moves with this constant body twist (omega, v) in its own frame B "
+        "[rad/s, m/s], angular part first, from its pose (a helix about the screw axis), "
+        "or still; the goal stays X_BC*, relative to the target; "
+        "write negative first values as --target-twist=-0.1,...",
+        shown="still",
+        type=_target_twist,
+        metavar="wx,wy,wz,vx,vy,vz|still",
+    )
+    add_variant_flag(
+        p,
+        "--feedforward",
+        _feedforward,
+        "with a moving target: what the loop adds for its motion: "
+        + "; ".join(f"{name}: {text}" for name, text in FEEDFORWARD_MODES.items())
+        + f" (default: the config's, else {Twist().feedforward})",
+        choices=tuple(FEEDFORWARD_MODES),
+    )
     # The arm (issue 20).
     add_field(
         p,
@@ -243,6 +270,28 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
     )
     add_json(p)
     p.set_defaults(func=run, progress_delay_s=progress_delay_s)
+
+
+def _target_twist(text: str) -> dict:
+    """``--target-twist``: 6 numbers, as the layer of a :class:`Twist` target motion, or
+    ``still`` (the default, :class:`Still`)."""
+    if text.strip().lower() == "still":
+        return variant_layer(Still)
+    return variant_layer(Twist, twist=twist_arg(text))
+
+
+def _feedforward(config: ScenarioConfig, flag: str, mode: str) -> None:
+    """``--feedforward`` on the moving target the layers chose. On a still target there is
+    nothing to feed forward: the default mode leaves it as it is (as any flag given its
+    default does), another is one line."""
+    if not isinstance(config.target_motion, Twist):
+        if mode == Twist().feedforward:
+            return
+        raise ValueError(
+            f"{flag} applies to a moving target (--target-twist, or target_motion: !Twist "
+            "in the scenario); the target here is still"
+        )
+    config.target_motion = dataclasses.replace(config.target_motion, feedforward=mode)
 
 
 def _mount(config: ScenarioConfig, flag: str, mount: str) -> None:

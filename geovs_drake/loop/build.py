@@ -18,7 +18,10 @@ Subsystem names (``diagram.GetSubsystemByName``): ``spherical_camera``,
 ``state_demux``, ``kinematic_rigid_body``, ``fixed_camera_mount``; the sensor's
 ``feature_sensor`` and ``rgbd_sensor``; the law's ``image_jacobian_force``,
 ``kinematic_controller``, ``controller``, ``desired_image``; the adapter
-``velocity_tracking_force``. With ``log=True``, Drake's ``LogVectorOutput``
+``velocity_tracking_force``; a moving target's ``target_motion``,
+``target_relative_twist`` or ``target_relative_wrench`` and, with the estimated
+feed-forward, ``target_twist_estimator`` (:mod:`geovs_drake.loop.targets`). With
+``log=True``, Drake's ``LogVectorOutput``
 loggers ``log_image_features``, ``log_phi``, ``log_margins``,
 ``log_visibility``, the carrier's ``log_body_state`` / ``log_body_pose`` and a
 camera model's ``log_measured_features`` and ``log_feature_status``, at
@@ -49,6 +52,7 @@ from geovs_drake.loop.carriers import CARRIERS, CarrierParts, carrier_key
 from geovs_drake.loop.effort_fit import EffortFit, effort_fit
 from geovs_drake.loop.laws import LAWS
 from geovs_drake.loop.sensors import SENSORS, add_feature_loggers
+from geovs_drake.loop.targets import add_target_motion, connect_feedforward
 from geovs_drake.scenario import (
     AUTO,
     NOMINAL_GAIN_SCALES,
@@ -164,9 +168,20 @@ def build_loop(
     why = refusal(config)
     if why is not None:
         raise ValueError(why)
+    if study_ports and config.moving_target:
+        # The target's systems are double only (a discrete estimator): Linearize and the
+        # studies model the still target; a moving one's lag is linear_model.tracking_lag.
+        raise ValueError(
+            "study_ports: a study diagram's target stands still (target_motion Still()); "
+            "a moving target's lag is geovs_drake.linear_model.tracking_lag"
+        )
     sensor = SENSORS[type(config.sensor)]
     builder = DiagramBuilder()
     carrier = CARRIERS[carrier_key(config)](builder, resolved, sensor.draws_marks)
+    # A moving target: the carrier seen from the target's frame (None: a still target).
+    target = add_target_motion(builder, resolved, carrier)
+    if target is not None:
+        carrier = target.carrier
     if meshcat is not None and carrier.add_meshcat is None:
         raise ValueError(
             f"meshcat needs a carrier with geometry (the {variant_name(config.plant)} "
@@ -180,6 +195,8 @@ def build_loop(
     )
     builder.Connect(carrier.body_pose, camera.body_pose_input)
     features = sensor.add(builder, resolved, carrier, camera)
+    if target is not None:  # the feed-forward: the estimator reads the sensor's frames
+        connect_feedforward(builder, resolved, target, camera)
     if study_ports:
         # The law and the NF see y + n; the camera's own output stays the truth.
         noise = builder.AddNamedSystem("feature_noise_adder", Adder(2, FEATURE_SIZE))

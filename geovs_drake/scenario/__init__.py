@@ -7,7 +7,9 @@ One file per job, each importing only the ones above it in this list:
   :mod:`~geovs_drake.scenario.carriers` (``carrier: !Arm {model: panda}``),
   :mod:`~geovs_drake.scenario.plants` (``plant: !Kinematic {}``),
   :mod:`~geovs_drake.scenario.sensors` (``sensor: !Pinhole {rate: 15}``),
-  :mod:`~geovs_drake.scenario.laws` (``controller: !Ibvs {depth: mean}``);
+  :mod:`~geovs_drake.scenario.laws` (``controller: !Ibvs {depth: mean}``), and how
+  the target moves, :mod:`~geovs_drake.scenario.targets` (``target_motion: !Twist
+  {twist: [0, 0, 0.2, 0.05, 0, 0]}``);
 * :mod:`~geovs_drake.scenario.schema`: :class:`ScenarioConfig` and its other parts,
   the checks of what no union can say, and the quantities derived from them;
 * :mod:`~geovs_drake.scenario.resolution`: :class:`ResolvedScenario`, the validated
@@ -43,7 +45,7 @@ from geovs_drake.scenario.laws import (
     Pbvs,
     Spherical,
 )
-from geovs_drake.scenario.load import load_scenario
+from geovs_drake.scenario.load import load_scenario, variant_layer
 from geovs_drake.scenario.plants import PLANT_VARIANTS, Dynamic, Kinematic, PlantConfig
 from geovs_drake.scenario.pose import PoseConfig
 from geovs_drake.scenario.resolution import ResolvedScenario, exact_twin, free_twin, resolve
@@ -70,6 +72,14 @@ from geovs_drake.scenario.sensors import (
     radius_error_of,
 )
 from geovs_drake.scenario.suite import SuiteConfig, SuiteScenario, default_suite_path, load_suite
+from geovs_drake.scenario.targets import (
+    ESTIMATOR_RATE_HZ,
+    FEEDFORWARD_MODES,
+    TARGET_VARIANTS,
+    Still,
+    TargetMotionConfig,
+    Twist,
+)
 
 __all__ = [
     "AUTO",
@@ -77,10 +87,13 @@ __all__ = [
     "CARRIER_VARIANTS",
     "CONTROLLERS",
     "DEFAULT_MAX_STEP",
+    "ESTIMATOR_RATE_HZ",
+    "FEEDFORWARD_MODES",
     "IBVS_DEPTHS",
     "LAW_VARIANTS",
     "NOMINAL_GAIN_SCALES",
     "TORQUE_LIMITS",
+    "TARGET_VARIANTS",
     "PLANT_VARIANTS",
     "PREDICTIONS",
     "SENSOR_VARIANTS",
@@ -110,8 +123,11 @@ __all__ = [
     "SensorConfig",
     "SimulatorSettings",
     "Spherical",
+    "Still",
     "SuiteConfig",
     "SuiteScenario",
+    "TargetMotionConfig",
+    "Twist",
     "damping_of",
     "default_suite_path",
     "exact_twin",
@@ -121,6 +137,7 @@ __all__ = [
     "resolve",
     "camera_like",
     "radius_error_of",
+    "variant_layer",
     "variant_name",
 ]
 

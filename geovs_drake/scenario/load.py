@@ -13,7 +13,7 @@ from pydrake.common.yaml import yaml_load_typed
 from geovs_drake.scenario.carriers import AUTO
 from geovs_drake.scenario.schema import AXES, ScenarioConfig, variant_by_name
 
-__all__ = ["load_scenario"]
+__all__ = ["load_scenario", "variant_layer"]
 
 
 def _describe(value: Any) -> str:
@@ -66,6 +66,14 @@ _TAG = "_tag"
 
 class _TaggedLoader(yaml.SafeLoader):
     """PyYAML's safe loader that keeps a mapping's tag (a law variant) as ``_tag``."""
+
+
+def variant_layer(kind: type, **fields: Any) -> dict:
+    """A layer's value for a union field: the variant ``kind`` with ``fields`` (the rest
+    the layers below give, if they chose the same variant, else its defaults), as a
+    tagged YAML mapping reads; e.g. ``{"target_motion": variant_layer(Twist, twist=xi)}``
+    in :func:`load_scenario`'s ``overrides``."""
+    return {_TAG: f"!{kind.__name__}", **fields}
 
 
 def _construct_tagged(loader: yaml.SafeLoader, suffix: str, node: yaml.Node) -> dict:

@@ -54,6 +54,12 @@ from geovs_drake.scenario.sensors import (
     check_sensor,
     radius_error_of,
 )
+from geovs_drake.scenario.targets import (
+    TARGET_VARIANTS,
+    Still,
+    Twist,
+    check_target_motion,
+)
 
 __all__ = [
     "DEFAULT_MAX_STEP",
@@ -74,6 +80,7 @@ AXES: dict[str, dict[str, type]] = {
     "plant": PLANT_VARIANTS,
     "sensor": SENSOR_VARIANTS,
     "controller": LAW_VARIANTS,
+    "target_motion": TARGET_VARIANTS,
 }
 
 
@@ -228,6 +235,10 @@ class ScenarioConfig:
     #: :class:`Pbvs` and :class:`Spherical`, baselines that command the camera's twist;
     #: :class:`PathFollowing`, a planned image path followed (Eq. 18).
     controller: Nf | Ibvs | Pbvs | Spherical | PathFollowing = field(default_factory=Nf)
+    #: How the target moves from ``target``: :class:`Still` (the paper's loop) or
+    #: :class:`Twist`, a constant body twist in B, with the loop's feed-forward
+    #: (:mod:`geovs_drake.scenario.targets`). In YAML ``target_motion: !Twist {twist: [...]}``.
+    target_motion: Still | Twist = field(default_factory=Still)
     duration: float = 30.0
     #: Samples per second of the logged signals.
     log_rate: float = 50.0
@@ -249,6 +260,7 @@ class ScenarioConfig:
         check_carrier(self.carrier)
         check_sensor(self.sensor)
         check_law(self.controller)
+        check_target_motion(self.target_motion)
         for name, positive, kind in (
             ("damping", False, "non-negative numbers"),
             ("tracking_gains", True, "numbers > 0"),
@@ -296,6 +308,11 @@ class ScenarioConfig:
                     f"sensor {type(self.sensor).__name__}() runs eye-in-hand only (the camera "
                     "rides on the carrier), got carrier FixedCamera()"
                 )
+        if self.moving_target and not isinstance(self.carrier, FreeRig):
+            raise ValueError(
+                "target_motion Twist() needs the free rig (carrier FreeRig): the loop runs "
+                f"in the target's frame, got carrier {type(self.carrier).__name__}()"
+            )
         arm = self.carrier
         if not isinstance(arm, Arm):
             return
@@ -326,6 +343,11 @@ class ScenarioConfig:
         """Whether the plant is :class:`Dynamic` (second order: a state of 12 numbers at
         the goal, a wrench or torques), not :class:`Kinematic`."""
         return isinstance(self.plant, Dynamic)
+
+    @property
+    def moving_target(self) -> bool:
+        """Whether the target moves (``target_motion`` is not :class:`Still`)."""
+        return not isinstance(self.target_motion, Still)
 
     @property
     def X_WB(self) -> RigidTransform:

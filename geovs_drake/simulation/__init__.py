@@ -24,6 +24,7 @@ __getattr__, __dir__, __all__ = attach(
             "CONVERGENCE_POSITION_M",
             "CONVERGENCE_ROTATION_RAD",
             "SimulationResult",
+            "TargetTrace",
             "convergence_tolerance",
             "energy_note",
             "pose_error",

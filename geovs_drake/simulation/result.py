@@ -25,6 +25,7 @@ __all__ = [
     "MARGIN_NAMES",
     "SADDLE_NOTE_ANGLE_RAD",
     "SimulationResult",
+    "TargetTrace",
     "convergence_tolerance",
     "energy_note",
     "pose_error",
@@ -138,6 +139,36 @@ class ArmTrace:
 
 
 @dataclass
+class TargetTrace:
+    """A moving target's estimator along a run (``target_motion`` with the ``estimated``
+    feed-forward), at its own updates: ``times`` [s], ``twist_estimate`` (N, 6) and the
+    filter's ``covariance_diagonal`` (N, 12, the pose's error then the twist's), against
+    the true twist ``twist`` (6)."""
+
+    times: np.ndarray
+    twist_estimate: np.ndarray
+    covariance_diagonal: np.ndarray
+    twist: np.ndarray
+
+    @property
+    def estimation_error(self) -> np.ndarray:
+        """|xi_hat - xi_B| (N,), in the twist's mixed units (rad/s and m/s)."""
+        return np.linalg.norm(self.twist_estimate - self.twist, axis=1)
+
+    def summary(self) -> dict:
+        """The JSON entries of the estimator's run."""
+        return {
+            "final_twist_estimate": [float(v) for v in self.twist_estimate[-1]],
+            "final_twist_estimation_error": float(self.estimation_error[-1]),
+            "final_twist_std": [float(v) for v in np.sqrt(self.covariance_diagonal[-1, 6:])],
+        }
+
+
+#: The share of a run, from its end, over which the steady tracking error is read.
+STEADY_SHARE = 0.25
+
+
+@dataclass
 class SimulationResult:
     """A run's logs and summary. Arrays are sampled at ``config.log_rate``."""
 
@@ -172,6 +203,23 @@ class SimulationResult:
     effort_warning: str | None = None
     #: Drake's continuous states at ``times`` (for the linearisation along the run).
     states: np.ndarray | None = None
+    #: A moving target: the lag the linearised loop predicts without feed-forward
+    #: [m] (:func:`geovs_drake.linear_model.tracking_lag`; None where it does not model
+    #: the loop), and the estimator's trace (the ``estimated`` feed-forward), else None.
+    predicted_steady_error: float | None = None
+    target: TargetTrace | None = None
+
+    @property
+    def position_errors(self) -> np.ndarray:
+        """|p_BC - p_BC*| [m] at each logged time: the camera relative to the target,
+        against the goal (a moving target's tracking error)."""
+        return np.linalg.norm(self.X_BC[:, :3, 3] - self.config.X_BC_goal.translation(), axis=1)
+
+    @property
+    def steady_tracking_error(self) -> float:
+        """The largest position error over the last :data:`STEADY_SHARE` of the run [m]."""
+        start = self.times[-1] - STEADY_SHARE * (self.times[-1] - self.times[0])
+        return float(np.max(self.position_errors[self.times >= start]))
 
     @property
     def lyapunov(self) -> np.ndarray:
@@ -312,7 +360,18 @@ class SimulationResult:
             "energy_bound": self.energy_bound,
             "energy_guarantee": self.energy_guarantee,
             "max_energy": None if self.energy is None else float(np.max(self.energy)),
+            "steady_tracking_error_m": self.steady_tracking_error,
+            "max_tracking_error_m": float(np.max(self.position_errors)),
+            "predicted_steady_error_m": self.predicted_steady_error,
         }
+        motion = self.config.target_motion
+        if self.config.moving_target:
+            out["target_motion"] = {
+                "twist": [float(v) for v in motion.twist],
+                "feedforward": motion.feedforward,
+            }
+            if self.target is not None:
+                out["target_motion"].update(self.target.summary())
         cam = self.config.sensor
         if isinstance(cam, CameraModel):
             out["camera"] = {

@@ -10,6 +10,7 @@ from pydrake.math import RigidTransform
 
 from geovs_drake.geometry.joint_barrier import combine, joint_widths
 from geovs_drake.geometry.navigation import NavigationFunction
+from geovs_drake.linear_model import closed_form_refusal, tracking_lag
 from geovs_drake.loop.arm import (
     joint_barrier_values,
     joint_count,
@@ -19,6 +20,7 @@ from geovs_drake.loop.arm import (
 )
 from geovs_drake.loop.build import Loop, build_loop, effort_check, fit_gains
 from geovs_drake.loop.camera_fit import camera_fit
+from geovs_drake.loop.targets import ESTIMATE_LOG_NAMES
 from geovs_drake.planning import plan_for_scenario
 from geovs_drake.scenario import (
     Nf,
@@ -33,6 +35,7 @@ from geovs_drake.simulation.result import (
     SADDLE_NOTE_ANGLE_RAD,
     ArmTrace,
     SimulationResult,
+    TargetTrace,
     convergence_tolerance,
     energy_note,
     pose_error,
@@ -41,7 +44,7 @@ from geovs_drake.simulation.result import (
 from geovs_drake.simulation.step_limit import step_limit
 from geovs_drake.systems._arm_model import arm_plant
 
-__all__ = ["StartOutsideDomain", "arm_trace", "check_start", "simulate"]
+__all__ = ["StartOutsideDomain", "arm_trace", "check_start", "predicted_lag", "simulate"]
 
 
 class StartOutsideDomain(ValueError):
@@ -98,6 +101,37 @@ def arm_trace(loop: Loop, root, states: np.ndarray) -> ArmTrace:
         joint_barrier=None if widths is None else joint_barrier_values(model, q, widths),
         self_motion_speed=self_motion_speeds(model, q, states[:, nq:]) if redundant else None,
     )
+
+
+def predicted_lag(resolved: ResolvedScenario) -> float | None:
+    """The position lag [m] the linearised loop predicts without feed-forward behind the
+    scenario's moving target (:func:`~geovs_drake.linear_model.tracking_lag`), or None
+    where the closed form does not model the loop (a carrier other than the free rig, a
+    law other than the NF) or the target stands still."""
+    config = resolved.config
+    if not config.moving_target or not isinstance(resolved.law, Nf):
+        return None
+    if closed_form_refusal(config, "tracking lag") is not None:
+        return None
+    eps = tracking_lag(config, np.asarray(config.target_motion.twist), resolved.damping)
+    return float(np.linalg.norm(eps[3:]))
+
+
+def _target_trace(loop: Loop, root) -> tuple[float | None, TargetTrace | None]:
+    """The predicted lag, and the estimator's logs where it runs (else None)."""
+    diagram, resolved = loop.diagram, loop.resolved
+    if not diagram.HasSubsystemNamed(ESTIMATE_LOG_NAMES[0]):
+        return predicted_lag(resolved), None
+    twist, covariance = (
+        diagram.GetSubsystemByName(name).FindLog(root) for name in ESTIMATE_LOG_NAMES
+    )
+    trace = TargetTrace(
+        times=twist.sample_times().copy(),
+        twist_estimate=twist.data().T.copy(),
+        covariance_diagonal=covariance.data().T.copy(),
+        twist=np.asarray(resolved.config.target_motion.twist, dtype=float),
+    )
+    return predicted_lag(resolved), trace
 
 
 def simulate(
@@ -241,6 +275,8 @@ def simulate(
         arm=arm,
     )
     result.step_limit = limit
+    if config.moving_target:
+        result.predicted_steady_error, result.target = _target_trace(loop, root)
     # Each check's one warning line, None where it has nothing to say.
     result.step_warning, result.camera_warning, result.effort_warning = warnings
     result.camera_fit = fit

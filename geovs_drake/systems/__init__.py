@@ -26,6 +26,10 @@ __getattr__, __dir__, __all__ = attach(
         "pinhole_feature_sensor": ("PinholeFeatureSensor", "PinholeFeatureSensor_"),
         "self_mask": ("SelfMask", "SelfMask_"),
         "spherical_camera": ("SphericalCamera", "SphericalCamera_"),
+        "target_motion": ("TargetMotion", "TargetMotion_"),
+        "target_relative_twist": ("TargetRelativeTwist", "TargetRelativeTwist_"),
+        "target_relative_wrench": ("TargetRelativeWrench", "TargetRelativeWrench_"),
+        "target_twist_estimator": ("TargetTwistEstimator", "TargetTwistEstimator_"),
         "spherical_feature_controller": (
             "SphericalFeatureController",
             "SphericalFeatureController_",

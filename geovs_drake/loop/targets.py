@@ -1,0 +1,195 @@
+"""The moving target: its motion, the loop in its frame, and the feed-forward (issue 32).
+
+A loop whose ``target_motion`` is not :class:`~geovs_drake.scenario.Still` runs in the
+target's frame W' (where the target stands at ``config.X_WB`` for all time): the carrier's
+state is the camera rig's pose and twist *relative to the target*, so the exact camera,
+the sensors, the NF, the safe-domain monitor and the logs read the relative pose as they
+read a still target's, and the run's errors are those of X_BC against X_BC*. The
+target's motion enters where physics puts it:
+
+* the kinematic free body (Eq. 17): the camera's twist relative to the target is the
+  commanded one less the target's carried to C
+  (:class:`~geovs_drake.systems.target_relative_twist.TargetRelativeTwist`);
+* the dynamic free rig (Appendix C): the moving frame's wrench (acceleration, Coriolis,
+  centripetal) is added to the law's
+  (:class:`~geovs_drake.systems.target_relative_wrench.TargetRelativeWrench`).
+
+Both add the feed-forward of the twist the loop believes, :data:`FEEDFORWARD` (one entry per
+:data:`~geovs_drake.scenario.FEEDFORWARD_MODES` name): none (zero), the known twist, or
+the estimate of
+:class:`~geovs_drake.systems.target_twist_estimator.TargetTwistEstimator`, which reads the
+camera's y and the carrier's pose in the world
+(:class:`~geovs_drake.systems.target_motion.TargetMotion`'s ``world_body_pose``, the
+odometry). A still target adds nothing to the diagram.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
+
+from geovs_drake.loop.carriers import CarrierParts
+from geovs_drake.scenario import (
+    ESTIMATOR_RATE_HZ,
+    FEEDFORWARD_MODES,
+    CameraModel,
+    ResolvedScenario,
+)
+from geovs_drake.systems.target_motion import TargetMotion
+from geovs_drake.systems.target_relative_twist import TargetRelativeTwist
+from geovs_drake.systems.target_relative_wrench import TargetRelativeWrench
+from geovs_drake.systems.target_twist_estimator import TargetTwistEstimator
+
+__all__ = [
+    "ESTIMATE_LOG_NAMES",
+    "FEEDFORWARD",
+    "TargetParts",
+    "add_target_motion",
+    "connect_feedforward",
+    "estimator_timing",
+]
+
+#: The estimator's loggers (``estimated`` feed-forward): its twist and its covariance's
+#: diagonal, sampled at its own updates.
+ESTIMATE_LOG_NAMES = ("log_target_twist_estimate", "log_target_covariance")
+
+
+@dataclass
+class TargetParts:
+    """What a moving target adds: its ``motion`` (TargetMotion), the carrier seen from it,
+    and the ``twist_estimate`` input the feed-forward mode fills."""
+
+    motion: LeafSystem
+    carrier: CarrierParts
+    adapter: LeafSystem
+
+
+def add_target_motion(
+    builder: DiagramBuilder, resolved: ResolvedScenario, carrier: CarrierParts
+) -> TargetParts | None:
+    """The target's motion and the carrier's adapter to the target's frame (module
+    docstring), or None for a still target (nothing added). The free rig only (the
+    scenario's check)."""
+    config = resolved.config
+    if not config.moving_target:
+        return None
+    motion = builder.AddNamedSystem(
+        "target_motion",
+        TargetMotion(X_WB0=config.X_WB, twist=np.asarray(config.target_motion.twist, float)),
+    )
+    builder.Connect(carrier.body_pose, motion.body_pose_input)
+    if carrier.takes_wrench:
+        return _wrench_driven(builder, config, carrier, motion)
+    adapter = builder.AddNamedSystem(
+        "target_relative_twist", TargetRelativeTwist(X_WB0=config.X_WB)
+    )
+    builder.Connect(carrier.body_pose, adapter.body_pose_input)
+    builder.Connect(motion.target_twist_output, adapter.target_twist_input)
+    builder.Connect(adapter.relative_velocity_output, carrier.twist_input)
+    moved = dataclasses.replace(carrier, twist_input=adapter.camera_velocity_input)
+    return TargetParts(motion, moved, adapter)
+
+
+def _wrench_driven(builder, config, carrier: CarrierParts, motion) -> TargetParts:
+    rig = config.carrier
+    adapter = builder.AddNamedSystem(
+        "target_relative_wrench",
+        TargetRelativeWrench(X_WB0=config.X_WB, mass=rig.mass, inertia=tuple(rig.inertia_diagonal)),
+    )
+    plant = carrier.plant
+    builder.Connect(plant.get_state_output_port(), adapter.rig_state_input)
+    builder.Connect(motion.target_twist_output, adapter.target_twist_input)
+    builder.Connect(motion.target_acceleration_output, adapter.target_acceleration_input)
+
+    def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
+        # The law reads the rig's state through the adapter (the believed relative
+        # twist), and its wrench reaches the plant with the frame's and the feed-forward.
+        builder.Connect(adapter.law_body_state_output, force.body_state_input)
+        builder.Connect(force.generalized_force_output, adapter.generalized_force_input)
+        builder.Connect(
+            adapter.plant_generalized_force_output,
+            plant.get_applied_generalized_force_input_port(),
+        )
+
+    moved = dataclasses.replace(
+        carrier, connect_force=connect_force, body_state=adapter.law_body_state_output
+    )
+    return TargetParts(motion, moved, adapter)
+
+
+def estimator_timing(resolved: ResolvedScenario) -> tuple[float, int]:
+    """``(period [s], delay_frames)`` of the estimator: a camera's frame period, its held
+    frame read ``latency_frames + 1`` periods after it was taken (the frame's update and
+    the estimator's are simultaneous, so it reads the one before); the exact sensor's y is
+    read as it is taken, at :data:`~geovs_drake.scenario.ESTIMATOR_RATE_HZ`."""
+    sensor = resolved.config.sensor
+    if isinstance(sensor, CameraModel):
+        return 1.0 / sensor.rate, int(sensor.latency_frames) + 1
+    return 1.0 / ESTIMATOR_RATE_HZ, 0
+
+
+def _none(builder, resolved, target, camera) -> OutputPort:
+    return builder.AddNamedSystem(
+        "target_twist_zero", ConstantVectorSource(np.zeros(6))
+    ).get_output_port()
+
+
+def _known(builder, resolved, target, camera) -> OutputPort:
+    return target.motion.target_twist_output
+
+
+def _estimated(builder, resolved, target, camera) -> OutputPort:
+    config = resolved.config
+    period, delay = estimator_timing(resolved)
+    estimator = builder.AddNamedSystem(
+        "target_twist_estimator",
+        TargetTwistEstimator(
+            radius=resolved.believed_radius,
+            X_RC=target.carrier.X_RC,
+            period=period,
+            delay_frames=delay,
+            pose_noise=config.target_motion.pose_noise,
+            twist_noise=config.target_motion.twist_noise,
+        ),
+    )
+    # The frame as the camera took it (not a predictor's), or the exact y.
+    y = (
+        builder.GetSubsystemByName("feature_sensor").image_features_output
+        if builder.HasSubsystemNamed("feature_sensor")
+        else camera.image_features_output
+    )
+    builder.Connect(y, estimator.image_features_input)
+    builder.Connect(target.motion.world_body_pose_output, estimator.body_pose_input)
+    for port, name in zip(
+        (estimator.twist_estimate_output, estimator.covariance_diagonal_output),
+        ESTIMATE_LOG_NAMES,
+        strict=True,
+    ):
+        # At the estimator's own updates: no step of the integrator is cut for it.
+        LogVectorOutput(port, builder, publish_period=period).set_name(name)
+    return estimator.twist_estimate_output
+
+
+#: The twist each feed-forward mode believes: ``add(builder, resolved, target, camera)``
+#: returns its port (6), by the names of :data:`~geovs_drake.scenario.FEEDFORWARD_MODES`.
+FEEDFORWARD: dict[str, Callable[..., OutputPort]] = {
+    "none": _none,
+    "known": _known,
+    "estimated": _estimated,
+}
+assert set(FEEDFORWARD) == set(FEEDFORWARD_MODES), "one system per feed-forward mode"
+
+
+def connect_feedforward(
+    builder: DiagramBuilder, resolved: ResolvedScenario, target: TargetParts, camera: LeafSystem
+) -> None:
+    """Fill the adapter's ``twist_estimate`` by the scenario's feed-forward mode
+    (:data:`FEEDFORWARD`); after the sensor is added (the estimator reads its frames)."""
+    mode = resolved.config.target_motion.feedforward
+    port = FEEDFORWARD[mode](builder, resolved, target, camera)
+    builder.Connect(port, target.adapter.twist_estimate_input)

@@ -1,0 +1,125 @@
+"""TargetMotion: the moving target's pose and twist, in closed form (issue 32)."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.systems.framework import LeafSystem_
+
+from geovs_drake.geometry.target_motion import target_pose
+from geovs_drake.systems._parameters import POSE_SIZE
+from geovs_drake.systems._template import template_system
+
+__all__ = ["TargetMotion", "TargetMotion_", "matrix_of_pose", "pose_of_matrix"]
+
+#: A twist's size, (omega, v).
+TWIST_SIZE = 6
+
+
+def matrix_of_pose(x: np.ndarray) -> np.ndarray:
+    """The 4 x 4 pose of ``[qw, qx, qy, qz, x, y, z]`` (the quaternion normalised)."""
+    q = np.asarray(x[0:4], dtype=float)
+    X = np.eye(4)
+    X[:3, :3] = RotationMatrix(Quaternion(q / np.linalg.norm(q))).matrix()
+    X[:3, 3] = x[4:7]
+    return X
+
+
+def pose_of_matrix(X: np.ndarray) -> np.ndarray:
+    """``[qw, qx, qy, qz, x, y, z]`` of a 4 x 4 pose."""
+    q = RotationMatrix(np.asarray(X[:3, :3])).ToQuaternion()
+    return np.concatenate([[q.w(), q.x(), q.y(), q.z()], X[:3, 3]])
+
+
+@template_system("TargetMotion_", T_list=[float])
+def TargetMotion_(T):
+    class Impl(LeafSystem_[T]):
+        """The target moving with a constant body twist, and the world seen from it.
+
+        .. pydrake_system::
+
+            name: TargetMotion
+            input_ports:
+            - body_pose
+            output_ports:
+            - target_pose
+            - target_twist
+            - target_acceleration
+            - world_body_pose
+
+        ``target_pose`` is X_WB(t) = X_WB(0) exp(t xi_B^) as ``[q, p]`` (7), closed form
+        (:func:`~geovs_drake.geometry.target_motion.target_pose`); ``target_twist`` is
+        xi_B = (omega, v) in B, ``target_acceleration`` its rate (zero: constant).
+
+        The loop runs in the target's frame: its carrier's pose ``body_pose`` is given in
+        the frame W' where the target stands still at X_WB(0). ``world_body_pose`` is
+        that body's pose in the world, ``X_WB(t) X_WB(0)^-1 X_W'R``: what the carrier's
+        own odometry reads (the estimator's input). No state: the outputs are functions
+        of the time (and the input), so a still target's loop is untouched by it.
+        """
+
+        def _construct(
+            self,
+            X_WB0: RigidTransform | None = None,
+            twist: np.ndarray | None = None,
+            converter=None,
+        ):
+            LeafSystem_[T].__init__(self, converter)
+            X_WB0 = RigidTransform() if X_WB0 is None else X_WB0
+            twist = np.zeros(TWIST_SIZE) if twist is None else np.asarray(twist, dtype=float)
+            if twist.shape != (TWIST_SIZE,) or not np.all(np.isfinite(twist)):
+                raise ValueError(f"twist must be 6 finite numbers (omega, v), got {twist!r}")
+            self._defaults = (X_WB0, twist)
+            self._X_WB0 = X_WB0.GetAsMatrix4()
+            self._X_B0W = X_WB0.inverse().GetAsMatrix4()
+            self._twist = twist
+            self.body_pose_input = self.DeclareVectorInputPort("body_pose", POSE_SIZE)
+            time = {self.time_ticket()}
+            self.target_pose_output = self.DeclareVectorOutputPort(
+                "target_pose", POSE_SIZE, self.CalcTargetPose, prerequisites_of_calc=time
+            )
+            self.target_twist_output = self.DeclareVectorOutputPort(
+                "target_twist",
+                TWIST_SIZE,
+                self.CalcTargetTwist,
+                prerequisites_of_calc={self.nothing_ticket()},
+            )
+            self.target_acceleration_output = self.DeclareVectorOutputPort(
+                "target_acceleration",
+                TWIST_SIZE,
+                self.CalcTargetAcceleration,
+                prerequisites_of_calc={self.nothing_ticket()},
+            )
+            self.world_body_pose_output = self.DeclareVectorOutputPort(
+                "world_body_pose",
+                POSE_SIZE,
+                self.CalcWorldBodyPose,
+                prerequisites_of_calc={self.time_ticket(), self.all_input_ports_ticket()},
+            )
+
+        def _construct_copy(self, other, converter=None):
+            Impl._construct(self, *other._defaults, converter=converter)
+
+        def X_WB(self, t: float) -> np.ndarray:
+            """X_WB(t), the target's pose at time t (4 x 4)."""
+            return target_pose(self._X_WB0, self._twist, t)
+
+        def CalcTargetPose(self, context, output) -> None:
+            output.SetFromVector(pose_of_matrix(self.X_WB(context.get_time())))
+
+        def CalcTargetTwist(self, context, output) -> None:
+            output.SetFromVector(self._twist)
+
+        def CalcTargetAcceleration(self, context, output) -> None:
+            output.SetFromVector(np.zeros(TWIST_SIZE))
+
+        def CalcWorldBodyPose(self, context, output) -> None:
+            X_WpR = matrix_of_pose(self.body_pose_input.Eval(context))
+            X_WR = self.X_WB(context.get_time()) @ self._X_B0W @ X_WpR
+            output.SetFromVector(pose_of_matrix(X_WR))
+
+    return Impl
+
+
+TargetMotion = TargetMotion_[None]
