@@ -22,6 +22,7 @@ PYPROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
 #: Import name -> distribution, for the third-party modules the package imports.
 DISTRIBUTION = {
     "pydrake": "drake",
+    "drake": "drake",  # the LCM message types (lcmt_*) the drake wheel ships
     "numpy": "numpy",
     "yaml": "pyyaml",
     "numba": "numba",
