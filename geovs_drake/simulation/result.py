@@ -152,7 +152,7 @@ class TargetTrace:
 
     @property
     def estimation_error(self) -> np.ndarray:
-        """|xi_hat - xi_B| (N,), in the twist's mixed units (rad/s and m/s)."""
+        """``|xi_hat - xi_B|`` (N,), in the twist's mixed units (rad/s and m/s)."""
         return np.linalg.norm(self.twist_estimate - self.twist, axis=1)
 
     def summary(self) -> dict:
@@ -211,7 +211,7 @@ class SimulationResult:
 
     @property
     def position_errors(self) -> np.ndarray:
-        """|p_BC - p_BC*| [m] at each logged time: the camera relative to the target,
+        """``|p_BC - p_BC*|`` [m] at each logged time: the camera relative to the target,
         against the goal (a moving target's tracking error)."""
         return np.linalg.norm(self.X_BC[:, :3, 3] - self.config.X_BC_goal.translation(), axis=1)
 
