@@ -11,6 +11,7 @@ carrier is one variant (:mod:`geovs_drake.scenario.carriers`), one factory and i
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -259,12 +260,14 @@ def _free_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: 
 
 def _kinematic_body(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool):
     """Eye-in-hand, kinematic (Eqs. 17-19): the body *is* the camera frame (X_RC = I),
-    its body twist commanded."""
+    its body twist commanded. With ``draws_marks`` (a camera) a plant with no dynamics of
+    its own draws the scene at the body's pose, as the kinematic arm's does, for the
+    renderer and Meshcat."""
     config = resolved.config
     body = builder.AddNamedSystem(
         "kinematic_rigid_body", KinematicRigidBody(X_WC0=config.X_WB @ config.X_BC_initial)
     )
-    return CarrierParts(
+    parts = CarrierParts(
         body_pose=body.body_pose_output,
         state=body.body_pose_output,
         state_log_name="log_body_pose",
@@ -273,6 +276,31 @@ def _kinematic_body(builder: DiagramBuilder, resolved: ResolvedScenario, draws_m
         pose_of_states=leading_pose,
         set_initial_state=no_initial_state,
         twist_input=body.camera_velocity_input,
+    )
+    if not draws_marks:
+        return parts
+    scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
+    plant = MultibodyPlant(time_step=0.0)
+    plant.RegisterAsSourceForSceneGraph(scene_graph)
+    rig = plant.AddRigidBody(RIG_BODY_NAME, SpatialInertia.SolidSphereWithMass(1.0, 0.01))
+    add_marked_target_geometry(plant, config)
+    drawing = add_camera_geometry(plant, rig, RigidTransform(), resolved.domain.fov_half_angle)
+    drawing += add_goal_ghost(plant, config)
+    plant.Finalize()
+    for geometry_id in drawing:  # illustration only: out of the camera's own view
+        scene_graph.RemoveRole(plant.get_source_id(), geometry_id, Role.kPerception)
+    # The plant's positions are the free body's [q, p]: the kinematic body's pose.
+    to_pose = builder.AddNamedSystem("rig_drawing", MultibodyPositionToGeometryPose(plant))
+    builder.Connect(body.body_pose_output, to_pose.get_input_port())
+    builder.Connect(
+        to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id())
+    )
+    return dataclasses.replace(
+        parts,
+        add_meshcat=_meshcat_with_camera(scene_graph, rig, RigidTransform()),
+        plant=plant,
+        scene_graph=scene_graph,
+        body=rig,
     )
 
 
