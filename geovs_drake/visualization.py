@@ -112,8 +112,8 @@ def add_target_geometry(
     X_WB: RigidTransform | None = None,
     alpha: float = 1.0,
     prefix: str = "",
-) -> None:
-    """The target sphere, its marked point b and its arrow a.
+) -> list[GeometryId]:
+    """The target sphere, its marked point b and its arrow a; returns their ids.
 
     Fixed in the world at ``X_WB`` (default ``config.X_WB``), or, with ``body``,
     on that body with B its body frame (the fixed-camera loop's moving
@@ -122,19 +122,18 @@ def add_target_geometry(
     rho = config.radius
     frame_body = plant.world_body() if body is None else body
     X = RigidTransform() if body is not None else (config.X_WB if X_WB is None else X_WB)
-    plant.RegisterVisualGeometry(
-        frame_body, X, Sphere(rho), f"{prefix}target_sphere", [0.85, 0.85, 0.9, 0.9 * alpha]
-    )
     X_Bb = RigidTransform([0.0, 0.0, -rho])
-    plant.RegisterVisualGeometry(
-        frame_body, X @ X_Bb, Sphere(0.12 * rho), f"{prefix}marked_point", [0.9, 0.1, 0.1, alpha]
-    )
     length = 0.6 * rho
     # A cylinder's axis is its z; Rx(-pi/2) turns it onto the arrow a_B = e2.
     X_Ba = RigidTransform(RollPitchYaw(-np.pi / 2, 0, 0), [0.0, 0.5 * length, -1.02 * rho])
-    plant.RegisterVisualGeometry(
-        frame_body, X @ X_Ba, Cylinder(0.05 * rho, length), f"{prefix}arrow", [0.1, 0.6, 0.1, alpha]
-    )
+    return [
+        plant.RegisterVisualGeometry(frame_body, X_BG, shape, prefix + name, rgba)
+        for X_BG, shape, name, rgba in (
+            (X, Sphere(rho), "target_sphere", [0.85, 0.85, 0.9, 0.9 * alpha]),
+            (X @ X_Bb, Sphere(0.12 * rho), "marked_point", [0.9, 0.1, 0.1, alpha]),
+            (X @ X_Ba, Cylinder(0.05 * rho, length), "arrow", [0.1, 0.6, 0.1, alpha]),
+        )
+    ]
 
 
 #: The marks' discs: thickness and lift of their underside off the tangent plane,
@@ -149,11 +148,16 @@ MARK_LIFT = 0.0004
 
 
 def add_marked_target_geometry(
-    plant: MultibodyPlant, config: ScenarioConfig, marks: TargetMarks | None = None
+    plant: MultibodyPlant,
+    config: ScenarioConfig,
+    marks: TargetMarks | None = None,
+    body: RigidBody | None = None,
 ) -> list[GeometryId]:
-    """The target as the rendered camera sees it, fixed in the world: a grey sphere, a red
-    disc on the marked point b and a green disc on the arrow mark (:class:`TargetMarks`),
-    in the colours the :class:`~geovs_drake.systems.FeatureExtractor` looks for
+    """The target as the rendered camera sees it, fixed in the world at X_WB (or on
+    ``body``, whose frame is B: the fixed camera's target that the rig moves): a grey
+    sphere, a red disc on the marked point b and a green disc on the arrow mark
+    (:class:`TargetMarks`), in the colours the
+    :class:`~geovs_drake.systems.FeatureExtractor` looks for
     (:data:`~geovs_drake.systems.feature_extractor.SCENE_COLOURS`).
 
     Each disc is a thin cylinder tangent to the sphere at its mark, its axis along
@@ -161,9 +165,9 @@ def add_marked_target_geometry(
     roles, so Meshcat shows what the camera renders.
     """
     marks = marks or TargetMarks()
-    world = plant.world_body()
+    world = plant.world_body() if body is None else body
     rho = config.radius
-    X_WB = config.X_WB
+    X_WB = config.X_WB if body is None else RigidTransform()
     rgba = {k: list(v) + [1.0] for k, v in SCENE_COLOURS.items()}
     ids = [
         plant.RegisterVisualGeometry(

@@ -24,12 +24,10 @@ from geovs_drake.loop import build_loop
 from geovs_drake.loop.carriers import RIG_BODY_NAME
 from geovs_drake.scenario import (
     Dynamic,
-    FixedCamera,
     Kinematic,
     Pbvs,
     Pinhole,
     PoseConfig,
-    Rendered,
     ScenarioConfig,
     load_scenario,
     variant_name,
@@ -462,15 +460,3 @@ def test_a_baseline_runs_through_the_camera_model():
     result = simulate(config)
     assert result.status == "converged", result.message
     assert result.summary()["sensor"] == "pinhole"
-
-
-@pytest.mark.parametrize(
-    ("changes", "message"),
-    [
-        ({"carrier": FixedCamera()}, r"runs eye-in-hand only .*got carrier FixedCamera\(\)"),
-    ],
-)
-def test_camera_models_name_the_loops_they_cannot_run(changes, message):
-    config = ScenarioConfig(**changes, sensor=Rendered())
-    with pytest.raises(ValueError, match=message):
-        config.validate()

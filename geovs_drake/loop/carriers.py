@@ -287,14 +287,9 @@ def _kinematic_body(builder: DiagramBuilder, resolved: ResolvedScenario, draws_m
     drawing = add_camera_geometry(plant, rig, RigidTransform(), resolved.domain.fov_half_angle)
     drawing += add_goal_ghost(plant, config)
     plant.Finalize()
-    for geometry_id in drawing:  # illustration only: out of the camera's own view
-        scene_graph.RemoveRole(plant.get_source_id(), geometry_id, Role.kPerception)
+    _out_of_view(scene_graph, plant, drawing)
     # The plant's positions are the free body's [q, p]: the kinematic body's pose.
-    to_pose = builder.AddNamedSystem("rig_drawing", MultibodyPositionToGeometryPose(plant))
-    builder.Connect(body.body_pose_output, to_pose.get_input_port())
-    builder.Connect(
-        to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id())
-    )
+    _draw_at(builder, plant, scene_graph, body.body_pose_output, "rig_drawing")
     return dataclasses.replace(
         parts,
         add_meshcat=_meshcat_with_camera(scene_graph, rig, RigidTransform()),
@@ -329,10 +324,9 @@ def _fixed_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
     config = resolved.config
     X_WC = fixed_camera_pose(config)
     plant, scene_graph, target = _free_body(builder, config, TARGET_BODY_NAME)
-    add_target_geometry(plant, config, body=target)
-    add_target_geometry(plant, config, X_WB=config.X_WB, alpha=0.25, prefix="goal_")
-    add_camera_geometry(plant, plant.world_body(), X_WC, resolved.domain.fov_half_angle)
+    drawing = _fixed_camera_scene(plant, resolved, target, X_WC, draws_marks)
     plant.Finalize()
+    _out_of_view(scene_graph, plant, drawing)
     x0 = initial_rig_state(config)
     plant.SetDefaultFloatingBaseBodyPose(target, RigidTransform(Quaternion(x0[0:4]), x0[4:7]))
     mount = builder.AddNamedSystem("fixed_camera_mount", FixedCameraMount(X_WC=X_WC))
@@ -359,8 +353,33 @@ def _fixed_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
         add_meshcat=_meshcat_with_camera(scene_graph, plant.world_body(), X_WC),
         plant=plant,
         scene_graph=scene_graph,
-        body=target,
+        # A camera model stands in the world at X_WC, looking at the target the rig moves.
+        body=plant.world_body(),
+        X_BodyC=X_WC,
     )
+
+
+def _fixed_camera_scene(
+    plant: MultibodyPlant, resolved: ResolvedScenario, target, X_WC: RigidTransform, marks: bool
+) -> list:
+    """The fixed camera's scene on ``plant``: the target on its body (in the extractor's
+    colours with ``marks``), the goal's ghost and the camera in the world. Returns the
+    drawing a camera must not see (the ghost and the camera itself) where ``marks``."""
+    config = resolved.config
+    if marks:
+        add_marked_target_geometry(plant, config, body=target)
+    else:
+        add_target_geometry(plant, config, body=target)
+    ghost = add_target_geometry(plant, config, X_WB=config.X_WB, alpha=0.25, prefix="goal_")
+    camera = add_camera_geometry(plant, plant.world_body(), X_WC, resolved.domain.fov_half_angle)
+    return ghost + camera if marks else []
+
+
+def _out_of_view(scene_graph: SceneGraph, plant: MultibodyPlant, drawing: list) -> None:
+    """Illustration only: ``drawing`` (the camera's own, the goal's ghost) kept out of
+    the renderer's view."""
+    for geometry_id in drawing:
+        scene_graph.RemoveRole(plant.get_source_id(), geometry_id, Role.kPerception)
 
 
 def _fixed_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool):
@@ -375,7 +394,7 @@ def _fixed_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_
     mount = builder.AddNamedSystem("fixed_camera_mount", FixedCameraKinematicMount(X_WC=X_WC))
     builder.Connect(body.body_pose_output, mount.target_pose_input)
     builder.Connect(mount.target_velocity_output, body.camera_velocity_input)
-    return CarrierParts(
+    parts = CarrierParts(
         body_pose=mount.camera_pose_output,
         state=body.body_pose_output,
         state_log_name="log_body_pose",
@@ -384,6 +403,36 @@ def _fixed_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_
         pose_of_states=_relative_pose(X_WC),
         set_initial_state=no_initial_state,
         twist_input=mount.camera_velocity_input,
+    )
+    if not draws_marks:
+        return parts
+    # A camera model: the scene drawn by a plant with no dynamics, the target at the
+    # kinematic body's pose (the kinematic free rig's drawing, eye-to-hand).
+    scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
+    plant = MultibodyPlant(time_step=0.0)
+    plant.RegisterAsSourceForSceneGraph(scene_graph)
+    target = plant.AddRigidBody(TARGET_BODY_NAME, SpatialInertia.SolidSphereWithMass(1.0, 0.01))
+    drawing = _fixed_camera_scene(plant, resolved, target, X_WC, draws_marks)
+    plant.Finalize()
+    _out_of_view(scene_graph, plant, drawing)
+    _draw_at(builder, plant, scene_graph, body.body_pose_output, "target_drawing")
+    return dataclasses.replace(
+        parts,
+        add_meshcat=_meshcat_with_camera(scene_graph, plant.world_body(), X_WC),
+        plant=plant,
+        scene_graph=scene_graph,
+        body=plant.world_body(),
+        X_BodyC=X_WC,
+    )
+
+
+def _draw_at(builder, plant: MultibodyPlant, scene_graph: SceneGraph, positions, name: str):
+    """The drawing ``plant`` (no dynamics of its own) at ``positions``, as Drake's
+    MultibodyPositionToGeometryPose draws a plant from given positions."""
+    to_pose = builder.AddNamedSystem(name, MultibodyPositionToGeometryPose(plant))
+    builder.Connect(positions, to_pose.get_input_port())
+    builder.Connect(
+        to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id())
     )
 
 

@@ -302,12 +302,6 @@ class ScenarioConfig:
                 f"commands the camera's velocity): got initial_velocity = {twist} "
                 "with plant Kinematic()"
             )
-        if isinstance(self.sensor, CameraModel):
-            if isinstance(self.carrier, FixedCamera):
-                raise ValueError(
-                    f"sensor {type(self.sensor).__name__}() runs eye-in-hand only (the camera "
-                    "rides on the carrier), got carrier FixedCamera()"
-                )
         if self.moving_target and not isinstance(self.carrier, FreeRig):
             raise ValueError(
                 "target_motion Twist() needs the free rig (carrier FreeRig): the loop runs "
