@@ -9,24 +9,28 @@ pacing: PANDA_STATUS at 1 kHz, PANDA_COMMAND at 1 kHz, the camera's frames at 30
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.metadata
+import math
 
 import numpy as np
 import pytest
+from drake import lcmt_panda_command, lcmt_panda_status, lcmt_scope
 from pydrake.lcm import DrakeLcm
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmSubscriberSystem
 
 from geovs_drake.cli import main
 from geovs_drake.hardware.config import HardwareConfig, check_lcm_url, load_hardware
 from geovs_drake.hardware.controller import build_controller
-from geovs_drake.hardware.run import load_setup
-from geovs_drake.hardware.station import build_station
+from geovs_drake.hardware.messages import decode_status_vector, status_vector
+from geovs_drake.hardware.run import SETTLED_JOINT_SPEED, load_setup, run_station
+from geovs_drake.hardware.station import FRAME_INDEX, build_station
 from geovs_drake.simulation import simulate
-from geovs_drake.simulation.result import pose_error
+from geovs_drake.simulation.result import convergence_tolerance, pose_error
 
 try:
     importlib.metadata.distribution("example-robot-data")
@@ -38,25 +42,31 @@ except importlib.metadata.PackageNotFoundError:
 SMALL_MOVE = {"xyz": [0.05, -0.03, -0.55], "rpy": [0.1, -0.05, 0.3]}
 #: How far [m] the LCM loop's camera may be from simulate's at the same time: the LCM
 #: loop acts on a 1 kHz zero-order hold of the joint state, a millisecond or two late,
-#: and starts its first command 2 ms in (measured: 0.3 mm at 1 s, of 17 mm to go).
+#: and starts its first command 2 ms in; the station applies a command from its next
+#: 1 kHz step (measured: 0.57 mm at 1 s, of 17 mm to go).
 POSITION_MATCH_M = 1e-3
+#: The command rate [Hz] at which the LCM loop is compared with simulate (the law
+#: evaluated every status, as simulate's 1 kHz zero-order hold; the shipped config
+#: commands at 250 Hz, checked for convergence by the two-process test).
+SIMULATE_RATE = 1000.0
 #: The times [s] at which the two are compared.
 SHORT_TIMES = (0.1, 0.5, 1.0)
 FULL_TIMES = (0.5, 1.0, 2.0, 5.0, 10.0)
 
 
-def _setup(duration: float):
+def _setup(duration: float, command_rate: float = SIMULATE_RATE, **hardware):
     return load_setup(
         None,
         [("test", {"initial": SMALL_MOVE, "duration": duration})],
-        {"lcm_url": "memq://", "real_time_rate": 0.0},
+        {"lcm_url": "memq://", "real_time_rate": 0.0, "command_rate": command_rate, **hardware},
     )
 
 
-def _lockstep(duration: float, times: tuple[float, ...]):
+def _lockstep(duration: float, times: tuple[float, ...], **hardware):
     """Station and controller in one Diagram on one memq bus: the camera's distance
-    from the goal at ``times``, the station's gate and the controller's publisher."""
-    setup = _setup(duration)
+    from the goal at ``times``, the station's gate and the controller's publisher
+    (``hardware``: changes to the hardware config, e.g. ``mode``)."""
+    setup = _setup(duration, **hardware)
     lcm = DrakeLcm("memq://")
     station = build_station(setup.resolved, setup.hardware, lcm)
     controller = build_controller(setup.resolved, setup.hardware, lcm)
@@ -115,6 +125,106 @@ def test_the_lcm_loop_converges_as_simulate_in_30_s():
     assert errors[-1] < 1e-3
 
 
+class StoppingCommandSource(LeafSystem):
+    """Torque commands (gravity excluded) of ``torque`` on every joint at ``rate`` on
+    the bus, from one period in until ``stop`` [s], then none: a controller that dies."""
+
+    def __init__(self, lcm: DrakeLcm, rate: float, stop: float, torque: float) -> None:
+        super().__init__()
+        self._lcm, self._stop, self._torque = lcm, stop, torque
+        self.DeclarePeriodicPublishEvent(1.0 / rate, 1.0 / rate, self._publish)
+
+    def _publish(self, context) -> None:
+        t = context.get_time()
+        if t > self._stop:
+            return
+        message = lcmt_panda_command()
+        message.utime = int(round(t * 1e6))
+        message.num_joint_torque = 7
+        message.joint_torque = [self._torque] * 7
+        message.control_mode_expected = 4  # drake-franka-driver's torque mode
+        self._lcm.Publish(HardwareConfig().channels.command, message.encode(), t)
+
+
+#: The dying controller: it commands until this time [s], torques of this size [N m].
+STOP_AT_S, PUSH_TORQUE_NM = 0.3, 0.1
+#: The command rate of the dying controller [Hz] (the shipped controller's).
+DYING_RATE = 250.0
+
+
+def test_the_station_holds_the_arm_when_commands_stop():
+    """One process: the station alone and a command source that stops at STOP_AT_S.
+    The gate latches command_lost one timeout after the last command, and the held arm
+    (joint damping) stops within the timeout plus the hold time."""
+    setup = _setup(5.0)
+    lcm = DrakeLcm("memq://")
+    station = build_station(setup.resolved, setup.hardware, lcm)
+    builder = DiagramBuilder()
+    builder.AddSystem(station.diagram)
+    builder.AddSystem(StoppingCommandSource(lcm, DYING_RATE, STOP_AT_S, PUSH_TORQUE_NM))
+    both = dataclasses.replace(station, diagram=builder.Build())
+    summary = run_station(both, setup.resolved.config.duration)
+    hardware = setup.hardware
+    period = 1.0 / hardware.status_rate
+    last = math.floor(STOP_AT_S * DYING_RATE) / DYING_RATE  # the source's last command
+    assert summary["status"] == "command_lost"
+    assert summary["command_timeouts"] == 1
+    assert summary["commands_received"] == round(last * DYING_RATE)
+    # It arrives at the station's next status step (the gate samples at that rate).
+    assert summary["last_command_s"] == pytest.approx(last, abs=period + 1e-9)
+    assert summary["lost_time_s"] - summary["last_command_s"] == pytest.approx(
+        hardware.command_timeout, abs=period + 1e-9
+    )
+    # The push moved the arm; held, it stopped within the timeout plus the hold time,
+    # and the run ended hold_time after the loss.
+    assert summary["hold_start_joint_speed"] > 10 * SETTLED_JOINT_SPEED
+    assert summary["hold_settle_time_s"] - summary["last_command_s"] <= (
+        hardware.command_timeout + hardware.hold_time
+    )
+    assert summary["final_joint_speed"] < SETTLED_JOINT_SPEED
+    assert summary["sim_time_s"] == pytest.approx(
+        summary["lost_time_s"] + hardware.hold_time, abs=period + 1e-9
+    )
+
+
+#: Velocity mode: the times [s] at which the camera's distance from the goal is read,
+#: and the factor by which it must have shrunk by the last (measured: 0.0768 m at 0,
+#: 0.0174 m at 1 s, 0.0142 m at 2 s).
+VELOCITY_TIMES = (1.0, 2.0)
+VELOCITY_SHRINK = 4.0
+
+
+def _velocity_lockstep(duration: float, times: tuple[float, ...]):
+    setup, station, controller, root, errors = _lockstep(
+        duration, times, mode="velocity", command_rate=DYING_RATE
+    )
+    gate = station.gate.GetMyContextFromRoot(root)
+    publisher = controller.publisher.GetMyContextFromRoot(root)
+    assert controller.publisher.stop_reason(publisher) == ""
+    assert not station.gate.lost(gate)
+    assert station.gate.commands_received(gate) >= duration * DYING_RATE - 5
+    return setup, station, root, errors
+
+
+def test_velocity_mode_moves_the_camera_to_the_goal():
+    """--mode velocity in lockstep: the kinematic law's twist through J_C^+ (scaled to
+    the joints' limits), tracked by the station's joint velocity gain; the station's
+    truth: the camera's distance from the goal shrinks."""
+    setup, station, root, errors = _velocity_lockstep(VELOCITY_TIMES[-1], VELOCITY_TIMES)
+    initial = np.linalg.norm(
+        np.asarray(SMALL_MOVE["xyz"]) - setup.resolved.config.X_BC_goal.translation()
+    )
+    assert errors[-1] < initial / VELOCITY_SHRINK, (initial, errors)
+
+
+@pytest.mark.slow
+def test_velocity_mode_converges_in_lockstep():
+    setup, station, root, errors = _velocity_lockstep(10.0, (10.0,))
+    dp, dr = pose_error(station.X_BC(root), setup.resolved.config.X_BC_goal)
+    tol_p, tol_r = convergence_tolerance(setup.resolved.config)
+    assert dp <= tol_p and dr <= tol_r, (dp, dr)
+
+
 def test_the_controller_holds_no_world_and_reads_only_lcm():
     setup = _setup(1.0)
     controller = build_controller(setup.resolved, setup.hardware, DrakeLcm("memq://"))
@@ -161,9 +271,74 @@ def test_a_bad_lcm_url_is_one_line_and_exit_2(capsys, url, why):
         check_lcm_url(url)
 
 
+#: The dropped-frame check: drop every N-th frame, over this run [s].
+DROP_EVERY, DROP_RUN_S = 3, 0.5
+
+
+def test_a_dropped_frame_is_counted_and_the_loop_still_follows_simulate():
+    """The station leaves out every 3rd frame: the controller counts as dropped exactly
+    the frames a listener on the bus never saw, and, carrying the last frame by the
+    joints' motion, still follows simulate."""
+    setup = _setup(DROP_RUN_S, drop_every_frame=DROP_EVERY)
+    lcm = DrakeLcm("memq://")
+    heard = []
+    lcm.Subscribe(
+        setup.hardware.channels.camera,
+        lambda data: heard.append(int(lcmt_scope.decode(data).value[FRAME_INDEX])),
+    )
+    station = build_station(setup.resolved, setup.hardware, lcm)
+    controller = build_controller(setup.resolved, setup.hardware, lcm)
+    builder = DiagramBuilder()
+    builder.AddSystem(station.diagram)
+    builder.AddSystem(controller.diagram)
+    simulator = Simulator(builder.Build())
+    root = simulator.get_mutable_context()
+    station.set_initial_state(root)
+    simulator.AdvanceTo(DROP_RUN_S)
+    assert heard and all(i % DROP_EVERY != DROP_EVERY - 1 for i in heard)
+    unseen = heard[-1] - heard[0] + 1 - len(heard)  # indices between never heard
+    link = controller.tracker.link_output.Eval(controller.tracker.GetMyContextFromRoot(root))
+    assert unseen > 0 and link[2] == unseen
+    error = pose_error(station.X_BC(root), setup.resolved.config.X_BC_goal)[0]
+    assert abs(error - _simulated(setup, (DROP_RUN_S,))[0]) < POSITION_MATCH_M
+
+
+def test_bad_station_and_controller_flags_are_one_line_and_exit_2(capsys):
+    for argv, why in (
+        (["station", "--drop-every-frame", "-1"], "--drop-every-frame must be >= 0: -1"),
+        (["station", "--status-delay", "-0.1"], "--status-delay must be >= 0 [s]: -0.1"),
+        (["controller", "--command-rate", "0"], "--command-rate must be > 0 [Hz]: 0.0"),
+        (["controller", "--command-rate", "2000"], "hardware.command_rate must be <= "),
+    ):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert why in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_the_fast_status_decoder_reads_what_the_generated_one_reads():
+    """decode_status_vector reads q and v from the wire format itself: the generated
+    lcmt_panda_status decoder is the truth."""
+    rng = np.random.default_rng(0)
+    message = lcmt_panda_status()
+    message.utime, message.num_joints = 123456789, 7
+    for name in ("joint_position", "joint_position_desired", "joint_velocity",
+                 "joint_velocity_desired", "joint_acceleration_desired", "joint_torque",
+                 "joint_torque_desired", "joint_torque_external"):  # fmt: skip
+        setattr(message, name, rng.normal(size=7).tolist())
+    data = message.encode()
+    expected = status_vector(lcmt_panda_status.decode(data))
+    assert np.array_equal(decode_status_vector(data), expected)
+    assert np.array_equal(expected[2:9], message.joint_position)
+    assert np.array_equal(expected[9:16], message.joint_velocity)
+    with pytest.raises(ValueError, match="not an lcmt_panda_status"):
+        decode_status_vector(lcmt_panda_command().encode())
+
+
 def test_the_hardware_config_names_a_bad_field():
     with pytest.raises(ValueError, match="hardware.command_timeout must be finite and > 0: -1"):
         load_hardware({"command_timeout": -1.0})
     with pytest.raises(ValueError, match="hardware.mode must be one of torque, velocity"):
         load_hardware({"mode": "position"})
+    with pytest.raises(ValueError, match="hardware.drop_every_frame must be an integer >= 0"):
+        load_hardware({"drop_every_frame": -2})
     assert load_hardware(None) == HardwareConfig()

@@ -31,13 +31,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         + "; ".join(f"{name}: {text}" for name, text in MODES.items())
         + " (default: the config's, else torque)",
     )
+    p.add_argument(
+        "--command-rate",
+        type=float,
+        metavar="HZ",
+        help="PANDA_COMMAND's rate [Hz], at most the status rate (default: the config's, "
+        "else 250; the robot holds the last command between)",
+    )
     add_json(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the controller; the exit code (0 when it ran its duration, 3 when it stopped)."""
-    setup = setup_of(args, mode=args.mode)
+    if args.command_rate is not None and not args.command_rate > 0:
+        raise ValueError(f"--command-rate must be > 0 [Hz]: {args.command_rate}")
+    setup = setup_of(args, mode=args.mode, command_rate=args.command_rate)
     from geovs_drake.hardware.controller import build_controller
     from geovs_drake.hardware.run import open_lcm, run_controller
 
@@ -50,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"{summary['status']}{why}: {summary['frames_received']} frames "
             f"({summary['frames_dropped']} dropped), {summary['commands_sent']} commands, "
-            f"image error {summary['final_image_error']:.3g}"
+            f"image error {summary['final_image_error']:.3g} (real-time rate "
+            f"{summary['realtime_rate']:.3g})"
         )
     return EXIT_CONVERGED if summary["status"] == "completed" else EXIT_NOT_CONVERGED

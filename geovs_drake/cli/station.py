@@ -17,7 +17,7 @@ from geovs_drake.cli._options import (
     add_variant_field,
     pose_arg,
 )
-from geovs_drake.hardware.config import DEFAULT_LCM_URL, check_lcm_url
+from geovs_drake.hardware.config import DEFAULT_LCM_URL, MODES, check_lcm_url
 
 
 def add_hardware_options(p: argparse.ArgumentParser) -> None:
@@ -105,6 +105,29 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="after the first command, none for this long holds the arm [s] (default: "
         "the config's, else 0.1, drake-franka-driver's expire_sec)",
     )
+    p.add_argument(
+        "--mode",
+        choices=tuple(MODES),
+        help="what the station takes from PANDA_COMMAND (drake-franka-driver's "
+        "--control_mode; a command of the other mode holds the arm and is counted as "
+        "refused): "
+        + "; ".join(f"{name}: {text}" for name, text in MODES.items())
+        + " (default: the config's, else torque)",
+    )
+    p.add_argument(
+        "--drop-every-frame",
+        type=int,
+        metavar="N",
+        help="do not publish every N-th camera frame, to see what a lost frame does "
+        "(default: the config's, else 0: publish all)",
+    )
+    p.add_argument(
+        "--status-delay",
+        type=float,
+        metavar="S",
+        help="report the joints as they were S seconds ago in PANDA_STATUS, to see what a "
+        "late status does (default: the config's, else 0)",
+    )
     add_json(p)
     p.set_defaults(func=run)
 
@@ -113,7 +136,17 @@ def run(args: argparse.Namespace) -> int:
     """Run the station; the exit code (0 converged, 3 otherwise)."""
     if args.command_timeout is not None and not args.command_timeout > 0:
         raise ValueError(f"--command-timeout must be > 0 [s]: {args.command_timeout}")
-    setup = setup_of(args, command_timeout=args.command_timeout)
+    if args.drop_every_frame is not None and args.drop_every_frame < 0:
+        raise ValueError(f"--drop-every-frame must be >= 0: {args.drop_every_frame}")
+    if args.status_delay is not None and not args.status_delay >= 0:
+        raise ValueError(f"--status-delay must be >= 0 [s]: {args.status_delay}")
+    setup = setup_of(
+        args,
+        command_timeout=args.command_timeout,
+        drop_every_frame=args.drop_every_frame,
+        mode=args.mode,
+        status_delay=args.status_delay,
+    )
     from geovs_drake.hardware.run import open_lcm, run_station
     from geovs_drake.hardware.station import build_station
 
@@ -124,7 +157,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(
             f"{summary['status']}: position error {summary['final_position_error_m']:.3g} m, "
-            f"{summary['commands_received']} commands, joint speed "
-            f"{summary['final_joint_speed']:.3g} rad/s after {summary['sim_time_s']:.3g} s"
+            f"{summary['commands_received']} commands ({summary['commands_refused']} refused), "
+            f"joint speed "
+            f"{summary['final_joint_speed']:.3g} rad/s after {summary['sim_time_s']:.3g} s "
+            f"(real-time rate {summary['realtime_rate']:.3g})"
         )
     return EXIT_CONVERGED if summary["status"] == "converged" else EXIT_NOT_CONVERGED

@@ -85,14 +85,24 @@ class HardwareConfig:
     ``hold_time`` [s]: how long it holds before the run ends. ``velocity_gain``
     [N m s/rad]: the station's joint velocity tracking in velocity mode.
     ``real_time_rate``: the station's pacing (1 between processes, 0: as fast as it
-    can, the in-process test).
+    can, the in-process test). ``drop_every_frame``: the station does not publish every
+    N-th camera frame (0: it publishes all), to measure what a lost frame does.
+    ``status_delay`` [s]: the station's statuses report the joints as they were this
+    long ago (whole status periods; 0: as they are), to measure what a late status
+    does.
+
+    ``command_rate`` is below ``status_rate`` by default: the controller's law in
+    Python costs about 0.4 ms a command on this 2-core machine, too close to 1 ms for
+    a real-time loop beside the station; the robot holds the last command between
+    (drake-franka-driver until ``expire_sec``), and the law's time scale (seconds) is
+    far above 4 ms.
     """
 
     lcm_url: str = DEFAULT_LCM_URL
     channels: ChannelsConfig = field(default_factory=ChannelsConfig)
     mode: str = "torque"
     status_rate: float = 1000.0
-    command_rate: float = 1000.0
+    command_rate: float = 250.0
     command_timeout: float = 0.1
     status_timeout: float = 0.1
     frame_timeout: float = 0.5
@@ -101,6 +111,8 @@ class HardwareConfig:
     hold_time: float = 1.0
     velocity_gain: float = 20.0
     real_time_rate: float = 1.0
+    drop_every_frame: int = 0
+    status_delay: float = 0.0
 
     def validate(self) -> None:
         """ValueError naming the first bad field, ``hardware.<field>``, and its value."""
@@ -117,8 +129,16 @@ class HardwareConfig:
         positive += ("frame_timeout", "startup_timeout", "velocity_gain")
         for name in positive:
             _check_number(f"hardware.{name}", getattr(self, name), strict=True)
-        for name in ("hold_damping", "hold_time", "real_time_rate"):
+        for name in ("hold_damping", "hold_time", "real_time_rate", "status_delay"):
             _check_number(f"hardware.{name}", getattr(self, name), strict=False)
+        drop = self.drop_every_frame
+        if not (isinstance(drop, int) and not isinstance(drop, bool) and drop >= 0):
+            raise ValueError(f"hardware.drop_every_frame must be an integer >= 0: {drop!r}")
+        if self.command_rate > self.status_rate:
+            raise ValueError(
+                f"hardware.command_rate must be <= status_rate ({self.status_rate}): "
+                f"{self.command_rate!r}"
+            )
 
 
 def _check_number(name: str, value: Any, strict: bool) -> None:
@@ -189,7 +209,7 @@ def load_hardware(
 ) -> HardwareConfig:
     """:class:`HardwareConfig` from a ``hardware`` section (a mapping; None: defaults),
     read by Drake's ``yaml_load_typed`` (unknown fields and wrong types refused) and
-    validated. ValueError in one line starting ``name: `` for a field Drake refuses."""
+    validated. ValueError in one line starting ``name:`` for a field Drake refuses."""
     config = HardwareConfig()
     if section:
         try:

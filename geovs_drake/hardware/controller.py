@@ -6,18 +6,25 @@ own model of the arm (a plant of the arm alone, inside that system). A straight 
 
     status   = LcmSubscriberSystem(PANDA_STATUS) -> StatusDecoder -> (q, v)
     camera   = ArmCamera(q, v): the camera's pose and velocity (its kinematics)
-    frames   = LcmSubscriberSystem(camera channel) -> FrameTracker: the frame moved by the
-               camera's motion since its capture time (the FramePredictor's prediction)
+    frames   = LcmSubscriberSystem(camera channel) -> FrameTracker (at the status rate):
+               the frame moved by the camera's motion since its capture time (the
+               FramePredictor's prediction)
     nav      = NavigationController(y)
     wrench   = ImageJacobianForce(y, dphi, camera state): Eq. (45)
     torque   = ArmCamera's J_C^T F_C - B_q v (- d N v), gravity left to the robot
-    command  = CommandPublisher -> PANDA_COMMAND at the command rate, while fresh
+    command  = CommandPublisher -> PANDA_COMMAND at the command rate (250 Hz), while fresh
+
+The subscribers hold their messages as float vectors (:mod:`.messages`: a Python LCM
+message in a Context is deep-copied at every step). The law runs at the command rate,
+below the status rate: in Python it costs about 0.4 ms a command, and the robot holds
+the last command between.
 
 Why its own predictor, not :class:`~geovs_drake.systems.FramePredictor`: that system
 keeps the camera's pose at its own clock's frame times, which in another process are
-not the station's; :class:`FrameTracker` keeps the poses of the last statuses by their
-``utime`` and takes the one at the frame's capture ``utime``, then predicts with the
-same kernel, :func:`~geovs_drake.geometry.prediction.predicted_image`.
+not the station's; :class:`FrameTracker` keeps the joints of the last statuses by
+their ``utime``, takes the camera's pose at the frame's capture ``utime`` from them,
+then predicts with the same kernel,
+:func:`~geovs_drake.geometry.prediction.predicted_image`.
 """
 
 from __future__ import annotations
@@ -30,7 +37,7 @@ from drake import lcmt_panda_command, lcmt_panda_status, lcmt_scope
 from pydrake.common.value import AbstractValue
 from pydrake.lcm import DrakeLcm
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem
-from pydrake.systems.lcm import LcmInterfaceSystem, LcmSubscriberSystem
+from pydrake.systems.lcm import LcmInterfaceSystem
 from pydrake.systems.primitives import Demultiplexer
 
 from geovs_drake.geometry._ops import MATH
@@ -38,7 +45,27 @@ from geovs_drake.geometry.camera import inverse_pose
 from geovs_drake.geometry.prediction import predicted_image
 from geovs_drake.geometry.rigid import quaternion_to_rotation
 from geovs_drake.hardware.config import HardwareConfig
-from geovs_drake.hardware.station import FRAME_INDEX, FRAME_STATUS, FRAME_Y, US_PER_S
+from geovs_drake.hardware.messages import (
+    FRAME_SIZE,
+    FRAME_UTIME,
+    FRAME_VALUE_START,
+    STATUS_NUM_JOINTS,
+    STATUS_Q,
+    STATUS_UTIME,
+    STATUS_V,
+    STATUS_VECTOR_SIZE,
+    frame_vector,
+    frame_vector_size,
+    status_vector,
+    subscribe_vector,
+)
+from geovs_drake.hardware.station import (
+    FRAME_INDEX,
+    FRAME_STATUS,
+    FRAME_VALUE_SIZE,
+    FRAME_Y,
+    US_PER_S,
+)
 from geovs_drake.loop.arm import arm_model
 from geovs_drake.scenario import ResolvedScenario
 from geovs_drake.systems import (
@@ -51,6 +78,9 @@ from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmModel, arm_plant, ca
 from geovs_drake.systems.arm_camera import actuation_permutation
 
 __all__ = [
+    "LATENCY_BINS",
+    "LATENCY_BIN_MS",
+    "LINK_FIELDS",
     "POSE_HISTORY",
     "STOP_REASONS",
     "CommandPublisher",
@@ -61,7 +91,7 @@ __all__ = [
     "build_controller",
 ]
 
-#: How many statuses' camera poses the tracker keeps (at 1 kHz, 0.5 s): a frame whose
+#: How many statuses' joints the tracker keeps (at 1 kHz, 0.5 s): a frame whose
 #: capture is older than that is predicted from the oldest kept.
 POSE_HISTORY = 512
 #: Why the controller stopped commanding, by its code.
@@ -74,6 +104,31 @@ STOP_REASONS: dict[int, str] = {
     5: "the image cannot be inverted (y outside I)",
 }
 _NO_STATUS, _NO_FRAME, _NO_START, _FEATURE_LOST, _NOT_INVERTIBLE = 1, 2, 3, 4, 5
+#: The tracker's ``link`` output: statuses recorded, frames received, frames dropped
+#: (gaps in the frames' indices), the last status's arrival [s, the controller's
+#: clock], the last frame's arrival [s], the frame's valid flag, the last status's
+#: utime [s, the robot's clock], the held frame's capture utime [s], its index, and the
+#: longest time between two new statuses [s, the controller's clock] after the first.
+LINK_FIELDS = (
+    "statuses",
+    "frames",
+    "dropped",
+    "status_arrival",
+    "frame_arrival",
+    "valid",
+    "status_utime",
+    "capture",
+    "index",
+    "max_status_gap",
+)
+(_L_STATUSES, _L_FRAMES, _L_DROPPED, _L_STATUS_T, _L_FRAME_T, _L_VALID, _L_STATUS_UTIME,
+ _L_CAPTURE, _L_INDEX, _L_MAX_GAP, _L_HEAD) = range(len(LINK_FIELDS) + 1)  # fmt: skip
+#: Velocity mode: the fraction of each joint's velocity limit the command may reach.
+VELOCITY_FRACTION = 0.5
+#: The latency histogram (frame capture to the first command computed from it): bins
+#: of this width [ms], the last one everything above.
+LATENCY_BIN_MS = 1.0
+LATENCY_BINS = 20
 #: The pose's layout: quaternion (w, x, y, z), then position.
 _QUATERNION, _POSITION = slice(0, 4), slice(4, 7)
 POSE_SIZE = 7
@@ -82,14 +137,16 @@ _ORIGIN = (0.0, 0.0, 0.0)
 
 
 class StatusDecoder(LeafSystem):
-    """``lcmt_panda_status`` -> ``arm_state`` (q, v), zeros before the first status (no
-    command is sent before it), and ``status_utime`` [s] (0 before it)."""
+    """The latest status (the vector of
+    :func:`~geovs_drake.hardware.messages.status_vector`) -> ``arm_state`` (q, v), zeros
+    before the first status (no command is sent before it), and ``status_utime`` [s]
+    (0 before it)."""
 
     def __init__(self, num_joints: int) -> None:
         super().__init__()
         self._n = num_joints
         self.status_input = self.DeclareAbstractInputPort(
-            "lcmt_panda_status", AbstractValue.Make(lcmt_panda_status())
+            "status", AbstractValue.Make(np.zeros(STATUS_VECTOR_SIZE))
         )
         self.arm_state_output = self.DeclareVectorOutputPort(
             "arm_state", 2 * num_joints, self._state
@@ -97,44 +154,57 @@ class StatusDecoder(LeafSystem):
         self.status_utime_output = self.DeclareVectorOutputPort("status_utime", 1, self._utime)
 
     def _state(self, context: Context, output) -> None:
-        message = self.status_input.Eval(context)
-        if message.num_joints != self._n:
+        status = self.status_input.Eval(context)
+        if status[STATUS_NUM_JOINTS] != self._n:
             output.SetFromVector(np.zeros(2 * self._n))
             return
-        output.SetFromVector(np.concatenate([message.joint_position, message.joint_velocity]))
+        output.SetFromVector(status[STATUS_Q.start : STATUS_V.stop])
 
     def _utime(self, context: Context, output) -> None:
-        output.SetFromVector([self.status_input.Eval(context).utime / US_PER_S])
+        output.SetAtIndex(0, self.status_input.Eval(context)[STATUS_UTIME] / US_PER_S)
 
 
 class FrameTracker(LeafSystem):
     """The camera's frames as they arrive, moved to the camera's pose now.
 
-    Inputs ``frame`` (the latest ``lcmt_scope`` of the camera channel, its ``utime`` the
-    capture time), ``status_utime`` [s] and ``body_pose`` (the camera's pose
-    ``[q_WC, p_WC]`` at that status, from the joints). At the status rate it records
-    each new status's pose by its utime (:data:`POSE_HISTORY` of them) and, on a new
-    frame, the pose at the frame's capture utime (the latest status not after it).
+    Inputs ``frame`` (the latest camera message as the vector of
+    :func:`~geovs_drake.hardware.messages.frame_vector`, its ``utime`` the capture
+    time), ``status_utime`` [s], ``arm_state`` (that status's q, v) and ``body_pose``
+    (the camera's pose ``[q_WC, p_WC]`` now, from the joints). Every ``period`` (the
+    status rate) it records each new status's joints by its utime (:data:`POSE_HISTORY`
+    of them) and, on a new frame, the camera's pose at the frame's capture utime (the
+    joints of the latest status not after it, through its own model of the arm).
     ``predicted_image_features``: the held frame's y carried from that pose to
     ``body_pose`` (:func:`~geovs_drake.geometry.prediction.predicted_image`, the
-    believed ``radius``); NaN before a first frame. ``link``: ``[statuses, frames
-    received, frames dropped (gaps in the frames' indices), last status's arrival [s],
-    last frame's arrival [s], the frame's valid flag]``.
+    believed ``radius``); NaN before a first frame. ``link``: :data:`LINK_FIELDS`.
     """
 
-    def __init__(self, radius: float, period: float) -> None:
+    def __init__(self, model: ArmModel, radius: float, period: float) -> None:
         super().__init__()
         self._radius = radius
-        self.frame_input = self.DeclareAbstractInputPort("frame", AbstractValue.Make(lcmt_scope()))
+        self._plant = arm_plant(model)
+        self._context = self._plant.CreateDefaultContext()
+        self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
+        self._nq = nq = self._plant.num_positions()
+        self._row = 1 + nq
+        self.frame_input = self.DeclareAbstractInputPort(
+            "frame", AbstractValue.Make(np.full(frame_vector_size(FRAME_VALUE_SIZE), math.nan))
+        )
         self.status_utime_input = self.DeclareVectorInputPort("status_utime", 1)
+        self.arm_state_input = self.DeclareVectorInputPort(
+            "arm_state", nq + self._plant.num_velocities()
+        )
         self.body_pose_input = self.DeclareVectorInputPort("body_pose", POSE_SIZE)
-        # The history of (utime, pose) and its next slot.
-        self._history = self.DeclareDiscreteState(np.full(POSE_HISTORY * (1 + POSE_SIZE), -1.0))
+        # The history of (utime, q), one row a status: the joints, not the camera's
+        # pose, so that no kinematics runs at the status rate (only once a frame).
+        self._history = self.DeclareDiscreteState(np.full(POSE_HISTORY * self._row, -1.0))
         self._frame = self.DeclareDiscreteState(
             np.concatenate([[-1.0], np.full(13, math.nan), np.zeros(POSE_SIZE), [-1.0]])
         )
-        # statuses, frames, dropped, status arrival, frame arrival, valid, head, last utime
-        self._link = self.DeclareDiscreteState(np.array([0, 0, 0, -1, -1, 0, 0, -1.0]))
+        # LINK_FIELDS, then the history's next row.
+        link = np.zeros(len(LINK_FIELDS) + 1)
+        link[[_L_STATUS_T, _L_FRAME_T, _L_STATUS_UTIME, _L_CAPTURE, _L_INDEX]] = -1.0
+        self._link = self.DeclareDiscreteState(link)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self.predicted_image_features_output = self.DeclareVectorOutputPort(
             "predicted_image_features",
@@ -143,49 +213,55 @@ class FrameTracker(LeafSystem):
             prerequisites_of_calc={self.all_input_ports_ticket(), self.xd_ticket()},
         )
         self.link_output = self.DeclareVectorOutputPort(
-            "link", 6, self._link_out, prerequisites_of_calc={self.xd_ticket()}
+            "link", len(LINK_FIELDS), self._link_out, prerequisites_of_calc={self.xd_ticket()}
         )
 
     def _update(self, context: Context, state) -> None:
         t = context.get_time()
-        history = context.get_discrete_state(self._history).get_value().copy()
-        frame = context.get_discrete_state(self._frame).get_value().copy()
         link = context.get_discrete_state(self._link).get_value().copy()
-        rows = history.reshape(POSE_HISTORY, 1 + POSE_SIZE)
         utime = float(self.status_utime_input.Eval(context)[0])
-        if utime > 0 and utime != link[7]:
-            head = int(link[6])
-            rows[head, 0], rows[head, 1:] = utime, self.body_pose_input.Eval(context)
-            link[6], link[7] = (head + 1) % POSE_HISTORY, utime
-            link[0] += 1
-            link[3] = t
-        message = self.frame_input.Eval(context)
-        capture = message.utime / US_PER_S
-        if message.size == len(message.value) and message.size > FRAME_INDEX:
-            if message.utime != 0 or frame[0] < 0:
-                if capture != frame[0] and link[0] > 0:
-                    value = np.asarray(message.value)
-                    index = value[FRAME_INDEX]
-                    if frame[-1] >= 0 and index > frame[-1] + 1:
-                        link[2] += index - frame[-1] - 1
-                    kept = rows[rows[:, 0] >= 0]
-                    before = kept[kept[:, 0] <= capture + 0.5 / US_PER_S]
-                    pick = before if len(before) else kept
-                    pose = (
-                        pick[np.argmax(pick[:, 0])] if len(before) else pick[np.argmin(pick[:, 0])]
-                    )
-                    frame[0], frame[1:14], frame[14:21], frame[-1] = (
-                        capture,
-                        value[FRAME_Y],
-                        pose[1:],
-                        index,
-                    )
-                    link[1] += 1
-                    link[4] = t
-                    link[5] = value[FRAME_STATUS][0]
-        state.get_mutable_vector(self._history).SetFromVector(history)
-        state.get_mutable_vector(self._frame).SetFromVector(frame)
+        if utime > 0 and utime != link[_L_STATUS_UTIME]:
+            # Only the new row is written: the history (4096 numbers) is not copied.
+            head = int(link[_L_HEAD])
+            row = head * self._row
+            history = state.get_mutable_vector(self._history).get_mutable_value()
+            history[row] = utime
+            history[row + 1 : row + self._row] = self.arm_state_input.Eval(context)[: self._nq]
+            if link[_L_STATUSES] > 0:
+                link[_L_MAX_GAP] = max(link[_L_MAX_GAP], t - link[_L_STATUS_T])
+            link[_L_HEAD] = (head + 1) % POSE_HISTORY
+            link[_L_STATUS_UTIME] = utime
+            link[_L_STATUSES] += 1
+            link[_L_STATUS_T] = t
+        frame = self.frame_input.Eval(context)
+        capture = frame[FRAME_UTIME] / US_PER_S
+        held = context.get_discrete_state(self._frame).get_value()
+        carried = frame[FRAME_SIZE] == FRAME_VALUE_SIZE
+        if carried and capture != held[0] and link[_L_STATUSES] > 0:
+            value = frame[FRAME_VALUE_START:]
+            index = value[FRAME_INDEX]
+            if held[-1] >= 0 and index > held[-1] + 1:
+                link[_L_DROPPED] += index - held[-1] - 1
+            # The updated history: this update's status may be the frame's.
+            rows = state.get_mutable_vector(self._history).get_value()
+            rows = rows.reshape(POSE_HISTORY, self._row)
+            kept = rows[rows[:, 0] >= 0]
+            before = kept[kept[:, 0] <= capture + 0.5 / US_PER_S]
+            pick = before[np.argmax(before[:, 0])] if len(before) else kept[np.argmin(kept[:, 0])]
+            state.get_mutable_vector(self._frame).SetFromVector(
+                np.concatenate([[capture], value[FRAME_Y], self._pose(pick[1:]), [index]])
+            )
+            link[_L_FRAMES] += 1
+            link[_L_FRAME_T] = t
+            link[_L_VALID] = value[FRAME_STATUS][0]
+            link[_L_CAPTURE], link[_L_INDEX] = capture, index
         state.get_mutable_vector(self._link).SetFromVector(link)
+
+    def _pose(self, q: np.ndarray) -> np.ndarray:
+        """The camera's pose ``[q_WC, p_WC]`` at joints q (ArmCamera's layout)."""
+        self._plant.SetPositions(self._context, q)
+        X_WC = self._camera.CalcPoseInWorld(self._context)
+        return np.concatenate([X_WC.rotation().ToQuaternion().wxyz(), X_WC.translation()])
 
     def held_frame(self, context: Context) -> tuple[float, np.ndarray]:
         """The held frame's capture time [s] (-1: none yet) and its y."""
@@ -215,19 +291,23 @@ class FrameTracker(LeafSystem):
         )
 
     def _link_out(self, context: Context, output) -> None:
-        output.SetFromVector(context.get_discrete_state(self._link).get_value()[:6])
+        output.SetFromVector(context.get_discrete_state(self._link).get_value()[: len(LINK_FIELDS)])
 
 
 class JointVelocityLaw(LeafSystem):
     """Velocity mode: the kinematic law's camera twist (Omega, V) carried to the joints,
-    ``v_cmd = J_C(q)^+ (Omega, V)`` (the arm's own model). Inputs ``arm_state``,
-    ``camera_velocity``; output ``joint_velocity``."""
+    ``v_cmd = s J_C(q)^+ (Omega, V)`` (the arm's own model), with s <= 1 the factor that
+    brings the fastest joint to ``velocity_fraction`` of its limit (the direction kept,
+    as :class:`~geovs_drake.systems.KinematicArm` does: the NF's twist far from the goal
+    asks for tens of rad/s). Inputs ``arm_state``, ``camera_velocity``; output
+    ``joint_velocity``."""
 
-    def __init__(self, model: ArmModel) -> None:
+    def __init__(self, model: ArmModel, velocity_fraction: float = VELOCITY_FRACTION) -> None:
         super().__init__()
         self._plant = arm_plant(model)
         self._context = self._plant.CreateDefaultContext()
         self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
+        self._limits = velocity_fraction * self._plant.GetVelocityUpperLimits()
         nq, nv = self._plant.num_positions(), self._plant.num_velocities()
         self.arm_state_input = self.DeclareVectorInputPort("arm_state", nq + nv)
         self.camera_velocity_input = self.DeclareVectorInputPort("camera_velocity", 6)
@@ -236,7 +316,9 @@ class JointVelocityLaw(LeafSystem):
     def _calc(self, context: Context, output) -> None:
         self._plant.SetPositionsAndVelocities(self._context, self.arm_state_input.Eval(context))
         J = camera_jacobian(self._plant, self._context, self._camera)
-        output.SetFromVector(np.linalg.pinv(J) @ self.camera_velocity_input.Eval(context))
+        v = np.linalg.pinv(J) @ self.camera_velocity_input.Eval(context)
+        ratio = float(np.max(np.abs(v) / self._limits))
+        output.SetFromVector(v if ratio <= 1.0 else v / ratio)
 
 
 class CommandPublisher(LeafSystem):
@@ -244,11 +326,18 @@ class CommandPublisher(LeafSystem):
 
     Inputs ``command`` (torque mode: ArmCamera's actuation, gravity compensation
     included, which is taken back out here since the robot adds its own; velocity mode:
-    the joint velocities), ``arm_state`` and ``link`` (:class:`FrameTracker`'s). It
-    starts once a status and a frame have come and the frame's y is finite; it stops for
-    good (:data:`STOP_REASONS`) when the last status is older than ``status_timeout``,
-    the last frame older than ``frame_timeout``, the frame is not valid, or no start
-    came within ``startup_timeout``. State: ``[started, stopped, reason, sent]``.
+    the joint velocities), ``arm_state``, ``link`` (:class:`FrameTracker`'s) and
+    ``image_features``. It starts once a status and a frame have come and the frame's y
+    is finite; it stops for good (:data:`STOP_REASONS`) when the last status is older
+    than ``status_timeout``, the last frame older than ``frame_timeout``, the frame is
+    not valid, or no start came within ``startup_timeout``.
+
+    A command's ``utime`` is on the robot's clock (what drake-franka-driver checks
+    ``expire_sec`` against): the last status's utime plus the time since it arrived.
+    From it and the held frame's capture utime the publisher keeps the latency
+    histogram from a frame's capture to the first command computed from it
+    (:data:`LATENCY_BINS` bins of :data:`LATENCY_BIN_MS`). State: ``[started, stopped,
+    reason, sent, last frame index commanded]`` and the histogram.
     """
 
     def __init__(self, model: ArmModel, hardware: HardwareConfig, lcm: DrakeLcm) -> None:
@@ -258,25 +347,33 @@ class CommandPublisher(LeafSystem):
         self._context = self._plant.CreateDefaultContext()
         self._B = actuation_permutation(self._plant)
         nq, nv = self._plant.num_positions(), self._plant.num_velocities()
-        self._nv = nv
+        self._nq, self._nv = nq, nv
         self._velocity_mode = hardware.mode == "velocity"
         self.command_input = self.DeclareVectorInputPort("command", nv)
         self.arm_state_input = self.DeclareVectorInputPort("arm_state", nq + nv)
-        self.link_input = self.DeclareVectorInputPort("link", 6)
+        self.link_input = self.DeclareVectorInputPort("link", len(LINK_FIELDS))
         self.image_features_input = self.DeclareVectorInputPort("image_features", 13)
-        self._state = self.DeclareDiscreteState(np.zeros(4))
+        self._state = self.DeclareDiscreteState(np.array([0.0, 0.0, 0.0, 0.0, -1.0]))
+        self._histogram = self.DeclareDiscreteState(LATENCY_BINS)
         period = 1.0 / hardware.command_rate
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self.DeclarePeriodicPublishEvent(period, 0.0, self._publish)
 
+    def _robot_utime(self, context: Context, link: np.ndarray) -> int:
+        """Now on the robot's clock [us]: the last status's utime plus its age."""
+        age = context.get_time() - link[_L_STATUS_T]
+        return int(round((link[_L_STATUS_UTIME] + age) * US_PER_S))
+
     def _update(self, context: Context, discrete_state) -> None:
-        started, stopped, reason, sent = context.get_discrete_state(self._state).get_value()
+        started, stopped, reason, sent, commanded = context.get_discrete_state(
+            self._state
+        ).get_value()
         t = context.get_time()
-        statuses, frames, _dropped, status_t, frame_t, valid = self.link_input.Eval(context)
+        link = self.link_input.Eval(context)
         h = self._hardware
         if not stopped:
             if not started:
-                if statuses > 0 and frames > 0:
+                if link[_L_STATUSES] > 0 and link[_L_FRAMES] > 0:
                     y = self.image_features_input.Eval(context)
                     started = 1.0
                     if not np.all(np.isfinite(y)):
@@ -284,36 +381,44 @@ class CommandPublisher(LeafSystem):
                 elif t > h.startup_timeout:
                     stopped, reason = 1.0, _NO_START
             else:
-                if t - status_t > h.status_timeout:
+                if t - link[_L_STATUS_T] > h.status_timeout:
                     stopped, reason = 1.0, _NO_STATUS
-                elif t - frame_t > h.frame_timeout:
+                elif t - link[_L_FRAME_T] > h.frame_timeout:
                     stopped, reason = 1.0, _NO_FRAME
-                elif valid < 1:
+                elif link[_L_VALID] < 1:
                     stopped, reason = 1.0, _FEATURE_LOST
+            # The publish at t (just before this update, the same inputs) sent a command
+            # from the held frame: the first from it adds its latency to the histogram.
             if started and not stopped:
                 sent += 1
+                if link[_L_INDEX] != commanded:
+                    commanded = link[_L_INDEX]
+                    latency_ms = self._robot_utime(context, link) / 1e3 - link[_L_CAPTURE] * 1e3
+                    histogram = discrete_state.get_mutable_vector(self._histogram)
+                    k = min(max(int(latency_ms // LATENCY_BIN_MS), 0), LATENCY_BINS - 1)
+                    histogram.SetAtIndex(k, histogram.GetAtIndex(k) + 1)
         discrete_state.get_mutable_vector(self._state).SetFromVector(
-            [started, stopped, reason, sent]
+            [started, stopped, reason, sent, commanded]
         )
 
     def _publish(self, context: Context) -> None:
-        started, stopped, _reason, _sent = context.get_discrete_state(self._state).get_value()
+        started, stopped = context.get_discrete_state(self._state).get_value()[:2]
         if not started or stopped:
             return
         message = lcmt_panda_command()
-        message.utime = int(round(context.get_time() * US_PER_S))
+        message.utime = self._robot_utime(context, self.link_input.Eval(context))
         command = self.command_input.Eval(context)
         if self._velocity_mode:
             message.num_joint_velocity = self._nv
-            message.joint_velocity = [float(v) for v in command]
+            message.joint_velocity = command.tolist()
             message.control_mode_expected = _PANDA_VELOCITY
         else:
-            self._plant.SetPositionsAndVelocities(self._context, self.arm_state_input.Eval(context))
+            self._plant.SetPositions(self._context, self.arm_state_input.Eval(context)[: self._nq])
             # ArmCamera compensated gravity (-g); the robot does it itself: add g back.
             gravity = self._plant.CalcGravityGeneralizedForces(self._context)
             tau = self._B @ command + gravity
             message.num_joint_torque = self._nv
-            message.joint_torque = [float(v) for v in tau]
+            message.joint_torque = tau.tolist()
             message.control_mode_expected = _PANDA_TORQUE
         self._lcm.Publish(self._hardware.channels.command, message.encode(), context.get_time())
 
@@ -334,6 +439,11 @@ class CommandPublisher(LeafSystem):
         """Whether it has stopped for good."""
         return bool(context.get_discrete_state(self._state).get_value()[1])
 
+    def latency_histogram(self, context: Context) -> list[int]:
+        """Frames by the latency from their capture to the first command computed from
+        them, in bins of :data:`LATENCY_BIN_MS` from 0 (the last bin: the rest)."""
+        return [int(n) for n in context.get_discrete_state(self._histogram).get_value()]
+
 
 #: drake-franka-driver's control mode constants (PandaControlMode's kVelocity, kTorque).
 _PANDA_VELOCITY, _PANDA_TORQUE = 2, 4
@@ -342,8 +452,9 @@ _PANDA_VELOCITY, _PANDA_TORQUE = 2, 4
 @dataclass
 class Controller:
     """A built controller: its ``diagram``, the scenario it believes, the
-    ``tracker`` (:class:`FrameTracker`), the ``publisher`` (:class:`CommandPublisher`)
-    and the ``navigation`` controller."""
+    ``tracker`` (:class:`FrameTracker`), the ``publisher`` (:class:`CommandPublisher`),
+    the ``navigation`` controller and the ``law`` (ImageJacobianForce in torque mode,
+    KinematicController in velocity mode)."""
 
     diagram: Diagram
     resolved: ResolvedScenario
@@ -351,6 +462,23 @@ class Controller:
     tracker: FrameTracker
     publisher: CommandPublisher
     navigation: LeafSystem
+    law: LeafSystem
+
+    def warm_up(self) -> None:
+        """Evaluate the law once on the goal image, in contexts of its own: the NF's and
+        the law's kernels are compiled (numba, its cache loaded) here, before the
+        first command, not in it (measured: 0.7 s, beyond any timeout)."""
+        y = self.resolved.y_goal.to_vector()
+        at_rest = np.zeros(POSE_SIZE + 6)
+        at_rest[0] = 1.0  # the identity quaternion
+        context = self.navigation.CreateDefaultContext()
+        self.navigation.image_features_input.FixValue(context, y)
+        dphi = np.array(self.navigation.dphi_output.Eval(context))
+        context = self.law.CreateDefaultContext()
+        for port in (self.law.get_input_port(i) for i in range(self.law.num_input_ports())):
+            value = {"image_features": y, "dphi": dphi}.get(port.get_name(), at_rest)
+            port.FixValue(context, np.resize(value, port.size()))
+        self.law.get_output_port(0).Eval(context)
 
     def image_error(self, root: Context) -> tuple[float, float]:
         """Its own estimate of the image error now: ``|y - y*|`` of the held frame moved
@@ -385,7 +513,13 @@ def build_controller(
     interface = builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
     status = builder.AddNamedSystem(
         "status_subscriber",
-        LcmSubscriberSystem.Make(hardware.channels.status, lcmt_panda_status, interface),
+        subscribe_vector(
+            hardware.channels.status,
+            lcmt_panda_status,
+            status_vector,
+            np.zeros(STATUS_VECTOR_SIZE),
+            interface,
+        ),
     )
     decoder = builder.AddNamedSystem("status_decoder", StatusDecoder(nv))
     builder.Connect(status.get_output_port(), decoder.status_input)
@@ -406,14 +540,22 @@ def build_controller(
     builder.Connect(arm.camera_state_output, pose.get_input_port())
     frames = builder.AddNamedSystem(
         "camera_subscriber",
-        LcmSubscriberSystem.Make(hardware.channels.camera, lcmt_scope, interface),
+        subscribe_vector(
+            hardware.channels.camera,
+            lcmt_scope,
+            frame_vector(FRAME_VALUE_SIZE),
+            np.full(frame_vector_size(FRAME_VALUE_SIZE), math.nan),
+            interface,
+        ),
     )
     tracker = builder.AddNamedSystem(
         "frame_predictor",
-        FrameTracker(radius=resolved.believed_radius, period=1.0 / hardware.status_rate),
+        # At the status rate: every status's pose kept, for the frames' capture times.
+        FrameTracker(model, radius=resolved.believed_radius, period=1.0 / hardware.status_rate),
     )
     builder.Connect(frames.get_output_port(), tracker.frame_input)
     builder.Connect(decoder.status_utime_output, tracker.status_utime_input)
+    builder.Connect(decoder.arm_state_output, tracker.arm_state_input)
     builder.Connect(pose.get_output_port(0), tracker.body_pose_input)
     y = tracker.predicted_image_features_output
     nav = builder.AddNamedSystem(
@@ -437,6 +579,7 @@ def build_controller(
         builder.Connect(arm.camera_state_output, force.body_state_input)
         builder.Connect(force.wrench_C_output, arm.wrench_C_input)
         builder.Connect(arm.actuation_output, publisher.command_input)
+        law = force
     else:
         law = builder.AddNamedSystem(
             "kinematic_controller",
@@ -455,4 +598,4 @@ def build_controller(
     builder.Connect(y, publisher.image_features_input)
     diagram = builder.Build()
     diagram.set_name("panda_controller")
-    return Controller(diagram, resolved, hardware, tracker, publisher, nav)
+    return Controller(diagram, resolved, hardware, tracker, publisher, nav, law)

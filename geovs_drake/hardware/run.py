@@ -3,6 +3,8 @@ simulator, and the summary each prints (``geovs-drake station`` / ``controller``
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,13 +21,15 @@ from geovs_drake.hardware.config import (
     load_hardware,
     split_station_file,
 )
-from geovs_drake.hardware.controller import Controller
+from geovs_drake.hardware.controller import LATENCY_BIN_MS, LINK_FIELDS, Controller
 from geovs_drake.hardware.station import Station
 from geovs_drake.loop.build import fit_gains
 from geovs_drake.scenario import ResolvedScenario, ScenarioConfig, load_scenario, resolve
 from geovs_drake.simulation.result import convergence_tolerance, pose_error
 
 __all__ = [
+    "SETTLED_JOINT_SPEED",
+    "TRACE_PERIOD_S",
     "Setup",
     "default_station_file",
     "load_setup",
@@ -33,6 +37,15 @@ __all__ = [
     "run_controller",
     "run_station",
 ]
+
+
+#: The joint speed [rad/s] below which a held arm counts as stopped (the station's
+#: ``hold_settle_time_s``).
+SETTLED_JOINT_SPEED = 0.01
+#: The period [s] of the station's ``position_error_trace_m``.
+TRACE_PERIOD_S = 1.0
+#: Slack on a count of periods in a float time.
+_ROUNDING = 1e-9
 
 
 def default_station_file() -> Path:
@@ -88,21 +101,48 @@ def run_station(station: Station, duration: float) -> dict:
     arm has been held ``hold_time``); its ground truth as a dict: ``status``
     (``converged``, ``not_converged`` or ``command_lost``), ``final_position_error_m``,
     ``final_rotation_error_rad``, ``commands_received``, ``command_timeouts``,
-    ``final_joint_speed`` [rad/s], ``sim_time_s``."""
+    ``commands_refused`` (not of the station's mode),
+    ``final_joint_speed`` [rad/s], ``sim_time_s``; the link: ``first_command_s`` and
+    ``last_command_s`` (when the first and last new command came, NaN before one),
+    ``statuses_published``, ``frames_published``; the hold: ``lost_time_s`` (when
+    the gate latched ``command_lost``, NaN if never), ``hold_start_joint_speed``
+    [rad/s] and ``hold_settle_time_s`` (the first time after ``lost_time_s`` at which
+    the joint speed was below :data:`SETTLED_JOINT_SPEED`; NaN if never); the pacing:
+    ``wall_time_s`` and ``realtime_rate`` (the simulator's actual rate); and
+    ``position_error_trace_m``, the camera's distance from the goal every
+    :data:`TRACE_PERIOD_S` from 0."""
     setup = Setup(station.resolved, station.hardware)
     simulator = _simulator(station.diagram, setup, station.set_initial_state)
     gate = station.gate
     hold = station.hardware.hold_time
+    nq = station.plant.num_positions()
+    first_command, hold_watch = [math.nan], {"start": math.nan, "settled": math.nan}
+    goal = station.resolved.config.X_BC_goal
+    trace: list[float] = []
 
     def monitor(root) -> EventStatus:
         context = gate.GetMyContextFromRoot(root)
-        if gate.lost(context) and root.get_time() >= gate.lost_time(context) + hold:
-            return EventStatus.ReachedTermination(gate, "command_lost")
+        if root.get_time() >= len(trace) * TRACE_PERIOD_S - _ROUNDING:
+            trace.append(pose_error(station.X_BC(root), goal)[0])
+        if math.isnan(first_command[0]) and gate.started(context):
+            first_command[0] = gate.last_command_time(context)
+        if gate.lost(context):
+            t = root.get_time()
+            if math.isnan(hold_watch["settled"]):
+                speed = float(np.linalg.norm(station.arm_state(root)[nq:]))
+                if math.isnan(hold_watch["start"]):
+                    hold_watch["start"] = speed
+                if speed < SETTLED_JOINT_SPEED:
+                    hold_watch["settled"] = t
+            if t >= gate.lost_time(context) + hold:
+                return EventStatus.ReachedTermination(gate, "command_lost")
         return EventStatus.Succeeded()
 
     simulator.set_monitor(monitor)
     simulator.Initialize()
+    start = time.perf_counter()
     simulator.AdvanceTo(duration)
+    wall = time.perf_counter() - start
     root = simulator.get_context()
     context = gate.GetMyContextFromRoot(root)
     config = station.resolved.config
@@ -112,25 +152,45 @@ def run_station(station: Station, duration: float) -> dict:
         status = "command_lost"
     else:
         status = "converged" if dp <= tol_p and dr <= tol_r else "not_converged"
-    nq = station.plant.num_positions()
+    t_end = root.get_time()
+    hardware = station.hardware
+    frames = math.floor((t_end - 1.0 / hardware.status_rate) / station.frame_period) + 1
+    if hardware.drop_every_frame > 0:
+        frames -= frames // hardware.drop_every_frame
     return {
         "status": status,
         "final_position_error_m": dp,
         "final_rotation_error_rad": dr,
         "commands_received": gate.commands_received(context),
         "command_timeouts": gate.command_timeouts(context),
+        "commands_refused": gate.commands_refused(context),
         "final_joint_speed": float(np.linalg.norm(station.arm_state(root)[nq:])),
-        "sim_time_s": root.get_time(),
+        "sim_time_s": t_end,
+        "first_command_s": first_command[0],
+        "last_command_s": gate.last_command_time(context) if gate.started(context) else math.nan,
+        "statuses_published": math.floor(t_end * hardware.status_rate + _ROUNDING) + 1,
+        "frames_published": max(frames, 0),
+        "lost_time_s": gate.lost_time(context),
+        "hold_start_joint_speed": hold_watch["start"],
+        "hold_settle_time_s": hold_watch["settled"],
+        "wall_time_s": wall,
+        "realtime_rate": simulator.get_actual_realtime_rate(),
+        "position_error_trace_m": trace,
     }
 
 
 def run_controller(controller: Controller, duration: float) -> dict:
     """Run the controller for ``duration`` [s] or until it stops commanding; a dict:
-    ``status`` (``completed`` or ``stopped``), ``stop_reason``, ``frames_received``,
-    ``frames_dropped``, ``commands_sent``, ``final_image_error`` (``|y - y*|``) and
-    ``estimated_position_error_m`` (its own estimates, from the frames). ValueError
-    when its first frame's image cannot be inverted (it never commanded)."""
+    ``status`` (``completed`` or ``stopped``), ``stop_reason``, ``statuses_received``,
+    ``max_status_gap_s`` (the longest time between two new statuses, its own clock),
+    ``frames_received``, ``frames_dropped``, ``commands_sent``, ``final_image_error``
+    (``|y - y*|``), ``estimated_position_error_m`` (its own estimates, from the
+    frames), ``latency_histogram`` (frames by the latency from their capture to the
+    first command from them, ``latency_bin_ms`` bins from 0, the last one the rest),
+    ``sim_time_s``, ``wall_time_s`` and ``realtime_rate``. ValueError when its first
+    frame's image cannot be inverted (it never commanded)."""
     setup = Setup(controller.resolved, controller.hardware)
+    controller.warm_up()
     simulator = _simulator(controller.diagram, setup)
     publisher = controller.publisher
 
@@ -141,7 +201,9 @@ def run_controller(controller: Controller, duration: float) -> dict:
 
     simulator.set_monitor(monitor)
     simulator.Initialize()
+    start = time.perf_counter()
     simulator.AdvanceTo(duration)
+    wall = time.perf_counter() - start
     root = simulator.get_context()
     context = publisher.GetMyContextFromRoot(root)
     reason = publisher.stop_reason(context)
@@ -155,12 +217,18 @@ def run_controller(controller: Controller, duration: float) -> dict:
     return {
         "status": "stopped" if publisher.stopped(context) else "completed",
         "stop_reason": reason,
+        "statuses_received": int(link[0]),
         "frames_received": int(link[1]),
         "frames_dropped": int(link[2]),
+        "max_status_gap_s": float(link[LINK_FIELDS.index("max_status_gap")]),
         "commands_sent": publisher.commands_sent(context),
         "final_image_error": image_error,
         "estimated_position_error_m": position_error,
+        "latency_bin_ms": LATENCY_BIN_MS,
+        "latency_histogram": publisher.latency_histogram(context),
         "sim_time_s": root.get_time(),
+        "wall_time_s": wall,
+        "realtime_rate": simulator.get_actual_realtime_rate(),
     }
 
 

@@ -6,8 +6,9 @@ Drake's hardware_sim::
     plant, scene_graph = the arm and the target (the loop's own arm scene)
     status   = PandaStatusSender -> LcmPublisherSystem(PANDA_STATUS, 1 kHz)
     camera   = PinholeFeatureSensor on the camera's pose -> FeatureFrameEncoder
-               -> LcmPublisherSystem(camera channel, the camera's rate)
-    command  = LcmSubscriberSystem(PANDA_COMMAND) -> CommandGate -> the plant's actuation
+               -> FramePublisher(camera channel, the camera's rate)
+    command  = LcmSubscriberSystem(PANDA_COMMAND, as a vector) -> CommandGate
+               -> the plant's actuation (held at the status rate)
 
 Safety (:class:`CommandGate`): until the first command the arm is held at rest (joint
 damping, gravity compensated) and the station waits; after it, no command for
@@ -33,10 +34,20 @@ from pydrake.manipulation import PandaStatusSender
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem
-from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
-from pydrake.systems.primitives import Demultiplexer
+from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem
+from pydrake.systems.primitives import Demultiplexer, DiscreteTimeDelay
 
 from geovs_drake.hardware.config import HardwareConfig
+from geovs_drake.hardware.messages import (
+    COMMAND_NUM_TORQUE,
+    COMMAND_NUM_VELOCITY,
+    COMMAND_TORQUE,
+    COMMAND_UTIME,
+    COMMAND_VECTOR_SIZE,
+    COMMAND_VELOCITY,
+    command_vector,
+    subscribe_vector,
+)
 from geovs_drake.loop.arm import initial_joints
 from geovs_drake.loop.carriers import _add_arm_scene
 from geovs_drake.scenario import Pinhole, ResolvedScenario
@@ -46,8 +57,9 @@ from geovs_drake.systems.arm_camera import actuation_permutation
 
 __all__ = [
     "FRAME_VALUE_SIZE",
-    "FeatureFrameEncoder",
     "CommandGate",
+    "FeatureFrameEncoder",
+    "FramePublisher",
     "Station",
     "build_station",
     "joint_state_size",
@@ -60,9 +72,10 @@ FRAME_VALUE_SIZE = 17
 #: Microseconds per second: LCM's ``utime``.
 US_PER_S = 1e6
 #: The gate's state: the last command's utime, when it came [s], commands received,
-#: started (0/1), lost (0/1), when it was lost [s], timeouts counted.
-_LAST_UTIME, _LAST_TIME, _COUNT, _STARTED, _LOST, _LOST_TIME, _TIMEOUTS = range(7)
-_GATE_STATE_SIZE = 7
+#: started (0/1), lost (0/1), when it was lost [s], timeouts counted, commands refused
+#: (not of the station's mode: the arm is held for them).
+_LAST_UTIME, _LAST_TIME, _COUNT, _STARTED, _LOST, _LOST_TIME, _TIMEOUTS, _REFUSED = range(8)
+_GATE_STATE_SIZE = 8
 #: A frame's index is the floor of t / period, within this fraction of a period: the
 #: encoder runs a publish delay after the frame's own time.
 _FRAME_ROUNDING = 1e-6
@@ -109,15 +122,20 @@ class CommandGate(LeafSystem):
     """The driver's side of PANDA_COMMAND: the command applied while it is fresh, the arm
     held otherwise.
 
-    Inputs ``command`` (the latest ``lcmt_panda_command``) and ``arm_state`` (q, v).
+    Inputs ``command`` (the latest command as the vector of
+    :func:`~geovs_drake.hardware.messages.command_vector`) and ``arm_state`` (q, v).
     Output ``actuation``: ``tau_cmd + g(q)`` while commands come (torque mode; in
     velocity mode ``K_v (v_cmd - v) + g(q)``), else the hold ``-D v + g(q)``, with
     ``g(q)`` the gravity compensation (the robot's own, as the FCI) and D the
-    ``hold_damping``. A command is new when its ``utime`` changes. Before the first one
-    the gate holds and waits; after it, a gap longer than ``command_timeout`` latches
-    ``lost`` and the gate holds for good. Its discrete state, updated at the status
-    rate: :meth:`commands_received`, :meth:`lost`, :meth:`lost_time`,
-    :meth:`command_timeouts`.
+    ``hold_damping``. The actuation is computed at the status rate and held between
+    (the FCI's own 1 kHz loop): why, the integrator evaluates the actuation several
+    times a step, and a Python evaluation each time cost the station its real time. A
+    command is new when its ``utime`` changes. Before the first one the gate holds and
+    waits; after it, a gap longer than ``command_timeout`` latches ``lost`` and the
+    gate holds for good. A command not of the station's mode (a velocity command in
+    torque mode) holds the arm and is counted. Its discrete state:
+    :meth:`commands_received`, :meth:`commands_refused`, :meth:`lost`,
+    :meth:`lost_time`, :meth:`command_timeouts`, :meth:`last_command_time`.
     """
 
     def __init__(self, model: ArmModel, hardware: HardwareConfig) -> None:
@@ -131,52 +149,51 @@ class CommandGate(LeafSystem):
         self._damping = hardware.hold_damping
         self._velocity_gain = hardware.velocity_gain
         self.command_input = self.DeclareAbstractInputPort(
-            "command", AbstractValue.Make(lcmt_panda_command())
+            "command", AbstractValue.Make(np.zeros(COMMAND_VECTOR_SIZE))
         )
         self.arm_state_input = self.DeclareVectorInputPort("arm_state", self._nq + self._nv)
         initial = np.zeros(_GATE_STATE_SIZE)
         initial[_LOST_TIME] = math.nan
         self._state = self.DeclareDiscreteState(initial)
+        self._actuation_state = self.DeclareDiscreteState(self._B.shape[1])
         self.DeclarePeriodicDiscreteUpdateEvent(1.0 / hardware.status_rate, 0.0, self._update)
-        self.actuation_output = self.DeclareVectorOutputPort(
-            "actuation", self._B.shape[1], self._actuation
-        )
+        self.actuation_output = self.DeclareStateOutputPort("actuation", self._actuation_state)
 
     def _update(self, context: Context, discrete_state) -> None:
         s = context.get_discrete_state(self._state).get_value().copy()
         t = context.get_time()
-        message = self.command_input.Eval(context)
-        if message.utime != 0 and message.utime != s[_LAST_UTIME]:
-            s[_LAST_UTIME], s[_LAST_TIME] = message.utime, t
+        command = self.command_input.Eval(context)
+        utime = command[COMMAND_UTIME]
+        if utime != 0 and utime != s[_LAST_UTIME]:
+            s[_LAST_UTIME], s[_LAST_TIME] = utime, t
             s[_COUNT] += 1
             s[_STARTED] = 1.0
+            if self._live_command(command, np.zeros(self._nv)) is None:
+                s[_REFUSED] += 1
         if s[_STARTED] and not s[_LOST] and t - s[_LAST_TIME] > self._timeout:
             s[_LOST], s[_LOST_TIME] = 1.0, t
             s[_TIMEOUTS] += 1
         discrete_state.get_mutable_vector(self._state).SetFromVector(s)
-
-    def _live_command(self, context: Context) -> np.ndarray | None:
-        """The torque the latest command asks for (gravity excluded), None to hold."""
-        s = context.get_discrete_state(self._state).get_value()
-        if not s[_STARTED] or s[_LOST]:
-            return None
-        message = self.command_input.Eval(context)
-        v = self._plant.GetVelocities(self._context)
-        if self._velocity_mode:
-            if message.num_joint_velocity != self._nv:
-                return None
-            return self._velocity_gain * (np.asarray(message.joint_velocity) - v)
-        if message.num_joint_torque != self._nv:
-            return None
-        return np.asarray(message.joint_torque, dtype=float)
-
-    def _actuation(self, context: Context, output) -> None:
-        self._plant.SetPositionsAndVelocities(self._context, self.arm_state_input.Eval(context))
+        x = self.arm_state_input.Eval(context)
+        self._plant.SetPositionsAndVelocities(self._context, x)
+        v = x[self._nq :]
         gravity = -self._plant.CalcGravityGeneralizedForces(self._context)
-        tau = self._live_command(context)
+        tau = None if not s[_STARTED] or s[_LOST] else self._live_command(command, v)
         if tau is None:  # hold: joint damping, gravity compensated
-            tau = -self._damping * self._plant.GetVelocities(self._context)
-        output.SetFromVector(self._B.T @ (tau + gravity))
+            tau = -self._damping * v
+        discrete_state.get_mutable_vector(self._actuation_state).SetFromVector(
+            self._B.T @ (tau + gravity)
+        )
+
+    def _live_command(self, command: np.ndarray, v: np.ndarray) -> np.ndarray | None:
+        """The torque the latest command asks for (gravity excluded), None to hold."""
+        if self._velocity_mode:
+            if command[COMMAND_NUM_VELOCITY] != self._nv:
+                return None
+            return self._velocity_gain * (command[COMMAND_VELOCITY] - v)
+        if command[COMMAND_NUM_TORQUE] != self._nv:
+            return None
+        return command[COMMAND_TORQUE]
 
     def _value(self, context: Context, index: int) -> float:
         return float(context.get_discrete_state(self._state).get_value()[index])
@@ -193,6 +210,15 @@ class CommandGate(LeafSystem):
         """When the gate latched ``lost`` [s] (NaN while commands come)."""
         return self._value(context, _LOST_TIME)
 
+    def last_command_time(self, context: Context) -> float:
+        """When the last new command arrived [s] (0 before one)."""
+        return self._value(context, _LAST_TIME)
+
+    def commands_refused(self, context: Context) -> int:
+        """How many commands were not of the station's mode (drake-franka-driver
+        throws on one; the gate holds the arm for it and counts it)."""
+        return int(self._value(context, _REFUSED))
+
     def command_timeouts(self, context: Context) -> int:
         """How many gaps longer than the timeout the gate has seen."""
         return int(self._value(context, _TIMEOUTS))
@@ -202,10 +228,34 @@ class CommandGate(LeafSystem):
         return bool(self._value(context, _STARTED))
 
 
+class FramePublisher(LeafSystem):
+    """The camera channel's publisher: the encoder's ``lcmt_scope`` every ``period``
+    (after ``offset``), except every ``drop_every``-th frame (by its index; 0: none)
+    when ``drop_every`` > 0, to show what a lost frame does."""
+
+    def __init__(
+        self, channel: str, lcm: DrakeLcm, period: float, offset: float, drop_every: int
+    ) -> None:
+        super().__init__()
+        self._channel, self._lcm, self._drop_every = channel, lcm, drop_every
+        self.message_input = self.DeclareAbstractInputPort(
+            "lcmt_scope", AbstractValue.Make(lcmt_scope())
+        )
+        self.DeclarePeriodicPublishEvent(period, offset, self._publish)
+
+    def _publish(self, context: Context) -> None:
+        message = self.message_input.Eval(context)
+        index = int(message.value[FRAME_INDEX]) if message.size == FRAME_VALUE_SIZE else 0
+        if self._drop_every > 0 and index % self._drop_every == self._drop_every - 1:
+            return
+        self._lcm.Publish(self._channel, message.encode(), context.get_time())
+
+
 @dataclass
 class Station:
     """A built station: its ``diagram``, the scenario, the ``plant`` (the arm and the
-    target), the ``gate`` (:class:`CommandGate`), the arm's ``model`` and start ``q0``."""
+    target), the ``gate`` (:class:`CommandGate`), the arm's ``model``, start ``q0`` and
+    the camera's ``frame_period`` [s] and the ``status_delay`` line (None without)."""
 
     diagram: Diagram
     resolved: ResolvedScenario
@@ -214,13 +264,19 @@ class Station:
     gate: CommandGate
     model: ArmModel
     q0: np.ndarray
+    frame_period: float
+    status_delay: LeafSystem | None = None
 
     def set_initial_state(self, root: Context) -> None:
-        """The arm at rest at its start ``q0``."""
+        """The arm at rest at its start ``q0`` (and, with a status delay, as if it had
+        been there all along)."""
         context = self.plant.GetMyMutableContextFromRoot(root)
-        self.plant.SetPositionsAndVelocities(
-            context, np.concatenate([self.q0, np.zeros(self.plant.num_velocities())])
-        )
+        x0 = np.concatenate([self.q0, np.zeros(self.plant.num_velocities())])
+        self.plant.SetPositionsAndVelocities(context, x0)
+        if self.status_delay is not None:
+            delay = self.status_delay.GetMyMutableContextFromRoot(root)
+            state = delay.get_mutable_discrete_state(0)
+            state.SetFromVector(np.tile(x0, state.size() // len(x0)))
 
     def arm_state(self, root: Context) -> np.ndarray:
         """The arm's (q, v) now."""
@@ -253,12 +309,27 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     q0 = initial_joints(config)
     nq, nv = plant.num_positions(), plant.num_velocities()
     demux = builder.AddNamedSystem("arm_state_demux", Demultiplexer([nq, nv]))
-    builder.Connect(plant.get_state_output_port(), demux.get_input_port())
+    delay_steps = round(hardware.status_delay * hardware.status_rate)
+    delay = None
+    if delay_steps > 0:  # statuses that report the joints as they were status_delay ago
+        delay = builder.AddNamedSystem(
+            "status_delay", DiscreteTimeDelay(1.0 / hardware.status_rate, delay_steps, nq + nv)
+        )
+        builder.Connect(plant.get_state_output_port(), delay.get_input_port())
+        builder.Connect(delay.get_output_port(), demux.get_input_port())
+    else:
+        builder.Connect(plant.get_state_output_port(), demux.get_input_port())
 
     # PANDA_COMMAND -> the gate -> the plant.
     command = builder.AddNamedSystem(
         "command_subscriber",
-        LcmSubscriberSystem.Make(hardware.channels.command, lcmt_panda_command, interface),
+        subscribe_vector(
+            hardware.channels.command,
+            lcmt_panda_command,
+            command_vector,
+            np.zeros(COMMAND_VECTOR_SIZE),
+            interface,
+        ),
     )
     gate = builder.AddNamedSystem("command_gate", CommandGate(model, hardware))
     builder.Connect(command.get_output_port(), gate.command_input)
@@ -312,15 +383,15 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     builder.Connect(sensor.feature_status_output, encoder.feature_status_input)
     frames = builder.AddNamedSystem(
         "camera_publisher",
-        LcmPublisherSystem.Make(
+        FramePublisher(
             hardware.channels.camera,
-            lcmt_scope,
-            interface,
-            publish_period=period,
-            publish_offset=1.0 / hardware.status_rate,  # after the frame's update
+            lcm,
+            period,
+            1.0 / hardware.status_rate,  # after the frame's update
+            hardware.drop_every_frame,
         ),
     )
-    builder.Connect(encoder.message_output, frames.get_input_port())
+    builder.Connect(encoder.message_output, frames.message_input)
     diagram = builder.Build()
     diagram.set_name("panda_station")
-    return Station(diagram, resolved, hardware, plant, gate, model, q0)
+    return Station(diagram, resolved, hardware, plant, gate, model, q0, period, delay)

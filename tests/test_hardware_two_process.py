@@ -1,0 +1,209 @@
+"""The Panda over LCM as two processes (issue 34): ``geovs-drake station`` and
+``geovs-drake controller`` as subprocesses on UDP multicast (a free port, ``ttl=0``),
+in real time, from the issue's small move. The truth is the station's JSON (its
+plant's ground truth); this process also listens on the bus and counts the commands.
+
+(a) A 30 s run converges with more than 1000 commands received (a 0.5 s command
+    timeout: the 2 shared cores starve a process now and then).
+(b) The controller killed (SIGKILL) mid-run: the station ends ``command_lost`` and the
+    held arm's joint speed falls below 0.01 rad/s within the command timeout plus the
+    hold time.
+
+Both slow (each is a real-time run): ``pytest -m slow tests/test_hardware_two_process.py``.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import math
+import os
+import random
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import pytest
+from drake import lcmt_panda_command
+from pydrake.lcm import DrakeLcm
+
+from geovs_drake.hardware.config import HardwareConfig
+from geovs_drake.hardware.run import SETTLED_JOINT_SPEED
+
+try:
+    importlib.metadata.distribution("example-robot-data")
+except importlib.metadata.PackageNotFoundError:
+    pytest.skip('the Panda needs example-robot-data: pip install "geovs-drake[panda]"',
+                allow_module_level=True)  # fmt: skip
+
+pytestmark = pytest.mark.slow
+
+#: The issue's small move.
+SMALL_MOVE = "--initial=0.05,-0.03,-0.55,0.1,-0.05,0.3"
+#: The multicast group (LCM's default) and the range the port is drawn from.
+GROUP = "239.255.76.67"
+PORT_RANGE = (20000, 60000)
+#: The issue's must-show: a 30 s run, more than this many commands received.
+RUN_S = 30.0
+MIN_COMMANDS = 1000
+#: The controller runs longer than the station: it starts first and stops once the
+#: station's statuses end ("no status within the status timeout").
+CONTROLLER_EXTRA_S = 15.0
+#: How long [s, wall] the listener hears commands before it kills the controller (the
+#: arm still moving at a few hundredths of a rad/s).
+COMMANDING_BEFORE_KILL_S = 2.0
+#: The convergence run's command timeout [s]: the shipped 0.1 s (drake-franka-driver's
+#: expire_sec) is for a real-time host; this machine's 2 cores are shared with other
+#: jobs, and a process starved of CPU for 0.1 s (seen once in seven runs, after
+#: convergence) would end the run command_lost. The kill run keeps the shipped one.
+CONVERGE_COMMAND_TIMEOUT_S = 0.5
+#: One thread per process for the numeric libraries: the two processes have a core each.
+SINGLE_THREAD = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
+                                        "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")}  # fmt: skip
+#: How long [s] the test waits for either process beyond its run time.
+SLACK_S = 60.0
+#: Time [s] the listener waits for a message in one call.
+POLL_MS = 50
+
+
+def free_port() -> int:
+    """A UDP port in PORT_RANGE nothing is bound to (a bind without SO_REUSEADDR fails
+    where an LCM socket, which sets it, already listens)."""
+    rng = random.Random()
+    for _ in range(100):
+        port = rng.randint(*PORT_RANGE)
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            try:
+                s.bind(("", port))
+            except OSError:
+                continue
+        return port
+    raise RuntimeError(f"no free UDP port in {PORT_RANGE}")
+
+
+def _cli(*args: str) -> list[str]:
+    return [sys.executable, "-m", "geovs_drake.cli", *args]
+
+
+def _start(args: list[str]) -> subprocess.Popen:
+    env = {**os.environ, **SINGLE_THREAD}
+    return subprocess.Popen(
+        args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+    )
+
+
+def _summary(process: subprocess.Popen, timeout: float) -> tuple[int, dict, str]:
+    out, err = process.communicate(timeout=timeout)
+    lines = out.strip().splitlines()
+    return process.returncode, (json.loads(lines[-1]) if lines else {}), err
+
+
+class BusListener:
+    """This process's own view of the bus: the messages on each channel and when the
+    first and last came [s, monotonic]; the commands decoded (a malformed one raises)."""
+
+    def __init__(self, url: str) -> None:
+        self.lcm = DrakeLcm(url)
+        channels = HardwareConfig().channels
+        self.command_channel = channels.command
+        self.seen: dict[str, list[float]] = {}
+        for channel in (channels.status, channels.command, channels.camera):
+            self.seen[channel] = [0, math.nan, math.nan]
+            self.lcm.Subscribe(channel, lambda data, c=channel: self._on_message(c, data))
+
+    def _on_message(self, channel: str, data: bytes) -> None:
+        if channel == self.command_channel:
+            lcmt_panda_command.decode(data)
+        now = time.monotonic()
+        seen = self.seen[channel]
+        seen[0] += 1
+        seen[1] = now if seen[0] == 1 else seen[1]
+        seen[2] = now
+
+    @property
+    def commands(self) -> int:
+        return int(self.seen[self.command_channel][0])
+
+    def commanding_for(self) -> float:
+        """How long [s] commands have been heard (0 before the first)."""
+        first = self.seen[self.command_channel][1]
+        return 0.0 if math.isnan(first) else time.monotonic() - first
+
+    def rates(self) -> dict[str, float]:
+        """Messages per second on each channel, first to last."""
+        return {c: (n - 1) / (last - first) if n > 1 else 0.0 for c, (n, first, last) in
+                self.seen.items()}  # fmt: skip
+
+    def pump_until(self, done, deadline: float) -> None:
+        while not done() and time.monotonic() < deadline:
+            self.lcm.HandleSubscriptions(POLL_MS)
+
+
+def _run_pair(duration: float, kill_after: float | None = None, station_args: tuple = ()):
+    """Controller, then station (``station_args`` added), on a fresh port; the
+    controller killed once commands have been heard for ``kill_after`` [s]; the
+    station's and the controller's exit codes, JSON and stderr, this process's
+    listener, and the wall time."""
+    url = f"udpm://{GROUP}:{free_port()}?ttl=0"
+    listener = BusListener(url)
+    start = time.monotonic()
+    deadline = start + duration + SLACK_S
+    controller = _start(
+        _cli("controller", "--lcm", url, "--duration", str(duration + CONTROLLER_EXTRA_S),
+             "--json")
+    )  # fmt: skip
+    station = _start(
+        _cli("station", "--lcm", url, "--duration", str(duration), SMALL_MOVE, "--json",
+             *station_args)
+    )  # fmt: skip
+    try:
+        if kill_after is not None:
+            listener.pump_until(lambda: listener.commanding_for() >= kill_after, deadline)
+            controller.send_signal(signal.SIGKILL)
+        listener.pump_until(lambda: station.poll() is not None, deadline)
+        station_out = _summary(station, SLACK_S)
+        controller_out = _summary(controller, SLACK_S)
+    finally:
+        for p in (station, controller):
+            if p.poll() is None:
+                p.kill()
+    return station_out, controller_out, listener, time.monotonic() - start
+
+
+def test_a_30_s_two_process_run_converges_in_real_time():
+    (rc, station, err), (_rc_c, controller, _err_c), listener, wall = _run_pair(
+        RUN_S, station_args=("--command-timeout", str(CONVERGE_COMMAND_TIMEOUT_S))
+    )
+    print(f"\nstation {station}\ncontroller {controller}")
+    print(f"heard {listener.seen}, rates {listener.rates()} Hz, wall {wall:.1f} s")
+    assert rc == 0 and station["status"] == "converged", (station, err)
+    assert station["commands_received"] > MIN_COMMANDS
+    assert station["command_timeouts"] == 0
+    # The station kept real time, and the controller commanded all along.
+    assert station["realtime_rate"] > 0.9
+    assert listener.commands >= station["commands_received"] - 1
+    assert controller["stop_reason"] in ("", "no status within the status timeout")
+    # The controller's own estimate agrees with the station's truth.
+    assert controller["estimated_position_error_m"] == pytest.approx(
+        station["final_position_error_m"], abs=1e-3
+    )
+
+
+def test_killing_the_controller_holds_the_arm_and_it_stops():
+    (rc, station, err), (rc_c, _c, _e), listener, wall = _run_pair(RUN_S, COMMANDING_BEFORE_KILL_S)
+    print(f"\nstation {station}\nheard {listener.seen}, wall {wall:.1f} s")
+    assert rc_c == -signal.SIGKILL
+    assert station["status"] == "command_lost", (station, err)
+    timeout, hold = HardwareConfig().command_timeout, HardwareConfig().hold_time
+    # Commands came for seconds before the kill; the gate latched within the timeout
+    # (one status period of slack: it checks at the status rate).
+    assert station["last_command_s"] - station["first_command_s"] > 1.0
+    assert 0 < station["lost_time_s"] - station["last_command_s"] <= timeout + 2e-3
+    # The arm was moving when the hold began, and was stopped within timeout + hold.
+    assert station["hold_start_joint_speed"] > SETTLED_JOINT_SPEED
+    settled = station["hold_settle_time_s"]
+    assert math.isfinite(settled)
+    assert settled - station["last_command_s"] <= timeout + hold
+    assert station["final_joint_speed"] < SETTLED_JOINT_SPEED
