@@ -17,6 +17,10 @@ carrier with the velocity-tracking force.
 * :class:`~geovs_drake.scenario.PathFollowing`: the planned y_d(t) (``desired_image``)
   followed by Eq. (18).
 
+A moving target's feed-forward reaches every law through the target's adapter
+(:mod:`geovs_drake.loop.targets`); a twist law that declares a ``target_twist`` input
+(point IBVS) also reads the believed twist there (``connect_law_feedforward``).
+
 Every law believes the same radius, ``resolved.believed_radius``, in C(y) and
 in y*; the damping is ``resolved.damping``.
 """
@@ -31,6 +35,7 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import TrajectorySource
 
 from geovs_drake.loop.carriers import CarrierParts
+from geovs_drake.loop.targets import connect_law_feedforward
 from geovs_drake.planning import plan_for_scenario
 from geovs_drake.scenario import (
     Ibvs,
@@ -104,6 +109,9 @@ def twist_law(make: Callable[[DiagramBuilder, ResolvedScenario], LeafSystem]) ->
         law.set_name("controller")
         if law.HasInputPort("image_features"):
             builder.Connect(y, law.GetInputPort("image_features"))
+        # A moving target: a law that reads the believed twist itself (point IBVS's
+        # -L^+ de/dt) gets it; the rest, the adapter's Ad_{X_CB} xi_hat (loop.targets).
+        connect_law_feedforward(builder, law)
         return law.GetOutputPort("camera_velocity")
 
     return Law(add)

@@ -21,6 +21,17 @@ the estimate of
 camera's y and the carrier's pose in the world
 (:class:`~geovs_drake.systems.target_motion.TargetMotion`'s ``world_body_pose``, the
 odometry). A still target adds nothing to the diagram.
+
+Every law gets that feed-forward: the adapter adds ``Ad_{X_CB} xi_hat`` to whatever
+twist the law commands (the NF's, PBVS's: the target's twist carried to C, the whole
+of Chaumette & Hutchinson's tracking term for a law whose features' Jacobian it
+inverts exactly), and on the dynamic rig cancels the frame's wrench under whatever
+force the law makes. A law whose own estimate of the features' Jacobian makes its
+term differ (point IBVS with estimated depths: ``-L^+ de/dt`` with ``L != L_e``,
+:func:`~geovs_drake.systems.ibvs_controller.ibvs_target_term`) declares an input
+:data:`LAW_FEEDFORWARD_INPUT` for the believed twist, and :func:`connect_law_feedforward`
+(called by :mod:`geovs_drake.loop.laws` for each law it adds) fills it: the one place
+that decides which laws read the believed twist themselves.
 """
 
 from __future__ import annotations
@@ -31,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
-from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, PassThrough
 
 from geovs_drake.loop.carriers import CarrierParts
 from geovs_drake.scenario import (
@@ -47,16 +58,25 @@ from geovs_drake.systems.target_twist_estimator import TargetTwistEstimator
 
 __all__ = [
     "ESTIMATE_LOG_NAMES",
+    "BELIEVED_TWIST_NAME",
     "FEEDFORWARD",
+    "LAW_FEEDFORWARD_INPUT",
     "TargetParts",
     "add_target_motion",
     "connect_feedforward",
+    "connect_law_feedforward",
     "estimator_timing",
 ]
 
 #: The estimator's loggers (``estimated`` feed-forward): its twist and its covariance's
 #: diagonal, sampled at its own updates.
 ESTIMATE_LOG_NAMES = ("log_target_twist_estimate", "log_target_covariance")
+#: The subsystem that offers the believed twist xi_hat (6, in B) of a moving target's
+#: loop, whatever the feed-forward mode (a pass-through of :data:`FEEDFORWARD`'s port).
+BELIEVED_TWIST_NAME = "target_twist_believed"
+#: The input a law declares to read the believed twist itself
+#: (:func:`connect_law_feedforward`); unconnected (a still target) it reads zero.
+LAW_FEEDFORWARD_INPUT = "target_twist"
 
 
 @dataclass
@@ -192,4 +212,19 @@ def connect_feedforward(
     (:data:`FEEDFORWARD`); after the sensor is added (the estimator reads its frames)."""
     mode = resolved.config.target_motion.feedforward
     port = FEEDFORWARD[mode](builder, resolved, target, camera)
-    builder.Connect(port, target.adapter.twist_estimate_input)
+    believed = builder.AddNamedSystem(BELIEVED_TWIST_NAME, PassThrough(6))
+    builder.Connect(port, believed.get_input_port())
+    builder.Connect(believed.get_output_port(), target.adapter.twist_estimate_input)
+
+
+def connect_law_feedforward(builder: DiagramBuilder, law: LeafSystem) -> None:
+    """Connect the believed twist to ``law``'s :data:`LAW_FEEDFORWARD_INPUT`, where the
+    law declares one and the target moves (:func:`connect_feedforward` ran); otherwise
+    nothing (the law reads zero: a still target, or a law the adapter's
+    ``Ad_{X_CB} xi_hat`` serves whole)."""
+    if not (
+        law.HasInputPort(LAW_FEEDFORWARD_INPUT) and builder.HasSubsystemNamed(BELIEVED_TWIST_NAME)
+    ):
+        return
+    believed = builder.GetSubsystemByName(BELIEVED_TWIST_NAME)
+    builder.Connect(believed.get_output_port(), law.GetInputPort(LAW_FEEDFORWARD_INPUT))

@@ -43,14 +43,20 @@ class Nf:
 class Ibvs:
     """Point IBVS on four points (:mod:`geovs_drake.geometry.baselines`). ``depth``:
     "true" (the current interaction matrix with the true depths, from c^-1(y)),
-    "desired" (the matrix at the goal, L_e*) or "mean" ((L_e + L_e*) / 2)."""
+    "desired" (the matrix at the goal, L_e*) or "mean" ((L_e + L_e*) / 2).
+
+    Behind a moving target (``target_motion``) it adds Chaumette & Hutchinson's
+    (2007, Part II) ``-L^+ de/dt`` for the twist the loop believes
+    (:func:`~geovs_drake.systems.ibvs_controller.ibvs_target_term`)."""
 
     depth: str = "true"
 
 
 @dataclass
 class Pbvs:
-    """PBVS on ``(c*t_c, theta u)``, the pose from c^-1(y) (Eq. 23)."""
+    """PBVS on ``(c*t_c, theta u)``, the pose from c^-1(y) (Eq. 23). Behind a moving
+    target it adds the believed twist carried to C (the loop's feed-forward,
+    :mod:`geovs_drake.loop.targets`)."""
 
 
 @dataclass

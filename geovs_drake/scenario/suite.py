@@ -8,20 +8,30 @@ from pathlib import Path
 import yaml
 from pydrake.common.yaml import yaml_load_typed
 
-from geovs_drake.scenario.load import _describe
+from geovs_drake.scenario.load import _describe, _load_yaml
 from geovs_drake.scenario.pose import PoseConfig, finite_numbers
+from geovs_drake.scenario.targets import Still, Twist, check_target_motion
 
 __all__ = ["SuiteConfig", "SuiteScenario", "default_suite_path", "load_suite"]
 
 
 @dataclass
 class SuiteScenario:
-    """One start of a comparison suite: X_BC(0) as xyz [m] and RollPitchYaw [deg]."""
+    """One start of a comparison suite: X_BC(0) as xyz [m] and RollPitchYaw [deg], and
+    how the target moves (``target_motion``, as a scenario's:
+    ``target_motion: !Twist {twist: [0, 0, 0.2, 0.05, 0, 0], feedforward: known}``;
+    by default it stands still)."""
 
     name: str = ""
     description: str = ""
     xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, -0.5])
     rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    target_motion: Still | Twist = field(default_factory=Still)
+
+    @property
+    def moving_target(self) -> bool:
+        """Whether the target moves (``target_motion`` is not :class:`Still`)."""
+        return not isinstance(self.target_motion, Still)
 
     def initial(self) -> PoseConfig:
         """The start as a :class:`PoseConfig` (radians)."""
@@ -56,6 +66,10 @@ class SuiteConfig:
                         f"scenarios[{i}].{key} ({s.name}) must be 3 finite numbers, "
                         f"got {getattr(s, key)!r}"
                     )
+            try:
+                check_target_motion(s.target_motion)
+            except ValueError as e:
+                raise ValueError(f"scenarios[{i}] ({s.name}): {e}") from None
         if self.conundrum and self.conundrum not in names:
             raise ValueError(
                 f"conundrum {self.conundrum!r} is not a scenario of the suite ({', '.join(names)})"
@@ -79,7 +93,7 @@ def load_suite(path: str | Path | None = None) -> SuiteConfig:
     except (OSError, UnicodeDecodeError) as e:
         raise ValueError(f"{path}: cannot read: {e}") from None
     try:
-        tree = yaml.safe_load(text)
+        tree = _load_yaml(text)  # a SafeLoader that reads the variant tags (!Twist)
     except yaml.YAMLError as e:
         raise ValueError(f"{path}: malformed YAML: {str(e).splitlines()[0]}") from None
     if not isinstance(tree, dict):

@@ -29,6 +29,13 @@ camera origin moves on a straight line: ``v = -lambda c*R_c^T c*t_c``,
 
 An image outside I gives NaN. One numeric parameter vector ``[y* (13),
 rho, lambda]``: the goal image, the radius [m], the gain [1/s].
+
+Behind a moving target its tracking term (Chaumette & Hutchinson 2007, Part II:
+``-L_e^-1 de/dt``) is the target's twist carried to C, ``Ad_{X_CB} xi``: the law
+inverts its features' interaction matrix exactly (``L_theta_u^-1 theta u = theta u``),
+so the loop's adapter, which adds ``Ad_{X_CB} xi_hat`` to every law's twist
+(:mod:`geovs_drake.loop.targets`), gives PBVS its whole feed-forward; it has no input
+of its own for it.
 """
 
 

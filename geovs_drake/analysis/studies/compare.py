@@ -20,6 +20,10 @@ leaves the field-of-view cone; Drake's error control failing ends it as
   (point IBVS: its four points; the others: the silhouette and the marked
   point, i.e. the fov margin and nu).
 
+A scenario whose target moves (``SuiteScenario.target_motion``, issue 32) adds the
+columns :data:`TRACKING_FIELDS` to its rows, and the tables show them only where a
+suite has such a scenario: a suite of still targets writes the tables it always did.
+
 The laws run in worker processes (Python systems hold the GIL).
 """
 
@@ -62,11 +66,13 @@ from geovs_drake.simulation import simulate
 __all__ = [
     "COMPARED_LAWS",
     "ROW_FIELDS",
+    "TRACKING_FIELDS",
     "CompareResult",
     "Run",
     "compare",
     "law_label",
     "plot_compare",
+    "row_fields",
     "run_case",
     "run_compare",
     "status_matrix",
@@ -106,6 +112,18 @@ ROW_FIELDS = (
     "wall_time_s",
     "message",
 )
+
+
+#: The columns a moving target's rows add (:mod:`geovs_drake.loop.targets`): the largest
+#: position error of the camera relative to the target over the run's last quarter [m].
+TRACKING_FIELDS = ("steady_tracking_error_m",)
+
+
+def row_fields(rows: Sequence[dict]) -> tuple[str, ...]:
+    """The table's columns: :data:`ROW_FIELDS`, and :data:`TRACKING_FIELDS` where a row
+    has them (a moving target's)."""
+    moving = any(TRACKING_FIELDS[0] in r for r in rows)
+    return ROW_FIELDS + TRACKING_FIELDS if moving else ROW_FIELDS
 
 
 def law_label(law: LawConfig) -> str:
@@ -164,6 +182,8 @@ def suite_cases(
             if plant is not None:
                 config.plant = copy.deepcopy(plant)
             config.initial = scenario.initial()
+            if scenario.moving_target:  # a still entry keeps the base's target
+                config.target_motion = copy.deepcopy(scenario.target_motion)
             config.initial_velocity = [0.0] * 6
             config.duration = suite.duration if duration is None else duration
             config.validate()
@@ -214,6 +234,8 @@ def run_case(scenario: str, law: str, config: ScenarioConfig) -> Run:
         "wall_time_s": result.wall_time_s,
         "message": result.message,
     }
+    if config.moving_target:
+        row["steady_tracking_error_m"] = result.steady_tracking_error
     directions = {"centre": centre, "b": _directions(b)}
     for k, name in enumerate(TARGET_POINT_NAMES):
         directions[name] = _directions(points[:, k, :])
@@ -284,16 +306,20 @@ _MD_COLUMNS = (
     ("min points fov", "min_point_fov_margin", 2),
     ("features in view", "features_in_view", 0),
 )
+#: The columns a moving target adds to the markdown table (:data:`TRACKING_FIELDS`).
+_MD_TRACKING_COLUMNS = (("steady tracking error [m]", "steady_tracking_error_m", 3),)
 
 
 def markdown_table(rows: Sequence[dict]) -> str:
-    """The rows as a GitHub markdown table (the columns of :data:`_MD_COLUMNS`)."""
+    """The rows as a GitHub markdown table (the columns of :data:`_MD_COLUMNS`, and a
+    moving target's where a row has them; a still target's row leaves them empty)."""
+    columns = _MD_COLUMNS + (_MD_TRACKING_COLUMNS if row_fields(rows) != ROW_FIELDS else ())
     lines = [
-        "| " + " | ".join(h for h, _, _ in _MD_COLUMNS) + " |",
-        "|" + "---|" * len(_MD_COLUMNS),
+        "| " + " | ".join(h for h, _, _ in columns) + " |",
+        "|" + "---|" * len(columns),
     ]
     for row in rows:
-        cells = [_cell(row[key], digits or 3) for _, key, digits in _MD_COLUMNS]
+        cells = [_cell(row.get(key, ""), digits or 3) for _, key, digits in columns]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -327,7 +353,7 @@ def status_matrix(rows: Sequence[dict]) -> str:
 
 def write_tables(result: CompareResult, out_dir: str | Path) -> tuple[Path, Path]:
     """``DIR/table.md`` (:func:`status_matrix`, the table, then the message of each run
-    that did not converge) and ``DIR/table.csv`` (every field of :data:`ROW_FIELDS`)."""
+    that did not converge) and ``DIR/table.csv`` (every field of :func:`row_fields`)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     md = out / "table.md"
@@ -347,7 +373,7 @@ def write_tables(result: CompareResult, out_dir: str | Path) -> tuple[Path, Path
     )
     path = out / "table.csv"
     with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=ROW_FIELDS)
+        writer = csv.DictWriter(f, fieldnames=row_fields(result.rows), restval="")
         writer.writeheader()
         for row in result.rows:
             writer.writerow({k: ("" if _is_nan(v) else v) for k, v in row.items()})
