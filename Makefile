@@ -94,6 +94,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_batch.py
 	$(BIN)/python benchmarks/bench_rendered.py
 	$(BIN)/python benchmarks/bench_arm.py
+	$(BIN)/python benchmarks/bench_moving_target.py
 	$(BIN)/python benchmarks/bench_linearize.py
 	$(BIN)/python benchmarks/bench_sweep.py overhead
 	$(BIN)/python benchmarks/time_to_converge.py

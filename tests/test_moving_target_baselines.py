@@ -216,3 +216,23 @@ def test_suite_target_motion_loads_and_bad_fields_are_one_line(tmp_path):
     path.write_text(text % "psychic")
     with pytest.raises(ValueError, match=r"scenarios\[0\] \(moving\): target_motion.feedforward"):
         load_suite(path)
+
+
+def test_the_shipped_suite_moves_its_target_on_the_free_rig_only():
+    """The shipped suite's moving entry runs on the free rig; on the arm (which cannot
+    carry a moving target) compare leaves it out rather than refusing the whole table."""
+    from geovs_drake.analysis.studies.compare import still_entries_for, suite_cases
+    from geovs_drake.scenario import Arm, ScenarioConfig, load_suite
+
+    suite = load_suite()
+    moving = [s.name for s in suite.scenarios if s.moving_target]
+    assert moving == ["moving_target"]
+    free = {name for name, _, _ in suite_cases(suite, duration=1.0)}
+    assert "moving_target" in free
+    arm = ScenarioConfig(carrier=Arm())
+    kept = still_entries_for(suite, arm)
+    assert [s.name for s in kept.scenarios] == [
+        s.name for s in suite.scenarios if s.name != "moving_target"
+    ]
+    cases = suite_cases(kept, duration=1.0, base=arm)  # each validated: none refused
+    assert {name for name, _, _ in cases} == {s.name for s in kept.scenarios}

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import copy
 import csv
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -49,6 +50,7 @@ from geovs_drake.geometry.baselines import (
 )
 from geovs_drake.scenario import (
     Dynamic,
+    FreeRig,
     Ibvs,
     Kinematic,
     LawConfig,
@@ -246,6 +248,19 @@ def _run_case(config: ScenarioConfig, scenario: str, law: str) -> Run:
     return run_case(scenario, law, config)
 
 
+def still_entries_for(suite: SuiteConfig, base: ScenarioConfig | None) -> SuiteConfig:
+    """``suite`` for ``base``'s carrier: all of it on the free rig; only its still-target
+    entries on a carrier that cannot run a moving target (the arm, the fixed camera:
+    :meth:`ScenarioConfig.validate` says why), so that the shipped suite's moving entry
+    does not refuse the whole comparison there."""
+    carrier = base.carrier if base is not None else ScenarioConfig().carrier
+    if isinstance(carrier, FreeRig):
+        return suite
+    kept = [entry for entry in suite.scenarios if not entry.moving_target]
+    conundrum = suite.conundrum if suite.conundrum in {e.name for e in kept} else ""
+    return dataclasses.replace(suite, scenarios=kept, conundrum=conundrum)
+
+
 def run_compare(
     suite: SuiteConfig,
     plant: PlantConfig | None = None,
@@ -267,6 +282,7 @@ def run_compare(
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     suite.validate()
+    suite = still_entries_for(suite, base)
     cases = suite_cases(suite, plant, duration, base)
     start = time.perf_counter()
     runs: list[Run | None] = [None] * len(cases)
