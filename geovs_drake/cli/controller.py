@@ -6,7 +6,13 @@ from __future__ import annotations
 import argparse
 import json
 
-from geovs_drake.cli._options import EXIT_CONVERGED, EXIT_NOT_CONVERGED, add_command, add_json
+from geovs_drake.cli._options import (
+    EXIT_CONVERGED,
+    EXIT_NOT_CONVERGED,
+    add_command,
+    add_field,
+    add_json,
+)
 from geovs_drake.cli.station import add_hardware_options, setup_of
 from geovs_drake.hardware.config import MODES
 
@@ -24,6 +30,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "2). At the end: frames received and dropped, its own estimate of the image error.",
     )
     add_hardware_options(p)
+    add_field(
+        p,
+        "--sensor",
+        ("sensor",),
+        "the station's camera: pinhole (y from lcmt_scope on the camera channel) or "
+        "rendered (images from lcmt_image_array on the image channel: y extracted, the "
+        "arm's own pixels masked by a self-filter drawn at the capture's joints)",
+        choices=("pinhole", "rendered"),
+    )
     p.add_argument(
         "--mode",
         choices=tuple(MODES),

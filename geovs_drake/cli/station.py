@@ -95,8 +95,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         p,
         "--sensor",
         ("sensor",),
-        "the camera: pinhole (y on exact image points, sent as lcmt_scope)",
-        choices=("pinhole",),
+        "the camera: pinhole (y on exact image points, sent as lcmt_scope on the camera "
+        "channel) or rendered (the scene drawn by RenderEngineVtk, its colour image sent "
+        "as lcmt_image_array on the image channel, stamped with its capture time; the "
+        "controller, given the same --sensor, extracts y with the arm's own pixels masked "
+        "by a self-filter)",
+        choices=("pinhole", "rendered"),
     )
     p.add_argument(
         "--command-timeout",

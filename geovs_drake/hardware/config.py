@@ -56,17 +56,19 @@ _MAX_TTL = 255
 
 @dataclass
 class ChannelsConfig:
-    """The LCM channels: drake-franka-driver's two, and the camera's.
+    """The LCM channels: drake-franka-driver's two, and the camera's two.
 
-    ``camera``: for the pinhole sensor, ``lcmt_scope`` messages (``utime`` the capture
+    ``camera``: the pinhole sensor's ``lcmt_scope`` messages (``utime`` the capture
     time [us], ``value`` = y (13), then the sensor's ``[valid, code, lost]`` and the
-    frame's index); for the rendered sensor, ``lcmt_image_array`` (a colour image, its
-    header's ``utime`` the capture time).
+    frame's index). ``image``: the rendered sensor's ``lcmt_image_array`` (one colour
+    image, RGBA 8-bit, its header's ``utime`` the capture time). A channel carries one
+    message type: why two.
     """
 
     status: str = "PANDA_STATUS"
     command: str = "PANDA_COMMAND"
     camera: str = "CAMERA_FEATURES"
+    image: str = "CAMERA_IMAGE"
 
 
 @dataclass
@@ -119,7 +121,7 @@ class HardwareConfig:
         check_lcm_url(self.lcm_url, "hardware.lcm_url")
         if self.mode not in MODES:
             raise ValueError(f"hardware.mode must be one of {', '.join(MODES)}, got {self.mode!r}")
-        for name in ("status", "command", "camera"):
+        for name in ("status", "command", "camera", "image"):
             channel = getattr(self.channels, name)
             if not (isinstance(channel, str) and channel.strip() == channel and channel):
                 raise ValueError(

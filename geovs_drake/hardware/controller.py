@@ -36,7 +36,7 @@ import numpy as np
 from drake import lcmt_panda_command, lcmt_panda_status, lcmt_scope
 from pydrake.common.value import AbstractValue
 from pydrake.lcm import DrakeLcm
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.lcm import LcmInterfaceSystem
 from pydrake.systems.primitives import Demultiplexer
 
@@ -45,6 +45,14 @@ from geovs_drake.geometry.camera import inverse_pose
 from geovs_drake.geometry.prediction import predicted_image
 from geovs_drake.geometry.rigid import quaternion_to_rotation
 from geovs_drake.hardware.config import HardwareConfig
+from geovs_drake.hardware.images import (
+    ImageFeatureFrames,
+    SelfFilter,
+    add_masked_image,
+    add_self_filter,
+    check_rendered_over_lcm,
+    subscribe_images,
+)
 from geovs_drake.hardware.messages import (
     FRAME_SIZE,
     FRAME_UTIME,
@@ -67,7 +75,7 @@ from geovs_drake.hardware.station import (
     US_PER_S,
 )
 from geovs_drake.loop.arm import arm_model
-from geovs_drake.scenario import ResolvedScenario
+from geovs_drake.scenario import Rendered, ResolvedScenario
 from geovs_drake.systems import (
     ArmCamera,
     ImageJacobianForce,
@@ -123,6 +131,10 @@ LINK_FIELDS = (
 )
 (_L_STATUSES, _L_FRAMES, _L_DROPPED, _L_STATUS_T, _L_FRAME_T, _L_VALID, _L_STATUS_UTIME,
  _L_CAPTURE, _L_INDEX, _L_MAX_GAP, _L_HEAD) = range(len(LINK_FIELDS) + 1)  # fmt: skip
+#: A status counts as taken at or before a frame's capture within this [us]: Drake
+#: stamps statuses and images with ``int64(t * 1e6)``, a truncation, so a stamp may
+#: read a microsecond early; statuses are a millisecond apart.
+_CAPTURE_SLACK_US = 1.5
 #: Velocity mode: the fraction of each joint's velocity limit the command may reach.
 VELOCITY_FRACTION = 0.5
 #: The latency histogram (frame capture to the first command computed from it): bins
@@ -246,7 +258,7 @@ class FrameTracker(LeafSystem):
             rows = state.get_mutable_vector(self._history).get_value()
             rows = rows.reshape(POSE_HISTORY, self._row)
             kept = rows[rows[:, 0] >= 0]
-            before = kept[kept[:, 0] <= capture + 0.5 / US_PER_S]
+            before = kept[kept[:, 0] <= capture + _CAPTURE_SLACK_US / US_PER_S]
             pick = before[np.argmax(before[:, 0])] if len(before) else kept[np.argmin(kept[:, 0])]
             state.get_mutable_vector(self._frame).SetFromVector(
                 np.concatenate([[capture], value[FRAME_Y], self._pose(pick[1:]), [index]])
@@ -454,7 +466,9 @@ class Controller:
     """A built controller: its ``diagram``, the scenario it believes, the
     ``tracker`` (:class:`FrameTracker`), the ``publisher`` (:class:`CommandPublisher`),
     the ``navigation`` controller and the ``law`` (ImageJacobianForce in torque mode,
-    KinematicController in velocity mode)."""
+    KinematicController in velocity mode); with the rendered camera, ``images``
+    (:class:`~geovs_drake.hardware.images.ImageFeatureFrames`) and the ``self_filter``
+    (:class:`~geovs_drake.hardware.images.SelfFilter`), else None."""
 
     diagram: Diagram
     resolved: ResolvedScenario
@@ -463,6 +477,8 @@ class Controller:
     publisher: CommandPublisher
     navigation: LeafSystem
     law: LeafSystem
+    images: LeafSystem | None = None
+    self_filter: SelfFilter | None = None
 
     def warm_up(self) -> None:
         """Evaluate the law once on the goal image, in contexts of its own: the NF's and
@@ -538,22 +554,28 @@ def build_controller(
     builder.Connect(decoder.arm_state_output, arm.arm_state_input)
     pose = builder.AddNamedSystem("camera_state_demux", Demultiplexer([POSE_SIZE, 6]))
     builder.Connect(arm.camera_state_output, pose.get_input_port())
-    frames = builder.AddNamedSystem(
-        "camera_subscriber",
-        subscribe_vector(
-            hardware.channels.camera,
-            lcmt_scope,
-            frame_vector(FRAME_VALUE_SIZE),
-            np.full(frame_vector_size(FRAME_VALUE_SIZE), math.nan),
-            interface,
-        ),
-    )
+    rendered = isinstance(config.sensor, Rendered)
+    if rendered:
+        check_rendered_over_lcm(resolved)
+        frame, images = _add_image_frames(builder, resolved, hardware, model, decoder, interface)
+    else:
+        frame = builder.AddNamedSystem(
+            "camera_subscriber",
+            subscribe_vector(
+                hardware.channels.camera,
+                lcmt_scope,
+                frame_vector(FRAME_VALUE_SIZE),
+                np.full(frame_vector_size(FRAME_VALUE_SIZE), math.nan),
+                interface,
+            ),
+        ).get_output_port()
+        images = None
     tracker = builder.AddNamedSystem(
         "frame_predictor",
         # At the status rate: every status's pose kept, for the frames' capture times.
         FrameTracker(model, radius=resolved.believed_radius, period=1.0 / hardware.status_rate),
     )
-    builder.Connect(frames.get_output_port(), tracker.frame_input)
+    builder.Connect(frame, tracker.frame_input)
     builder.Connect(decoder.status_utime_output, tracker.status_utime_input)
     builder.Connect(decoder.arm_state_output, tracker.arm_state_input)
     builder.Connect(pose.get_output_port(0), tracker.body_pose_input)
@@ -598,4 +620,46 @@ def build_controller(
     builder.Connect(y, publisher.image_features_input)
     diagram = builder.Build()
     diagram.set_name("panda_controller")
-    return Controller(diagram, resolved, hardware, tracker, publisher, nav, law)
+    return Controller(
+        diagram, resolved, hardware, tracker, publisher, nav, law,
+        images=images[0] if images else None, self_filter=images[1] if images else None,
+    )  # fmt: skip
+
+
+def _add_image_frames(
+    builder: DiagramBuilder,
+    resolved: ResolvedScenario,
+    hardware: HardwareConfig,
+    model: ArmModel,
+    decoder: StatusDecoder,
+    interface: LcmInterfaceSystem,
+) -> tuple[OutputPort, tuple[ImageFeatureFrames, SelfFilter]]:
+    """The rendered camera's path: the image channel -> the colour image, masked by the
+    self-filter at the joints of the frame's capture -> y, once per image. Returns the
+    frame port (the pinhole camera's layout) and the two systems."""
+    cam = resolved.config.sensor
+    theta = resolved.domain.fov_half_angle
+    believed = cam.believed_intrinsics(theta)
+    color, utime = subscribe_images(builder, hardware.channels.image, interface)
+    self_filter = add_self_filter(builder, resolved, model)
+    masked = add_masked_image(builder, color, self_filter, believed.width, believed.height)
+    nq = self_filter.plant.num_positions()
+    frames = builder.AddNamedSystem(
+        "feature_extractor",
+        ImageFeatureFrames(
+            believed,
+            num_joints=nq,
+            period=1.0 / hardware.status_rate,
+            camera_period=1.0 / cam.rate,
+            offset=cam.capture_offset,
+            max_lost_frames=int(cam.max_lost_frames),
+            pixel_noise=cam.pixel_noise,
+            seed=int(cam.seed),
+        ),
+    )
+    builder.Connect(utime, frames.image_utime_input)
+    builder.Connect(masked, frames.masked_color_image_input)
+    builder.Connect(decoder.status_utime_output, frames.status_utime_input)
+    builder.Connect(decoder.arm_state_output, frames.arm_state_input)
+    builder.Connect(frames.capture_positions_output, self_filter.positions)
+    return frames.frame_output, (frames, self_filter)

@@ -154,7 +154,7 @@ def run_station(station: Station, duration: float) -> dict:
         status = "converged" if dp <= tol_p and dr <= tol_r else "not_converged"
     t_end = root.get_time()
     hardware = station.hardware
-    frames = math.floor((t_end - 1.0 / hardware.status_rate) / station.frame_period) + 1
+    frames = math.floor((t_end - station.frame_offset) / station.frame_period + _ROUNDING) + 1
     if hardware.drop_every_frame > 0:
         frames -= frames // hardware.drop_every_frame
     return {

@@ -7,6 +7,8 @@ Drake's hardware_sim::
     status   = PandaStatusSender -> LcmPublisherSystem(PANDA_STATUS, 1 kHz)
     camera   = PinholeFeatureSensor on the camera's pose -> FeatureFrameEncoder
                -> FramePublisher(camera channel, the camera's rate)
+    (rendered: RgbdSensor on the camera -> ImageToLcmImageArrayT -> LcmPublisherSystem
+               (image channel, at each capture: :mod:`.images`))
     command  = LcmSubscriberSystem(PANDA_COMMAND, as a vector) -> CommandGate
                -> the plant's actuation (held at the status rate)
 
@@ -36,8 +38,10 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem
 from pydrake.systems.primitives import Demultiplexer, DiscreteTimeDelay
+from pydrake.systems.sensors import RgbdSensor
 
 from geovs_drake.hardware.config import HardwareConfig
+from geovs_drake.hardware.images import add_image_camera, check_rendered_over_lcm
 from geovs_drake.hardware.messages import (
     COMMAND_NUM_TORQUE,
     COMMAND_NUM_VELOCITY,
@@ -50,7 +54,7 @@ from geovs_drake.hardware.messages import (
 )
 from geovs_drake.loop.arm import initial_joints
 from geovs_drake.loop.carriers import _add_arm_scene
-from geovs_drake.scenario import Pinhole, ResolvedScenario
+from geovs_drake.scenario import Pinhole, Rendered, ResolvedScenario
 from geovs_drake.systems import ArmCamera, PinholeFeatureSensor
 from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmModel, arm_plant
 from geovs_drake.systems.arm_camera import actuation_permutation
@@ -254,8 +258,11 @@ class FramePublisher(LeafSystem):
 @dataclass
 class Station:
     """A built station: its ``diagram``, the scenario, the ``plant`` (the arm and the
-    target), the ``gate`` (:class:`CommandGate`), the arm's ``model``, start ``q0`` and
-    the camera's ``frame_period`` [s] and the ``status_delay`` line (None without)."""
+    target), the ``gate`` (:class:`CommandGate`), the arm's ``model``, start ``q0``, the
+    camera's ``frame_period`` [s], the ``status_delay`` line (None without), the
+    rendered camera's ``RgbdSensor`` (``camera``; None for the pinhole camera: its
+    label image is the station's truth of the arm's pixels, never published) and
+    ``frame_offset`` [s], when the first frame is published."""
 
     diagram: Diagram
     resolved: ResolvedScenario
@@ -266,6 +273,8 @@ class Station:
     q0: np.ndarray
     frame_period: float
     status_delay: LeafSystem | None = None
+    camera: RgbdSensor | None = None
+    frame_offset: float = 0.0
 
     def set_initial_state(self, root: Context) -> None:
         """The arm at rest at its start ``q0`` (and, with a status delay, as if it had
@@ -296,16 +305,19 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     ``!Pinhole`` camera) on the bus ``lcm``. ValueError in one line for a scenario the
     station cannot run."""
     config = resolved.config
-    if not isinstance(config.sensor, Pinhole):
+    rendered = isinstance(config.sensor, Rendered)
+    if not isinstance(config.sensor, Pinhole) and not rendered:
         raise ValueError(
-            f"the station's camera must be the pinhole sensor (--sensor pinhole), got "
-            f"{type(config.sensor).__name__}: the rendered camera over LCM is not built yet"
+            f"the station's camera must be pinhole or rendered (--sensor), got "
+            f"{type(config.sensor).__name__}"
         )
+    if rendered:
+        check_rendered_over_lcm(resolved, hardware.drop_every_frame)
     if not config.dynamic:
         raise ValueError("the station simulates the arm's dynamics: plant must be !Dynamic {}")
     builder = DiagramBuilder()
     interface = builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
-    model, plant, _scene_graph, _link, _X_LinkC = _add_arm_scene(builder, resolved, True, True)
+    model, plant, scene_graph, link, X_LinkC = _add_arm_scene(builder, resolved, True, True)
     q0 = initial_joints(config)
     nq, nv = plant.num_positions(), plant.num_velocities()
     demux = builder.AddNamedSystem("arm_state_demux", Demultiplexer([nq, nv]))
@@ -354,14 +366,32 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     )
     builder.Connect(status.get_output_port(), publisher.get_input_port())
 
+    cam = config.sensor
+    period = 1.0 / cam.rate
+    if rendered:  # the scene drawn on the arm's camera, its images on the image channel
+        rgbd = add_image_camera(
+            builder,
+            resolved,
+            plant,
+            scene_graph,
+            link,
+            X_LinkC,
+            hardware.channels.image,
+            interface,
+        )
+        diagram = builder.Build()
+        diagram.set_name("panda_station")
+        return Station(
+            diagram, resolved, hardware, plant, gate, model, q0, period, delay,
+            camera=rgbd, frame_offset=cam.capture_offset,
+        )  # fmt: skip
+
     # The camera: its pose from the joints (ArmCamera), its frames on the camera channel.
     arm = builder.AddNamedSystem("arm_camera", ArmCamera(model=model))
     builder.Connect(plant.get_state_output_port(), arm.arm_state_input)
     pose = builder.AddNamedSystem("camera_state_demux", Demultiplexer([7, 6]))
     builder.Connect(arm.camera_state_output, pose.get_input_port())
-    cam = config.sensor
     theta = resolved.domain.fov_half_angle
-    period = 1.0 / cam.rate
     sensor = builder.AddNamedSystem(
         "feature_sensor",
         PinholeFeatureSensor(
@@ -394,4 +424,7 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     builder.Connect(encoder.message_output, frames.message_input)
     diagram = builder.Build()
     diagram.set_name("panda_station")
-    return Station(diagram, resolved, hardware, plant, gate, model, q0, period, delay)
+    return Station(
+        diagram, resolved, hardware, plant, gate, model, q0, period, delay,
+        frame_offset=1.0 / hardware.status_rate,
+    )  # fmt: skip

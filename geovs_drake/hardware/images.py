@@ -1,0 +1,455 @@
+"""The rendered camera over LCM (issue 34): images on the bus, features in the controller.
+
+Station side, :func:`add_image_camera`: the arm's camera (Drake's ``RgbdSensor``,
+RenderEngineVtk with the rendered loop's lights and intrinsics) draws the scene, and
+its colour image goes out as ``lcmt_image_array`` through Drake's
+``ImageToLcmImageArrayT`` and ``LcmPublisherSystem``, a periodic publish at the
+camera's clock (``capture_offset + k / rate``). Why that is the capture time exactly:
+``ImageToLcmImageArrayT`` stamps ``header.utime`` with the context's time when the
+message is made, and the ``RgbdSensor`` renders the scene as it is then; a publish
+event at t sees the plant's state at t. No label image goes out: a real camera has none.
+
+Controller side: ``LcmSubscriberSystem(lcmt_image_array)`` -> ``LcmImageArrayToImages``
+-> the colour image, and beside it a subscriber that reads only the message's
+``header.utime`` (:func:`decode_image_utime`: the capture time, which
+``LcmImageArrayToImages`` drops). The arm's own pixels are masked by a robot
+self-filter (:func:`add_self_filter`): a SceneGraph holding only the arm's model (no
+world, no target), drawn by a ``RgbdSensor`` with the same camera on the flange into a
+*label image* at the joints of the status at the frame's capture; ``SelfMask`` paints
+them the background. :class:`ImageFeatureFrames` then extracts y from the masked image
+(``FeatureExtractor``'s kernel, :func:`~geovs_drake.systems.feature_extractor.extract_features`)
+once per new image and hands the frame to the controller's tracker in the layout of the
+pinhole camera's message (:data:`~geovs_drake.hardware.station.FRAME_VALUE_SIZE`).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+
+import numpy as np
+from drake import lcmt_image_array
+from pydrake.common.value import AbstractValue
+from pydrake.geometry import (
+    MakeRenderEngineVtk,
+    PerceptionProperties,
+    RenderEngineVtkParams,
+    RenderLabel,
+    Rgba,
+    SceneGraph,
+)
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import (
+    Context,
+    DiagramBuilder,
+    LeafSystem,
+    OutputPort,
+    TriggerType,
+)
+from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
+from pydrake.systems.rendering import MultibodyPositionToGeometryPose
+from pydrake.systems.sensors import (
+    ImageRgba8U,
+    ImageToLcmImageArrayT,
+    LcmImageArrayToImages,
+    PixelType,
+    RgbdSensor,
+)
+
+from geovs_drake.geometry.features import FEATURE_OK, TargetMarks
+from geovs_drake.hardware.messages import (
+    FRAME_SIZE,
+    FRAME_UTIME,
+    FRAME_VALUE_START,
+    VectorSerializer,
+    frame_vector_size,
+)
+from geovs_drake.loop.sensors import RENDERER_NAME, camera_config, scene_lights
+from geovs_drake.scenario import ResolvedScenario
+from geovs_drake.systems import SelfMask
+from geovs_drake.systems._arm_model import ArmModel, add_arm
+from geovs_drake.systems.feature_extractor import SCENE_COLOURS, extract_features
+
+__all__ = [
+    "COLOR_FRAME_NAME",
+    "IMAGE_HISTORY",
+    "ImageFeatureFrames",
+    "SelfFilter",
+    "add_image_camera",
+    "add_self_filter",
+    "perceive_collision_shapes",
+    "check_rendered_over_lcm",
+    "decode_image_utime",
+    "subscribe_images",
+]
+
+#: The colour image's ``frame_name`` in ``lcmt_image_array``.
+COLOR_FRAME_NAME = "camera"
+#: How many statuses' joints :class:`ImageFeatureFrames` keeps to find the joints at a
+#: frame's capture (at 1 kHz, 0.1 s: an image arrives within a few ms of its capture).
+IMAGE_HISTORY = 100
+#: Microseconds per second: LCM's ``utime``.
+_US_PER_S = 1e6
+#: A status counts as taken at or before the capture within this [us]: Drake stamps
+#: both messages with ``int64(t * 1e6)``, a truncation, so one may read a microsecond
+#: early (0.1 s * 1e6 is 99999.99...); statuses are a millisecond apart.
+_CAPTURE_SLACK_US = 1.5
+#: ``lcmt_image_array``'s wire format: its fingerprint, then the nested ``lcmt_header``
+#: (``seq`` int32, then ``utime`` int64).
+_IMAGE_FINGERPRINT = lcmt_image_array._get_packed_fingerprint()
+_HEADER = struct.Struct(">iq")
+#: The frame's values (y, [valid, code, lost], index), as the pinhole station sends.
+_Y, _STATUS, _INDEX = slice(0, 13), slice(13, 16), 16
+_VALUE_SIZE = 17
+
+
+def check_rendered_over_lcm(resolved: ResolvedScenario, drop_every_frame: int = 0) -> None:
+    """ValueError in one line for a rendered camera the LCM link cannot give: a delay of
+    its own (``output_delay``, ``latency_frames``: over LCM the image reaches the
+    controller when the bus delivers it) or dropped frames."""
+    cam = resolved.config.sensor
+    if cam.output_delay > 0 or cam.latency_frames > 0:
+        raise ValueError(
+            "the rendered camera over LCM takes no delay of its own (sensor.output_delay "
+            f"{cam.output_delay}, latency_frames {cam.latency_frames}): the bus delivers it"
+        )
+    if drop_every_frame > 0:
+        raise ValueError("hardware.drop_every_frame is for the pinhole camera (lcmt_scope)")
+
+
+def _add_vtk(scene_graph: SceneGraph) -> None:
+    """The rendered loop's renderer: RenderEngineVtk, EGL (headless), its lights."""
+    scene_graph.AddRenderer(
+        RENDERER_NAME,
+        MakeRenderEngineVtk(
+            RenderEngineVtkParams(
+                backend="EGL",
+                default_clear_color=list(SCENE_COLOURS["background"]),
+                lights=scene_lights(),
+            )
+        ),
+    )
+
+
+#: The colour the arm's collision shapes are drawn in (RGBA): a dark grey that the
+#: extractor takes for foreground (why the self-filter must mask it).
+ARM_COLOUR = (0.3, 0.3, 0.3, 1.0)
+
+
+def perceive_collision_shapes(plant: MultibodyPlant, scene_graph: SceneGraph, instance) -> int:
+    """Give the arm's collision shapes (``instance``'s) the perception role, labelled
+    with their body's index as MultibodyPlant labels a body: why, the Panda's visual
+    meshes are .dae files, which RenderEngineVtk ignores, so without this the camera
+    never sees the arm; its collision spheres and capsules enclose the links (a robot
+    self-filter's usual padded model). Returns how many shapes were given it."""
+    inspector = scene_graph.model_inspector()
+    count = 0
+    for index in plant.GetBodyIndices(instance):
+        for geometry_id in plant.GetCollisionGeometriesForBody(plant.get_body(index)):
+            if inspector.GetPerceptionProperties(geometry_id) is not None:
+                continue
+            properties = PerceptionProperties()
+            properties.AddProperty("label", "id", RenderLabel(int(index)))
+            properties.AddProperty("phong", "diffuse", Rgba(*ARM_COLOUR))
+            scene_graph.AssignRole(plant.get_source_id(), geometry_id, properties)
+            count += 1
+    return count
+
+
+def _rgbd(
+    builder: DiagramBuilder,
+    name: str,
+    resolved: ResolvedScenario,
+    plant: MultibodyPlant,
+    scene_graph: SceneGraph,
+    body,
+    X_LinkC: RigidTransform,
+) -> RgbdSensor:
+    """A RgbdSensor of the scenario's camera (:func:`~geovs_drake.loop.sensors.camera_config`)
+    on ``body`` at ``X_LinkC``, rendering ``scene_graph`` (queried when read)."""
+    color_camera, depth_camera = camera_config(resolved).MakeCameras()
+    parent = plant.GetBodyFrameIdOrThrow(body.index())
+    rgbd = builder.AddNamedSystem(name, RgbdSensor(parent, X_LinkC, color_camera, depth_camera))
+    builder.Connect(scene_graph.get_query_output_port(), rgbd.query_object_input_port())
+    return rgbd
+
+
+def add_image_camera(
+    builder: DiagramBuilder,
+    resolved: ResolvedScenario,
+    plant: MultibodyPlant,
+    scene_graph: SceneGraph,
+    body,
+    X_LinkC: RigidTransform,
+    channel: str,
+    interface: LcmInterfaceSystem,
+) -> RgbdSensor:
+    """The station's camera: the scene drawn on the arm's camera (``body``, ``X_LinkC``)
+    and its colour image published on ``channel`` as ``lcmt_image_array`` at the
+    camera's capture times (``header.utime`` = the capture). Returns the sensor."""
+    _add_vtk(scene_graph)
+    perceive_collision_shapes(plant, scene_graph, body.model_instance())
+    rgbd = _rgbd(builder, "rgbd_sensor", resolved, plant, scene_graph, body, X_LinkC)
+    # Uncompressed: zlib on every frame costs the station's real time more than the
+    # bytes cost the bus (measured in docs/hardware.md).
+    to_lcm = builder.AddNamedSystem("image_to_lcm", ImageToLcmImageArrayT(do_compress=False))
+    color_in = to_lcm.DeclareImageInputPort[PixelType.kRgba8U](COLOR_FRAME_NAME)
+    builder.Connect(rgbd.color_image_output_port(), color_in)
+    cam = resolved.config.sensor
+    publisher = builder.AddNamedSystem(
+        "camera_publisher",
+        LcmPublisherSystem.Make(
+            channel,
+            lcmt_image_array,
+            interface,
+            use_cpp_serializer=True,
+            publish_triggers={TriggerType.kPeriodic},
+            publish_period=1.0 / cam.rate,
+            publish_offset=cam.capture_offset,
+        ),
+    )
+    builder.Connect(to_lcm.image_array_t_msg_output_port(), publisher.get_input_port())
+    return rgbd
+
+
+def decode_image_utime(data: bytes) -> np.ndarray:
+    """``[header.utime]`` [us] of an encoded ``lcmt_image_array``, read from the wire
+    format alone (the images are not decoded). ValueError if ``data`` is not one."""
+    if data[: len(_IMAGE_FINGERPRINT)] != _IMAGE_FINGERPRINT:
+        raise ValueError("not an lcmt_image_array (its fingerprint differs)")
+    _seq, utime = _HEADER.unpack_from(data, len(_IMAGE_FINGERPRINT))
+    return np.array([float(utime)])
+
+
+def subscribe_images(
+    builder: DiagramBuilder, channel: str, interface: LcmInterfaceSystem
+) -> tuple[OutputPort, OutputPort]:
+    """The image channel's colour image (``LcmImageArrayToImages``) and its capture
+    ``utime`` [us] (a second subscriber reading the header alone; -1 before a first
+    image)."""
+    images = builder.AddNamedSystem(
+        "camera_subscriber",
+        LcmSubscriberSystem.Make(channel, lcmt_image_array, interface, use_cpp_serializer=True),
+    )
+    to_images = builder.AddNamedSystem("lcm_to_images", LcmImageArrayToImages())
+    builder.Connect(images.get_output_port(), to_images.image_array_t_input_port())
+    stamps = builder.AddNamedSystem(
+        "camera_utime_subscriber",
+        LcmSubscriberSystem(
+            channel,
+            VectorSerializer("lcmt_image_array.header", decode_image_utime, np.array([-1.0])),
+            interface,
+            0.0,
+        ),
+    )
+    return to_images.color_image_output_port(), stamps.get_output_port()
+
+
+class SelfFilter:
+    """The robot self-filter: ``plant`` (the arm alone, out of the diagram), its
+    ``scene_graph``, ``positions`` (MultibodyPositionToGeometryPose's input: the joints
+    to draw), ``rgbd`` (whose ``label_image_output_port`` marks the arm's pixels with
+    its bodies' indices) and ``labels`` (those indices)."""
+
+    def __init__(self, plant, scene_graph, positions, rgbd, labels) -> None:
+        self.plant, self.scene_graph, self.positions = plant, scene_graph, positions
+        self.rgbd, self.labels = rgbd, labels
+
+
+def add_self_filter(
+    builder: DiagramBuilder, resolved: ResolvedScenario, model: ArmModel
+) -> SelfFilter:
+    """A SceneGraph holding the arm's model alone (its visual geometry, no target, no
+    world), posed from joint positions by ``MultibodyPositionToGeometryPose``, drawn by
+    the scenario's camera on the arm's camera frame: the label image of the arm's own
+    pixels, as the station's camera sees them at the same joints."""
+    scene_graph = builder.AddNamedSystem("self_filter_scene_graph", SceneGraph())
+    # Kept out of the diagram (no state): it only registers the arm's geometry and
+    # turns joints into the geometry's poses.
+    plant = MultibodyPlant(time_step=0.0)
+    plant.RegisterAsSourceForSceneGraph(scene_graph)
+    instance, camera = add_arm(plant, model)
+    plant.Finalize()
+    perceive_collision_shapes(plant, scene_graph, instance)
+    _add_vtk(scene_graph)
+    to_pose = builder.AddNamedSystem(
+        "self_filter_poses", MultibodyPositionToGeometryPose(plant, input_multibody_state=False)
+    )
+    builder.Connect(
+        to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id())
+    )
+    rgbd = _rgbd(
+        builder,
+        "self_filter_camera",
+        resolved,
+        plant,
+        scene_graph,
+        camera.body(),
+        camera.GetFixedPoseInBodyFrame(),
+    )
+    labels = [int(i) for i in plant.GetBodyIndices(instance)]
+    return SelfFilter(plant, scene_graph, to_pose.get_input_port(), rgbd, labels)
+
+
+def add_masked_image(
+    builder: DiagramBuilder, color: OutputPort, self_filter: SelfFilter, width: int, height: int
+) -> OutputPort:
+    """``SelfMask``: ``color`` with the self-filter's arm pixels painted the background."""
+    mask = builder.AddNamedSystem("self_mask", SelfMask(width, height, self_filter.labels))
+    builder.Connect(color, mask.color_image_input)
+    builder.Connect(self_filter.rgbd.label_image_output_port(), mask.label_image_input)
+    return mask.masked_color_image_output
+
+
+#: ImageFeatureFrames' state: the last image's utime handled [us], whether a good y has
+#: come, frames failed in a row, then y (13) and the code of the last frame.
+_S_UTIME, _S_HAS_Y, _S_LOST, _S_CODE = 0, 1, 2, 3
+_S_Y = slice(4, 17)
+_S_SIZE = 17
+
+
+class ImageFeatureFrames(LeafSystem):
+    """The image channel's frames as the tracker's frames: y extracted once per new image.
+
+    Inputs ``image_utime`` (the latest image's capture ``[utime]`` [us], -1 before
+    one), ``masked_color_image`` (that image with the arm's pixels masked),
+    ``status_utime`` [s] and ``arm_state`` (the latest status's). Every ``period`` (the
+    status rate) it keeps each new status's joints by their utime
+    (:data:`IMAGE_HISTORY`), and on a new image extracts y from the masked image
+    (``FeatureExtractor``'s kernel, ``intrinsics`` the believed camera, optional
+    ``pixel_noise`` drawn from ``seed`` and the frame's index as the extractor does);
+    a failed frame keeps the last good y and counts one more lost, and the frame is
+    not valid once more than ``max_lost_frames`` have failed in a row (or none has
+    succeeded).
+
+    Outputs: ``capture_positions``, the joints of the latest status not after the
+    latest image's capture (the self-filter draws the arm there: the arm where the
+    image shows it); ``frame``, the last image's frame as the vector of
+    :func:`~geovs_drake.hardware.messages.frame_vector` (utime, size, then y, ``[valid,
+    code, lost]`` and the frame's index ``round((capture - offset) / camera_period)``),
+    NaN before the first image. Why not the ``FeatureExtractor`` system itself: it
+    reads its input on its own clock, which in another process is not the camera's;
+    this reads an image when it arrives.
+    """
+
+    def __init__(
+        self,
+        intrinsics,
+        num_joints: int,
+        period: float,
+        camera_period: float,
+        offset: float = 0.0,
+        max_lost_frames: int = 3,
+        pixel_noise: float = 0.0,
+        seed: int = 0,
+        marks: TargetMarks | None = None,
+    ) -> None:
+        super().__init__()
+        self._intrinsics = intrinsics
+        self._nq = num_joints
+        self._row = 1 + num_joints
+        self._camera_period, self._offset = camera_period, offset
+        self._max_lost = max_lost_frames
+        self._noise, self._seed = pixel_noise, seed
+        self._arrow_angle = (marks or TargetMarks()).arrow_angle
+        size = (intrinsics.width, intrinsics.height)
+        self.image_utime_input = self.DeclareAbstractInputPort(
+            "image_utime", AbstractValue.Make(np.array([-1.0]))
+        )
+        self.masked_color_image_input = self.DeclareAbstractInputPort(
+            "masked_color_image", AbstractValue.Make(ImageRgba8U(*size))
+        )
+        self.status_utime_input = self.DeclareVectorInputPort("status_utime", 1)
+        self.arm_state_input = self.DeclareVectorInputPort("arm_state", 2 * num_joints)
+        self._history = self.DeclareDiscreteState(np.full(IMAGE_HISTORY * self._row, -1.0))
+        self._head = self.DeclareDiscreteState(1)
+        initial = np.zeros(_S_SIZE)
+        initial[_S_UTIME] = -1.0
+        initial[_S_Y] = math.nan
+        self._state = self.DeclareDiscreteState(initial)
+        self._frame = self.DeclareDiscreteState(np.full(frame_vector_size(_VALUE_SIZE), math.nan))
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.capture_positions_output = self.DeclareVectorOutputPort(
+            "capture_positions",
+            num_joints,
+            self._capture_positions,
+            prerequisites_of_calc={
+                self.image_utime_input.ticket(),
+                self.status_utime_input.ticket(),
+                self.arm_state_input.ticket(),
+                self.xd_ticket(),
+            },
+        )
+        self.frame_output = self.DeclareAbstractOutputPort(
+            "frame",
+            lambda: AbstractValue.Make(np.full(frame_vector_size(_VALUE_SIZE), math.nan)),
+            self._frame_out,
+            prerequisites_of_calc={self.xd_ticket()},
+        )
+
+    def _rows(self, context: Context) -> np.ndarray:
+        """The kept (utime [s], q) rows and the latest status's, if new."""
+        rows = context.get_discrete_state(self._history).get_value().reshape(-1, self._row)
+        utime = float(self.status_utime_input.Eval(context)[0])
+        if utime > 0:
+            q = self.arm_state_input.Eval(context)[: self._nq]
+            rows = np.vstack([rows, np.concatenate([[utime], q])])
+        return rows[rows[:, 0] >= 0]
+
+    def _capture_positions(self, context: Context, output) -> None:
+        capture = float(self.image_utime_input.Eval(context)[0]) / _US_PER_S
+        rows = self._rows(context)
+        if len(rows) == 0:  # nothing yet: the arm's zero configuration (no image either)
+            output.SetFromVector(np.zeros(self._nq))
+            return
+        before = rows[rows[:, 0] <= capture + _CAPTURE_SLACK_US / _US_PER_S]
+        pick = before[np.argmax(before[:, 0])] if len(before) else rows[np.argmin(rows[:, 0])]
+        output.SetFromVector(pick[1:])
+
+    def _update(self, context: Context, discrete_state) -> None:
+        utime = float(self.status_utime_input.Eval(context)[0])
+        history = discrete_state.get_mutable_vector(self._history).get_mutable_value()
+        head = int(context.get_discrete_state(self._head).get_value()[0])
+        last = history[((head - 1) % IMAGE_HISTORY) * self._row]
+        if utime > 0 and utime != last:
+            row = head * self._row
+            history[row] = utime
+            history[row + 1 : row + self._row] = self.arm_state_input.Eval(context)[: self._nq]
+            discrete_state.get_mutable_vector(self._head).SetAtIndex(0, (head + 1) % IMAGE_HISTORY)
+        s = context.get_discrete_state(self._state).get_value().copy()
+        image_utime = float(self.image_utime_input.Eval(context)[0])
+        if image_utime < 0 or image_utime == s[_S_UTIME]:
+            return
+        if len(self._rows(context)) == 0:
+            # No joints yet to draw the arm at (the first status, utime 0, counts as
+            # none, as the tracker counts it): the image waits for the next status.
+            return
+        # A new image, masked at the joints of its capture (capture_positions reads this
+        # update's inputs: the status that came with it counts).
+        capture = image_utime / _US_PER_S
+        index = int(round((capture - self._offset) / self._camera_period))
+        noise = None
+        if self._noise > 0:
+            noise = np.random.default_rng([self._seed, index])
+        image = self.masked_color_image_input.Eval(context)
+        y, code = extract_features(
+            image.data, self._intrinsics, self._arrow_angle, noise, self._noise
+        )
+        s[_S_UTIME] = image_utime
+        if y is None:
+            s[_S_CODE], s[_S_LOST] = float(code), s[_S_LOST] + 1
+        else:
+            s[_S_Y], s[_S_HAS_Y], s[_S_CODE], s[_S_LOST] = y, 1.0, float(FEATURE_OK), 0.0
+        valid = 1.0 if s[_S_HAS_Y] > 0 and s[_S_LOST] <= self._max_lost else 0.0
+        frame = np.empty(frame_vector_size(_VALUE_SIZE))
+        frame[FRAME_UTIME], frame[FRAME_SIZE] = image_utime, _VALUE_SIZE
+        value = frame[FRAME_VALUE_START:]
+        value[_Y] = s[_S_Y]
+        value[_STATUS] = [valid, s[_S_CODE], s[_S_LOST]]
+        value[_INDEX] = index
+        discrete_state.get_mutable_vector(self._state).SetFromVector(s)
+        discrete_state.get_mutable_vector(self._frame).SetFromVector(frame)
+
+    def _frame_out(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(context.get_discrete_state(self._frame).get_value().copy())
