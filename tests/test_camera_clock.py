@@ -151,9 +151,8 @@ def test_the_gain_fit_counts_a_sub_frame_delay_as_a_frame():
 def test_a_loop_that_waits_for_its_first_frame_converges():
     """The pinhole loop, first frame 30 ms late, from the default start: it holds, then
     converges as the camera's loop does, inside D."""
-    result = simulate(
-        load_scenario(data="{sensor: !Pinhole {capture_offset: 0.01, output_delay: 0.02}}")
-    )
+    text = "{sensor: !Pinhole {capture_offset: 0.01, output_delay: 0.02}, duration: 6}"
+    result = simulate(load_scenario(data=text))
     assert result.status == "converged", result.message
     assert result.lyapunov_monotone
 

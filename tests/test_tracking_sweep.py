@@ -23,7 +23,7 @@ from geovs_drake.simulation import simulate
 SPEEDS = (0.05, 0.2)
 #: The short sweep's random starts and duration [s] (long enough for the kinematic NF,
 #: gain 4, to settle from a start in D).
-STARTS, SHORT_S = 3, 10.0
+STARTS, SHORT_S = 2, 10.0
 #: How far the lag without feed-forward may be from the linear model's prediction (as
 #: tests/test_moving_target.py).
 LAG_TOLERANCE = 0.15
@@ -65,7 +65,7 @@ def test_short_sweep_known_is_the_still_loop_and_none_lags_as_predicted():
     assert rows[SPEEDS[1], "none"].predicted_lag_m == pytest.approx(
         rows[SPEEDS[0], "none"].predicted_lag_m * SPEEDS[1] / SPEEDS[0], rel=1e-12
     )
-    assert "| 0.05 | known | 3 | 100% |" in sweep.markdown()
+    assert f"| 0.05 | known | {STARTS} | 100% |" in sweep.markdown()
 
 
 def test_predicted_edge_brackets_where_the_lagged_goal_leaves_D():
