@@ -277,11 +277,11 @@ def test_baseline_systems_match_their_laws_and_convert(law):
     y = camera_map(RigidTransform(RollPitchYaw(0.1, -0.05, 1.0), [0.03, -0.02, 0.7]), RHO)
     y = y.to_vector()
     ctx = system.CreateDefaultContext()
-    system.get_input_port().FixValue(ctx, y)
+    system.GetInputPort("image_features").FixValue(ctx, y)
     np.testing.assert_allclose(system.camera_velocity_output.Eval(ctx), reference(y), atol=1e-12)
     ad = system.ToAutoDiffXd()
     ad_ctx = ad.CreateDefaultContext()
-    ad.get_input_port().FixValue(ad_ctx, InitializeAutoDiff(y).ravel())
+    ad.GetInputPort("image_features").FixValue(ad_ctx, InitializeAutoDiff(y).ravel())
     out = ad.get_output_port().Eval(ad_ctx)
     np.testing.assert_allclose(_values(out).ravel(), reference(y), atol=1e-9)
     h = 1e-6
@@ -291,7 +291,7 @@ def test_baseline_systems_match_their_laws_and_convert(law):
     np.testing.assert_allclose(
         ExtractGradient(out), numeric, atol=1e-5 * (1 + np.abs(numeric).max())
     )
-    system.get_input_port().FixValue(ctx, np.full(13, np.nan))
+    system.GetInputPort("image_features").FixValue(ctx, np.full(13, np.nan))
     assert np.all(np.isnan(system.camera_velocity_output.Eval(ctx)))
     with pytest.raises(ValueError, match="gain must be finite and > 0"):
         type(system)(goal=GOAL, radius=RHO, gain=0.0)
