@@ -300,10 +300,16 @@ def test_progress_off_a_terminal_prints_sparse_integer_lines(capsys):
     assert len(lines) == 2  # the first, then nothing for an hour but the last
 
 
-def test_demo_progress_is_sparse_in_a_log(tmp_path, run_cli):
+def test_demo_progress_is_sparse_in_a_log(tmp_path, run_cli, monkeypatch):
     """`demo` with stderr to a file (not a TTY): plain progress lines, no tqdm bar."""
+    from geovs_drake import plotting
+
     out = tmp_path / "demo"
-    # In this process (capsys's stderr is no TTY either): a subprocess costs the imports.
+    # In this process (capsys's stderr is no TTY either: a subprocess costs the imports),
+    # and without the figures, which test_demo_and_plots.py checks: what is read here is
+    # the progress of the run.
+    for name in ("plot_image_view", "plot_run", "plot_navigation_slices", "write_block_diagram"):
+        monkeypatch.setattr(plotting, name, lambda *args, **kwargs: [])
     run = run_cli("demo", "--out", str(out), "--duration", "0.5", "--no-meshcat", "--no-rendered")
     assert run.code == cli.EXIT_NOT_CONVERGED, run.err  # 0.5 s is too short
     assert "\r" not in run.err

@@ -27,7 +27,7 @@ from geovs_drake.cli import main
 from geovs_drake.hardware.config import HardwareConfig, check_lcm_url, load_hardware
 from geovs_drake.hardware.controller import build_controller
 from geovs_drake.hardware.messages import decode_status_vector, status_vector
-from geovs_drake.hardware.run import SETTLED_JOINT_SPEED, load_setup, run_station
+from geovs_drake.hardware.run import SETTLED_JOINT_SPEED, load_setup, lockstep, run_station
 from geovs_drake.hardware.station import FRAME_INDEX, build_station
 from geovs_drake.simulation import simulate
 from geovs_drake.simulation.result import convergence_tolerance, pose_error
@@ -67,16 +67,8 @@ def _lockstep(duration: float, times: tuple[float, ...], **hardware):
     from the goal at ``times``, the station's gate and the controller's publisher
     (``hardware``: changes to the hardware config, e.g. ``mode``)."""
     setup = _setup(duration, **hardware)
-    lcm = DrakeLcm("memq://")
-    station = build_station(setup.resolved, setup.hardware, lcm)
-    controller = build_controller(setup.resolved, setup.hardware, lcm)
-    builder = DiagramBuilder()
-    builder.AddSystem(station.diagram)
-    builder.AddSystem(controller.diagram)
-    simulator = Simulator(builder.Build())
-    root = simulator.get_mutable_context()
-    station.set_initial_state(root)
-    simulator.Initialize()
+    both = lockstep(setup)
+    station, controller, simulator, root = both.station, both.controller, both.simulator, both.root
     errors = []
     for t in times:
         simulator.AdvanceTo(t)
@@ -287,14 +279,8 @@ def test_a_dropped_frame_is_counted_and_the_loop_still_follows_simulate():
         setup.hardware.channels.camera,
         lambda data: heard.append(int(lcmt_scope.decode(data).value[FRAME_INDEX])),
     )
-    station = build_station(setup.resolved, setup.hardware, lcm)
-    controller = build_controller(setup.resolved, setup.hardware, lcm)
-    builder = DiagramBuilder()
-    builder.AddSystem(station.diagram)
-    builder.AddSystem(controller.diagram)
-    simulator = Simulator(builder.Build())
-    root = simulator.get_mutable_context()
-    station.set_initial_state(root)
+    both = lockstep(setup, lcm)
+    station, controller, simulator, root = both.station, both.controller, both.simulator, both.root
     simulator.AdvanceTo(DROP_RUN_S)
     assert heard and all(i % DROP_EVERY != DROP_EVERY - 1 for i in heard)
     unseen = heard[-1] - heard[0] + 1 - len(heard)  # indices between never heard

@@ -17,14 +17,13 @@ import pytest
 from drake import lcmt_image_array
 from pydrake.lcm import DrakeLcm
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmSubscriberSystem
 
 from geovs_drake.geometry.camera import camera_map
 from geovs_drake.hardware.controller import build_controller
 from geovs_drake.hardware.images import add_self_filter, decode_image_utime
-from geovs_drake.hardware.run import load_setup
+from geovs_drake.hardware.run import load_setup, lockstep
 from geovs_drake.hardware.station import build_station
 from geovs_drake.simulation.result import pose_error
 
@@ -74,16 +73,8 @@ def _lockstep(duration: float):
         setup.hardware.channels.image,
         lambda data: heard.append((lcmt_image_array.decode(data).header.utime, len(data))),
     )
-    station = build_station(setup.resolved, setup.hardware, lcm)
-    controller = build_controller(setup.resolved, setup.hardware, lcm)
-    builder = DiagramBuilder()
-    builder.AddSystem(station.diagram)
-    builder.AddSystem(controller.diagram)
-    simulator = Simulator(builder.Build())
-    root = simulator.get_mutable_context()
-    station.set_initial_state(root)
-    simulator.Initialize()
-    return setup, station, controller, simulator, heard
+    both = lockstep(setup, lcm)
+    return setup, both.station, both.controller, both.simulator, heard
 
 
 def _arm_mask(label: np.ndarray, arm_labels: list[int]) -> np.ndarray:

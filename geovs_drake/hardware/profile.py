@@ -23,10 +23,9 @@ import numpy as np
 from pydrake.lcm import DrakeLcm
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
 
 from geovs_drake.hardware.controller import build_controller
-from geovs_drake.hardware.run import Setup, load_setup
+from geovs_drake.hardware.run import Setup, load_setup, lockstep
 from geovs_drake.hardware.station import build_station
 from geovs_drake.simulation import simulate
 from geovs_drake.simulation.result import pose_error
@@ -97,16 +96,8 @@ def lockstep_errors(
         drop_every_frame=drop_every_frame,
         status_delay=status_delay,
     )
-    lcm = DrakeLcm("memq://")
-    station = build_station(setup.resolved, setup.hardware, lcm)
-    controller = build_controller(setup.resolved, setup.hardware, lcm)
-    builder = DiagramBuilder()
-    builder.AddSystem(station.diagram)
-    builder.AddSystem(controller.diagram)
-    simulator = Simulator(builder.Build())
-    root = simulator.get_mutable_context()
-    station.set_initial_state(root)
-    simulator.Initialize()
+    both = lockstep(setup)
+    station, controller, simulator, root = both.station, both.controller, both.simulator, both.root
     errors = []
     for t in times:
         simulator.AdvanceTo(t)

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from pydrake.lcm import DrakeLcm
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-from pydrake.systems.framework import EventStatus
+from pydrake.systems.framework import DiagramBuilder, EventStatus
 
 from geovs_drake.hardware.config import (
     HardwareConfig,
@@ -21,8 +21,13 @@ from geovs_drake.hardware.config import (
     load_hardware,
     split_station_file,
 )
-from geovs_drake.hardware.controller import LATENCY_BIN_MS, LINK_FIELDS, Controller
-from geovs_drake.hardware.station import Station
+from geovs_drake.hardware.controller import (
+    LATENCY_BIN_MS,
+    LINK_FIELDS,
+    Controller,
+    build_controller,
+)
+from geovs_drake.hardware.station import Station, build_station
 from geovs_drake.loop.build import fit_gains
 from geovs_drake.scenario import ResolvedScenario, ScenarioConfig, load_scenario, resolve
 from geovs_drake.simulation.result import convergence_tolerance, pose_error
@@ -30,9 +35,11 @@ from geovs_drake.simulation.result import convergence_tolerance, pose_error
 __all__ = [
     "SETTLED_JOINT_SPEED",
     "TRACE_PERIOD_S",
+    "Lockstep",
     "Setup",
     "default_station_file",
     "load_setup",
+    "lockstep",
     "open_lcm",
     "run_controller",
     "run_station",
@@ -61,6 +68,37 @@ class Setup:
 
     resolved: ResolvedScenario
     hardware: HardwareConfig
+
+
+@dataclass
+class Lockstep:
+    """A station and a controller in one Diagram on one bus, simulated together: their
+    clocks are one (tests, profiles, the measurements of docs/hardware.md)."""
+
+    station: Station
+    controller: Controller
+    simulator: Simulator
+
+    @property
+    def root(self):
+        """The simulator's root context."""
+        return self.simulator.get_mutable_context()
+
+
+def lockstep(setup: Setup, lcm: DrakeLcm | None = None) -> Lockstep:
+    """``build_station`` and ``build_controller`` of ``setup`` on ``lcm`` (default: a fresh
+    ``memq://`` bus, in this process), both diagrams in one Simulator, the station's
+    start set and the simulator initialised."""
+    lcm = DrakeLcm("memq://") if lcm is None else lcm
+    station = build_station(setup.resolved, setup.hardware, lcm)
+    controller = build_controller(setup.resolved, setup.hardware, lcm)
+    builder = DiagramBuilder()
+    builder.AddSystem(station.diagram)
+    builder.AddSystem(controller.diagram)
+    simulator = Simulator(builder.Build())
+    station.set_initial_state(simulator.get_mutable_context())
+    simulator.Initialize()
+    return Lockstep(station, controller, simulator)
 
 
 def load_setup(
