@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from geovs_drake.geometry.rigid import cross
 from geovs_drake.geometry.so3 import hat, so3_exp, so3_log
 
 __all__ = [
@@ -81,8 +82,9 @@ def adjoint(X_AB: np.ndarray) -> np.ndarray:
 
 def lie_bracket(V: np.ndarray, xi: np.ndarray) -> np.ndarray:
     """``ad_V xi`` = [V, xi] of two twists (omega, v)."""
-    w, v = V[:3], V[3:]
-    return np.concatenate([np.cross(w, xi[:3]), np.cross(w, xi[3:]) + np.cross(v, xi[:3])])
+    w, v, xw, xv = (tuple(part) for part in (V[:3], V[3:], xi[:3], xi[3:]))
+    wxv, vxw = cross(w, xv), cross(v, xw)
+    return np.array([*cross(w, xw), *(a + b for a, b in zip(wxv, vxw, strict=True))])
 
 
 def twist_rate(xi_R: np.ndarray, V_r: np.ndarray, xi_dot_R: np.ndarray) -> np.ndarray:
@@ -94,8 +96,8 @@ def twist_rate(xi_R: np.ndarray, V_r: np.ndarray, xi_dot_R: np.ndarray) -> np.nd
 def _bias(V: np.ndarray, inertia: np.ndarray, mass: float) -> np.ndarray:
     """C(V) = (omega x J omega, m omega x v): Newton-Euler's velocity terms about the
     centre of mass, in the body's frame."""
-    w, v = V[:3], V[3:]
-    return np.concatenate([np.cross(w, inertia @ w), mass * np.cross(w, v)])
+    w, v = tuple(V[:3]), tuple(V[3:])
+    return np.array([*cross(w, tuple(inertia @ V[:3])), *(mass * c for c in cross(w, v))])
 
 
 def frame_wrench(
