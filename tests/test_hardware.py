@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.metadata
+import json
 import math
 
 import numpy as np
@@ -329,3 +330,16 @@ def test_the_hardware_config_names_a_bad_field():
     with pytest.raises(ValueError, match="hardware.drop_every_frame must be an integer >= 0"):
         load_hardware({"drop_every_frame": -2})
     assert load_hardware(None) == HardwareConfig()
+
+
+def test_the_station_s_json_is_strict_json_before_any_command(run_cli):
+    """A station that never heard a command has no first-command time: null, not NaN
+    (which strict JSON readers refuse), and it held the arm at rest."""
+
+    def refuse(constant: str) -> None:
+        raise ValueError(f"not JSON: {constant}")
+
+    run = run_cli("station", "--lcm", "memq://", "--duration", "0.2", "--json")
+    summary = json.loads(run.out, parse_constant=refuse)
+    assert summary["commands_received"] == 0 and summary["first_command_s"] is None
+    assert summary["final_joint_speed"] == pytest.approx(0.0, abs=1e-9)

@@ -13,7 +13,8 @@ Usage::
    environment: ``simulate --json --duration 1`` (on the
    shipped ``default.yaml`` in ``core``, with ``geovs-drake --version`` there),
    ``demo --duration 1 --no-meshcat``, a
-   small ``sweep``, ``simulate --sensor rendered`` and a brief ``compare`` on the
+   small ``sweep``, ``simulate --sensor rendered``, the LCM ``station`` alone (it needs
+   ``[panda]``) and a brief ``compare`` on the
    shipped suite. In ``core`` each
    command either works or prints the one line
    ``geovs-drake CMD needs PKG: pip install "geovs-drake[EXTRA]"`` with exit code 2
@@ -148,6 +149,10 @@ def make_env(kind: str, wheel: Path, tmp: Path) -> tuple[Path, str]:
     return env, f"{kind}: venv + install with {tool} {time.perf_counter() - start:.1f} s"
 
 
+def _not_json(constant: str) -> None:
+    raise ValueError(f"{constant} is not JSON")
+
+
 def _check(report: Report, kind: str, label: str, run: subprocess.CompletedProcess, dt: float,
            may_need_extra: bool) -> str:  # fmt: skip
     """Record one command: it worked, or (``may_need_extra``) named its extra in one line."""
@@ -231,6 +236,23 @@ def exercise(kind: str, env: Path, tmp: Path, report: Report, version: str) -> N
             report.fail(f"core: the sweep's Parquet dataset should need the sweep extra: {outcome}")
         if (cwd / "sweep").exists():
             report.fail("core: a sweep refused for a missing extra left its --out folder")
+
+    # The LCM station alone on an in-process bus (the shipped panda_lcm.yaml): the Panda's
+    # model needs the `panda` extra; with it the station holds the arm, hears no
+    # command, and says so in strict JSON.
+    station = [cli, "station", "--lcm", "memq://", "--duration", "0.2", "--json"]
+    run, dt = _run(station, cwd)
+    outcome = _check(report, kind, "station --lcm memq://", run, dt, core)
+    if core and outcome != "needs panda":
+        report.fail(f"core: the station's Panda should need the panda extra: {outcome}")
+    if outcome == "worked":
+        try:
+            heard = json.loads(run.stdout, parse_constant=_not_json)["commands_received"]
+        except (ValueError, KeyError):
+            report.fail(f"{kind}: station --json printed no strict JSON: {run.stdout[-500:]}")
+        else:
+            if heard != 0:
+                report.fail(f"{kind}: a station alone heard {heard} commands")
 
     # The rendered camera (RgbdSensor, VTK/EGL, OpenCV): needs the `vision` extra.
     rendered = [cli, "simulate", "--sensor", "rendered", "--duration", "0.2", "--json"]

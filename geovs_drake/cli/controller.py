@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     controller = build_controller(setup.resolved, setup.hardware, open_lcm(setup.hardware.lcm_url))
     summary = run_controller(controller, setup.resolved.config.duration)
     if args.json:
-        print(json.dumps(summary))
+        print(json.dumps(summary, allow_nan=False))
     else:
         why = f" ({summary['stop_reason']})" if summary["stop_reason"] else ""
         print(

@@ -157,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
     station = build_station(setup.resolved, setup.hardware, open_lcm(setup.hardware.lcm_url))
     summary = run_station(station, setup.resolved.config.duration)
     if args.json:
-        print(json.dumps(summary))
+        print(json.dumps(summary, allow_nan=False))
     else:
         print(
             f"{summary['status']}: position error {summary['final_position_error_m']:.3g} m, "

@@ -15,6 +15,7 @@ from pydrake.lcm import DrakeLcm
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder, EventStatus
 
+from geovs_drake._json import json_ready
 from geovs_drake.hardware.config import (
     HardwareConfig,
     check_lcm_url,
@@ -195,26 +196,31 @@ def run_station(station: Station, duration: float) -> dict:
     frames = math.floor((t_end - station.frame_offset) / station.frame_period + _ROUNDING) + 1
     if hardware.drop_every_frame > 0:
         frames -= frames // hardware.drop_every_frame
-    return {
-        "status": status,
-        "final_position_error_m": dp,
-        "final_rotation_error_rad": dr,
-        "commands_received": gate.commands_received(context),
-        "command_timeouts": gate.command_timeouts(context),
-        "commands_refused": gate.commands_refused(context),
-        "final_joint_speed": float(np.linalg.norm(station.arm_state(root)[nq:])),
-        "sim_time_s": t_end,
-        "first_command_s": first_command[0],
-        "last_command_s": gate.last_command_time(context) if gate.started(context) else math.nan,
-        "statuses_published": math.floor(t_end * hardware.status_rate + _ROUNDING) + 1,
-        "frames_published": max(frames, 0),
-        "lost_time_s": gate.lost_time(context),
-        "hold_start_joint_speed": hold_watch["start"],
-        "hold_settle_time_s": hold_watch["settled"],
-        "wall_time_s": wall,
-        "realtime_rate": simulator.get_actual_realtime_rate(),
-        "position_error_trace_m": trace,
-    }
+    # As every result's summary: JSON's values (a time that never came is null, not NaN).
+    return json_ready(
+        {
+            "status": status,
+            "final_position_error_m": dp,
+            "final_rotation_error_rad": dr,
+            "commands_received": gate.commands_received(context),
+            "command_timeouts": gate.command_timeouts(context),
+            "commands_refused": gate.commands_refused(context),
+            "final_joint_speed": float(np.linalg.norm(station.arm_state(root)[nq:])),
+            "sim_time_s": t_end,
+            "first_command_s": first_command[0],
+            "last_command_s": gate.last_command_time(context)
+            if gate.started(context)
+            else math.nan,
+            "statuses_published": math.floor(t_end * hardware.status_rate + _ROUNDING) + 1,
+            "frames_published": max(frames, 0),
+            "lost_time_s": gate.lost_time(context),
+            "hold_start_joint_speed": hold_watch["start"],
+            "hold_settle_time_s": hold_watch["settled"],
+            "wall_time_s": wall,
+            "realtime_rate": simulator.get_actual_realtime_rate(),
+            "position_error_trace_m": trace,
+        }
+    )
 
 
 def run_controller(controller: Controller, duration: float) -> dict:
@@ -252,22 +258,24 @@ def run_controller(controller: Controller, duration: float) -> dict:
         )
     link = controller.tracker.link_output.Eval(controller.tracker.GetMyContextFromRoot(root))
     image_error, position_error = controller.image_error(root)
-    return {
-        "status": "stopped" if publisher.stopped(context) else "completed",
-        "stop_reason": reason,
-        "statuses_received": int(link[0]),
-        "frames_received": int(link[1]),
-        "frames_dropped": int(link[2]),
-        "max_status_gap_s": float(link[LINK_FIELDS.index("max_status_gap")]),
-        "commands_sent": publisher.commands_sent(context),
-        "final_image_error": image_error,
-        "estimated_position_error_m": position_error,
-        "latency_bin_ms": LATENCY_BIN_MS,
-        "latency_histogram": publisher.latency_histogram(context),
-        "sim_time_s": root.get_time(),
-        "wall_time_s": wall,
-        "realtime_rate": simulator.get_actual_realtime_rate(),
-    }
+    return json_ready(
+        {
+            "status": "stopped" if publisher.stopped(context) else "completed",
+            "stop_reason": reason,
+            "statuses_received": int(link[0]),
+            "frames_received": int(link[1]),
+            "frames_dropped": int(link[2]),
+            "max_status_gap_s": float(link[LINK_FIELDS.index("max_status_gap")]),
+            "commands_sent": publisher.commands_sent(context),
+            "final_image_error": image_error,
+            "estimated_position_error_m": position_error,
+            "latency_bin_ms": LATENCY_BIN_MS,
+            "latency_histogram": publisher.latency_histogram(context),
+            "sim_time_s": root.get_time(),
+            "wall_time_s": wall,
+            "realtime_rate": simulator.get_actual_realtime_rate(),
+        }
+    )
 
 
 def open_lcm(url: str) -> DrakeLcm:
