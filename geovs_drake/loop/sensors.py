@@ -95,8 +95,9 @@ def _held(builder, resolved, carrier, held: OutputPort, capture_pose=None) -> Ou
 def _odometry(builder, resolved, carrier, held: OutputPort, capture_pose=None) -> OutputPort:
     """The held frame moved by the carrier's pose since its capture (``prediction:
     odometry``): :class:`~geovs_drake.systems.FramePredictor` on the camera's clock. A
-    camera whose frames arrive after their capture gives the capture's pose
-    (``capture_pose``, X_WC); otherwise the frame was taken when it is read."""
+    camera whose frames arrive after their capture gives the body's pose then
+    (``capture_pose``, ``[q, p]``, held with the frame); otherwise the frame was taken
+    when it is read."""
     cam = resolved.config.sensor
     predictor = builder.AddNamedSystem(
         "frame_predictor",
@@ -105,7 +106,7 @@ def _odometry(builder, resolved, carrier, held: OutputPort, capture_pose=None) -
             X_RC=carrier.X_RC,
             period=1.0 / cam.rate,
             latency_frames=int(cam.latency_frames),
-            offset=getattr(cam, "first_frame_time", 0.0),
+            offset=cam.first_frame_time,
         ),
     )
     builder.Connect(held, predictor.image_features_input)
@@ -117,8 +118,9 @@ def _odometry(builder, resolved, carrier, held: OutputPort, capture_pose=None) -
 
 #: What the law sees between a camera's frames, by ``sensor.prediction``
 #: (:data:`~geovs_drake.scenario.PREDICTIONS`): ``add(builder, resolved, carrier, held,
-#: capture_pose)`` returns the y port the law reads (``capture_pose``: the camera's X_WC
-#: at the held frame's capture, from a camera whose frames arrive later; else None).
+#: capture_pose)`` returns the y port the law reads (``capture_pose``: the body's pose
+#: ``[q, p]`` at the held frame's capture, from a camera whose frames arrive after it;
+#: else None).
 PREDICTORS: dict[str, Callable[..., OutputPort]] = {
     "none": _held,
     "odometry": _odometry,

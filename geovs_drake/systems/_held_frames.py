@@ -6,10 +6,11 @@ exact projected points) both:
 
 * measure at t = 0 (an initialization event, so the loop starts from a frame)
   and then every ``period`` seconds (a periodic discrete update); or, for a camera
-  whose frames arrive at ``offset + k period`` (``offset > 0``: Drake's
-  ``RgbdSensorAsync`` delivers a frame ``output_delay`` after its capture), at those
-  times only, *waiting* until the first: y NaN and ``feature_status`` ``[0, 0, 0]``
-  (no frame, none lost), which :func:`waiting` recognises;
+  whose frames arrive at ``offset + k period`` (``offset > 0``: a frame taken at
+  ``capture_offset`` and delivered ``output_delay`` later, as Drake's ``CameraConfig``
+  times them), at those times only, *waiting* until the first: y NaN and
+  ``feature_status`` ``[0, 0, 0]`` (no frame, none lost), which :func:`waiting`
+  recognises;
 * keep the last ``latency_frames + 1`` measurements in their discrete state and
   output the oldest: the controller acts on the frame taken ``latency_frames``
   periods ago, held constant between frames (a zero-order hold);
