@@ -183,7 +183,7 @@ def split_station_file(path: str | Path) -> tuple[dict, dict]:
     :func:`~geovs_drake.scenario.load_scenario` layer) and its ``hardware`` section
     (a mapping; empty if the file has none). ValueError in one line naming the file."""
     # The scenario loader's own YAML reader: it keeps the variants' tags (!Arm {...}).
-    from geovs_drake.scenario.load import _load_yaml
+    from geovs_drake.scenario.load import load_tagged_yaml
 
     try:
         text = Path(path).read_text()
@@ -192,7 +192,7 @@ def split_station_file(path: str | Path) -> tuple[dict, dict]:
     except (OSError, UnicodeDecodeError) as e:
         raise ValueError(f"{path}: cannot read: {e}") from None
     try:
-        tree = _load_yaml(text)
+        tree = load_tagged_yaml(text)
     except yaml.YAMLError as e:
         raise ValueError(f"{path}: malformed YAML: {str(e).splitlines()[0]}") from None
     if tree is None:

@@ -53,7 +53,7 @@ from geovs_drake.hardware.messages import (
     subscribe_vector,
 )
 from geovs_drake.loop.arm import initial_joints
-from geovs_drake.loop.carriers import _add_arm_scene
+from geovs_drake.loop.carriers import add_arm_scene
 from geovs_drake.scenario import Pinhole, Rendered, ResolvedScenario
 from geovs_drake.systems import ArmCamera, PinholeFeatureSensor
 from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmModel, arm_plant
@@ -317,7 +317,7 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
         raise ValueError("the station simulates the arm's dynamics: plant must be !Dynamic {}")
     builder = DiagramBuilder()
     interface = builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
-    model, plant, scene_graph, link, X_LinkC = _add_arm_scene(builder, resolved, True, True)
+    model, plant, scene_graph, link, X_LinkC = add_arm_scene(builder, resolved, True, True)
     q0 = initial_joints(config)
     nq, nv = plant.num_positions(), plant.num_velocities()
     demux = builder.AddNamedSystem("arm_state_demux", Demultiplexer([nq, nv]))

@@ -66,6 +66,7 @@ __all__ = [
     "RIG_BODY_NAME",
     "TARGET_BODY_NAME",
     "CarrierParts",
+    "add_arm_scene",
     "carrier_key",
     "leading_pose",
     "no_initial_state",
@@ -482,10 +483,12 @@ def _joint_limits(model: ArmModel) -> Callable[[np.ndarray], str | None]:
     return limit_check
 
 
-def _add_arm_scene(
+def add_arm_scene(
     builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool, dynamic: bool
-):
-    """A continuous MultibodyPlant (gravity on) with the arm and the target fixed at X_WB.
+) -> tuple[ArmModel, MultibodyPlant, SceneGraph, RigidBody, RigidTransform]:
+    """A continuous MultibodyPlant (gravity on) with the arm and the target fixed at X_WB;
+    returns ``(model, plant, scene_graph, link, X_LinkC)``, the camera on ``link`` at
+    ``X_LinkC`` (the loop's arm carriers, and the LCM station's simulated Panda).
 
     ``dynamic``: the plant is the diagram's (it integrates the arm). Otherwise it only
     registers the arm's geometry with the SceneGraph and stays out of the diagram (no
@@ -541,7 +544,7 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
     """Eye-in-hand on a torque-driven arm: the law's wrench becomes joint torques through
     the camera frame's Jacobian, with gravity compensated (:class:`ArmCamera`)."""
     config = resolved.config
-    model, plant, scene_graph, link, X_LinkC = _add_arm_scene(builder, resolved, draws_marks, True)
+    model, plant, scene_graph, link, X_LinkC = add_arm_scene(builder, resolved, draws_marks, True)
     q0 = initial_joints(config)
     v0 = np.asarray(config.carrier.initial_joint_velocity or np.zeros(plant.num_velocities()))
     if len(v0) != plant.num_velocities():
@@ -600,7 +603,7 @@ def _arm_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_ma
     joints' velocity limits (:class:`KinematicArm`). The plant draws the arm (Meshcat,
     the renderer) at the positions the KinematicArm integrates."""
     config = resolved.config
-    model, plant, scene_graph, link, X_LinkC = _add_arm_scene(builder, resolved, draws_marks, False)
+    model, plant, scene_graph, link, X_LinkC = add_arm_scene(builder, resolved, draws_marks, False)
     q0 = initial_joints(config)
     arm = builder.AddNamedSystem(
         "kinematic_arm",

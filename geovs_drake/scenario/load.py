@@ -13,7 +13,7 @@ from pydrake.common.yaml import yaml_load_typed
 from geovs_drake.scenario.carriers import AUTO
 from geovs_drake.scenario.schema import AXES, ScenarioConfig, variant_by_name
 
-__all__ = ["load_scenario", "variant_layer"]
+__all__ = ["load_scenario", "load_tagged_yaml", "variant_layer"]
 
 
 def _describe(value: Any) -> str:
@@ -102,13 +102,13 @@ def _represent_dict(dumper: yaml.SafeDumper, data: dict) -> yaml.Node:
 _TaggedDumper.add_representer(dict, _represent_dict)
 
 
-def _load_yaml(text: str) -> Any:
+def load_tagged_yaml(text: str) -> Any:
     """YAML text as a tree; tagged mappings keep their tag (``_tag``)."""
     return yaml.load(text, Loader=_TaggedLoader)  # noqa: S506 - a SafeLoader subclass
 
 
 def _dump_yaml(tree: Any) -> str:
-    """A tree from :func:`_load_yaml` back as YAML text, tags included."""
+    """A tree from :func:`load_tagged_yaml` back as YAML text, tags included."""
     return yaml.dump(tree, Dumper=_TaggedDumper)
 
 
@@ -259,7 +259,7 @@ def _layer_tree(name: str, fragment: str | Mapping[str, Any]) -> dict:
     tree = fragment
     if isinstance(fragment, str):
         try:
-            tree = _load_yaml(fragment)
+            tree = load_tagged_yaml(fragment)
         except yaml.YAMLError as e:
             mark = getattr(e, "problem_mark", None)
             problem = getattr(e, "problem", None) or str(e).splitlines()[0]

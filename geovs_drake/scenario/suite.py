@@ -8,7 +8,7 @@ from pathlib import Path
 import yaml
 from pydrake.common.yaml import yaml_load_typed
 
-from geovs_drake.scenario.load import _describe, _load_yaml
+from geovs_drake.scenario.load import _describe, load_tagged_yaml
 from geovs_drake.scenario.pose import PoseConfig, finite_numbers
 from geovs_drake.scenario.targets import Still, Twist, check_target_motion
 
@@ -93,7 +93,7 @@ def load_suite(path: str | Path | None = None) -> SuiteConfig:
     except (OSError, UnicodeDecodeError) as e:
         raise ValueError(f"{path}: cannot read: {e}") from None
     try:
-        tree = _load_yaml(text)  # a SafeLoader that reads the variant tags (!Twist)
+        tree = load_tagged_yaml(text)  # a SafeLoader that reads the variant tags (!Twist)
     except yaml.YAMLError as e:
         raise ValueError(f"{path}: malformed YAML: {str(e).splitlines()[0]}") from None
     if not isinstance(tree, dict):
