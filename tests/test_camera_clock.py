@@ -166,3 +166,20 @@ def test_a_delay_of_a_frame_or_more_is_one_line(run_cli, field, value):
     assert run.code == 2
     lines = run.err.strip().splitlines()
     assert len(lines) == 1 and f"sensor.{field} must be in [0, 1/rate = 0.03333)" in lines[0]
+
+
+def test_the_estimator_refuses_a_frame_clock_it_cannot_pair(run_cli):
+    """The moving target's estimator pairs frames with poses on the k / rate clock: a
+    delayed frame clock is one line naming the fields and the remedy."""
+    text = (
+        "{sensor: !Pinhole {output_delay: 0.01}, target_motion: !Twist "
+        "{twist: [0, 0, 0.2, 0.05, 0, 0], feedforward: estimated}}"
+    )
+    run = run_cli("simulate", "--scenario-text", text)
+    assert run.code == 2
+    lines = run.err.strip().splitlines()
+    assert len(lines) == 1 and "set sensor.capture_offset and sensor.output_delay to 0" in lines[0]
+    assert "output_delay = 0.01" in lines[0]
+    known = load_scenario(data=text.replace("estimated", "known"))  # needs no frames
+    known.validate()
+    assert known.target_motion.feedforward == "known"

@@ -307,6 +307,22 @@ class ScenarioConfig:
                 "target_motion Twist() needs the free rig (carrier FreeRig): the loop runs "
                 f"in the target's frame, got carrier {type(self.carrier).__name__}()"
             )
+        if (
+            self.moving_target
+            and self.target_motion.feedforward == "estimated"
+            and isinstance(self.sensor, CameraModel)
+            and self.sensor.first_frame_time > 0
+        ):
+            # The estimator pairs each frame with the body's pose on the k / rate clock
+            # (loop.targets); a frame taken at capture_offset and read output_delay later
+            # would be paired with the wrong pose.
+            raise ValueError(
+                "target_motion's estimated feed-forward reads frames on the camera's k / rate "
+                "clock: set sensor.capture_offset and sensor.output_delay to 0 (use "
+                "latency_frames for whole frames of delay), or feedforward known or none; got "
+                f"capture_offset = {self.sensor.capture_offset}, "
+                f"output_delay = {self.sensor.output_delay}"
+            )
         arm = self.carrier
         if not isinstance(arm, Arm):
             return
