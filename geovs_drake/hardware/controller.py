@@ -75,11 +75,10 @@ from geovs_drake.hardware.station import (
     US_PER_S,
 )
 from geovs_drake.loop.arm import arm_model
+from geovs_drake.loop.laws import add_nf_law
 from geovs_drake.scenario import Rendered, ResolvedScenario
 from geovs_drake.systems import (
     ArmCamera,
-    ImageJacobianForce,
-    KinematicController,
     NavigationController,
 )
 from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmModel, arm_plant, camera_jacobian
@@ -586,31 +585,13 @@ def build_controller(
     )
     builder.Connect(y, nav.image_features_input)
     publisher = builder.AddNamedSystem("command_publisher", CommandPublisher(model, hardware, lcm))
+    # The loop's own NF law (the camera's frame is C itself here: X_RC = I).
+    law = add_nf_law(builder, resolved, y, nav, takes_wrench=hardware.mode == "torque")
     if hardware.mode == "torque":
-        force = builder.AddNamedSystem(
-            "image_jacobian_force",
-            ImageJacobianForce(
-                radius=resolved.believed_radius,
-                potential_gain=config.control.potential_gain,
-                damping=np.asarray(resolved.damping),
-                X_RC=None,
-            ),
-        )
-        builder.Connect(y, force.image_features_input)
-        builder.Connect(nav.dphi_output, force.dphi_input)
-        builder.Connect(arm.camera_state_output, force.body_state_input)
-        builder.Connect(force.wrench_C_output, arm.wrench_C_input)
+        builder.Connect(arm.camera_state_output, law.body_state_input)
+        builder.Connect(law.wrench_C_output, arm.wrench_C_input)
         builder.Connect(arm.actuation_output, publisher.command_input)
-        law = force
     else:
-        law = builder.AddNamedSystem(
-            "kinematic_controller",
-            KinematicController(
-                radius=resolved.believed_radius, gain=config.control.kinematic_gain
-            ),
-        )
-        builder.Connect(y, law.image_features_input)
-        builder.Connect(nav.dphi_output, law.dphi_input)
         joints = builder.AddNamedSystem("joint_velocity_law", JointVelocityLaw(model))
         builder.Connect(decoder.arm_state_output, joints.arm_state_input)
         builder.Connect(law.camera_velocity_output, joints.camera_velocity_input)

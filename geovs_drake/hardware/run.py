@@ -135,6 +135,18 @@ def _simulator(diagram, setup: Setup, root_setter=None) -> Simulator:
     return simulator
 
 
+def _run_until(
+    simulator: Simulator, monitor: Callable[[Any], EventStatus], duration: float
+) -> float:
+    """``simulator`` advanced to ``duration`` under ``monitor`` (which may end it
+    earlier); the wall time it took [s], for the real-time rate."""
+    simulator.set_monitor(monitor)
+    simulator.Initialize()
+    start = time.perf_counter()
+    simulator.AdvanceTo(duration)
+    return time.perf_counter() - start
+
+
 def run_station(station: Station, duration: float) -> dict:
     """Run the station for ``duration`` [s] (less if commands are lost: then until the
     arm has been held ``hold_time``); its ground truth as a dict: ``status``
@@ -177,11 +189,7 @@ def run_station(station: Station, duration: float) -> dict:
                 return EventStatus.ReachedTermination(gate, "command_lost")
         return EventStatus.Succeeded()
 
-    simulator.set_monitor(monitor)
-    simulator.Initialize()
-    start = time.perf_counter()
-    simulator.AdvanceTo(duration)
-    wall = time.perf_counter() - start
+    wall = _run_until(simulator, monitor, duration)
     root = simulator.get_context()
     context = gate.GetMyContextFromRoot(root)
     config = station.resolved.config
@@ -243,11 +251,7 @@ def run_controller(controller: Controller, duration: float) -> dict:
             return EventStatus.ReachedTermination(publisher, "stopped")
         return EventStatus.Succeeded()
 
-    simulator.set_monitor(monitor)
-    simulator.Initialize()
-    start = time.perf_counter()
-    simulator.AdvanceTo(duration)
-    wall = time.perf_counter() - start
+    wall = _run_until(simulator, monitor, duration)
     root = simulator.get_context()
     context = publisher.GetMyContextFromRoot(root)
     reason = publisher.stop_reason(context)

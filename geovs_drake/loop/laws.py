@@ -31,6 +31,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import TrajectorySource
 
@@ -55,7 +56,7 @@ from geovs_drake.systems import (
     SphericalFeatureController,
 )
 
-__all__ = ["LAWS", "Law", "twist_law"]
+__all__ = ["LAWS", "Law", "add_nf_law", "twist_law"]
 
 #: What a law adds: the twist's output port, or a force system for the carrier.
 LawOutput = OutputPort | LeafSystem
@@ -73,19 +74,30 @@ class Law:
     ]
 
 
-def _nf(builder, resolved, y, nav, carrier) -> LawOutput:
+def add_nf_law(
+    builder: DiagramBuilder,
+    resolved: ResolvedScenario,
+    y: OutputPort,
+    nav: NavigationController,
+    takes_wrench: bool,
+    X_RC: RigidTransform | None = None,
+) -> LeafSystem:
+    """The NF law's own system on ``y`` and ``nav``'s dphi: the wrench
+    ``F = C(y)^T dphi - B (Omega, V)`` (:class:`ImageJacobianForce`, Eq. 45; ``X_RC`` the
+    camera on the body it shifts the wrench to) or the velocity ``-k Tc^-1 grad phi``
+    (:class:`KinematicController`, Eqs. 18-19). The loop's carriers and the LCM
+    controller (:mod:`geovs_drake.hardware.controller`) both build it here."""
     config = resolved.config
-    if carrier.takes_wrench:
-        force = builder.AddNamedSystem(
+    if takes_wrench:
+        law = builder.AddNamedSystem(
             "image_jacobian_force",
             ImageJacobianForce(
                 radius=resolved.believed_radius,
                 potential_gain=config.control.potential_gain,
                 damping=np.asarray(resolved.damping),
-                X_RC=carrier.X_RC,
+                X_RC=X_RC,
             ),
         )
-        law = force
     else:
         law = builder.AddNamedSystem(
             "kinematic_controller",
@@ -95,6 +107,11 @@ def _nf(builder, resolved, y, nav, carrier) -> LawOutput:
         )
     builder.Connect(y, law.image_features_input)
     builder.Connect(nav.dphi_output, law.dphi_input)
+    return law
+
+
+def _nf(builder, resolved, y, nav, carrier) -> LawOutput:
+    law = add_nf_law(builder, resolved, y, nav, carrier.takes_wrench, carrier.X_RC)
     return law if carrier.takes_wrench else law.camera_velocity_output
 
 
