@@ -218,13 +218,16 @@ def add_camera_geometry(
     ]
 
 
-def add_goal_ghost(plant: MultibodyPlant, config: ScenarioConfig) -> list[GeometryId]:
-    """A translucent camera at the goal pose X_WC* = X_WB X_BC*; returns its geometry ids."""
-    X_WC = config.X_WB @ config.X_BC_goal
+def add_goal_ghost(
+    plant: MultibodyPlant, config: ScenarioConfig, body: RigidBody | None = None
+) -> list[GeometryId]:
+    """A translucent camera at the goal pose X_WC* = X_WB X_BC*, or with ``body`` (a
+    moving target's, B its frame) at X_BC* on it; returns its geometry ids."""
+    X_WC = config.X_BC_goal if body is not None else config.X_WB @ config.X_BC_goal
     theta = math.radians(config.domain.fov_half_angle_deg)
     return [
         plant.RegisterVisualGeometry(
-            plant.world_body(),
+            plant.world_body() if body is None else body,
             X_WC @ X_CS,
             shape,
             f"goal_{name}",

@@ -294,7 +294,13 @@ def test_dynamic_pinhole_at_30_hz_with_estimated_feedforward():
 # ------------------------------------------------------------------ the systems' docs
 @pytest.mark.parametrize(
     "module",
-    ["target_motion", "target_relative_twist", "target_relative_wrench", "target_twist_estimator"],
+    [
+        "target_frame",
+        "target_motion",
+        "target_relative_twist",
+        "target_relative_wrench",
+        "target_twist_estimator",
+    ],
 )
 def test_port_block_lists_the_declared_ports_in_order(module):
     """As tests/test_docs.py checks the exported systems: the docstring's port block is

@@ -102,7 +102,7 @@ def build(out: Path, report: Report) -> Path:
     wanted = {
         p.relative_to(ROOT).as_posix()
         for p in package.rglob("*")
-        if p.suffix in (".py", ".yaml") and "__pycache__" not in p.parts
+        if p.suffix in (".py", ".yaml", ".csv") and "__pycache__" not in p.parts
     }
     for must in (
         "geovs_drake/scenarios/default.yaml",

@@ -40,6 +40,10 @@ from geovs_drake.scenario import (
     Twist,
     variant_layer,
 )
+from geovs_drake.scenario.targets import Trajectory
+
+#: The flags that choose the target's motion (the field target_motion): one at most.
+_TARGET_MOTION_FLAGS = ("--target-twist", "--target-trajectory")
 
 
 def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None:
@@ -115,6 +119,18 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         shown="still",
         type=_target_twist,
         metavar="wx,wy,wz,vx,vy,vz|still",
+    )
+    add_field(
+        p,
+        "--target-trajectory",
+        ("target_motion",),
+        "the target moves along the trajectory of poses in this CSV file, one row per knot "
+        "t, qw, qx, qy, qz, x, y, z [s, unit quaternion, m]: its displacement X_B0B(t) "
+        "from its pose, the identity at t = 0 (target_motion: !Trajectory {file: FILE}), "
+        "or still; not with --target-twist",
+        shown="still",
+        type=_target_trajectory,
+        metavar="FILE|still",
     )
     add_variant_flag(
         p,
@@ -275,21 +291,47 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
 def _target_twist(text: str) -> dict:
     """``--target-twist``: 6 numbers, as the layer of a :class:`Twist` target motion, or
     ``still`` (the default, :class:`Still`)."""
-    if text.strip().lower() == "still":
+    if _still(text):
         return variant_layer(Still)
     return variant_layer(Twist, twist=twist_arg(text))
+
+
+def _target_trajectory(path: str) -> dict:
+    """``--target-trajectory``: the layer of a :class:`Trajectory` read from the CSV file
+    ``path`` (read and checked with the scenario; it replaces inline ``poses`` a lower
+    layer gave), or ``still`` (the default, :class:`Still`)."""
+    if _still(path):
+        return variant_layer(Still)
+    return variant_layer(Trajectory, file=path, poses=None)
+
+
+def _still(text: str) -> bool:
+    """Whether a target-motion flag's value is ``still``, the still target (the default
+    its help shows, which given back is the default scenario)."""
+    return text.strip().lower() == "still"
+
+
+def _check_one_target_motion(args: argparse.Namespace) -> None:
+    """ValueError (one line) where both flags of :data:`_TARGET_MOTION_FLAGS` are given:
+    each sets the whole target motion, and the later would quietly drop the other."""
+    given = {flag for flag, _ in args.layers or [] if flag in _TARGET_MOTION_FLAGS}
+    if len(given) > 1:
+        raise ValueError(
+            f"{' and '.join(_TARGET_MOTION_FLAGS)} both set the target's motion "
+            "(target_motion): give one"
+        )
 
 
 def _feedforward(config: ScenarioConfig, flag: str, mode: str) -> None:
     """``--feedforward`` on the moving target the layers chose. On a still target there is
     nothing to feed forward: the default mode leaves it as it is (as any flag given its
     default does), another is one line."""
-    if not isinstance(config.target_motion, Twist):
+    if not isinstance(config.target_motion, Twist | Trajectory):
         if mode == Twist().feedforward:
             return
         raise ValueError(
-            f"{flag} applies to a moving target (--target-twist, or target_motion: !Twist "
-            "in the scenario); the target here is still"
+            f"{flag} applies to a moving target (--target-twist, --target-trajectory, or "
+            "target_motion: !Twist or !Trajectory in the scenario); the target here is still"
         )
     config.target_motion = dataclasses.replace(config.target_motion, feedforward=mode)
 
@@ -329,6 +371,7 @@ def _start_outside_domain() -> type[Exception]:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``simulate``; the exit code."""
+    _check_one_target_motion(args)
     resolved = load_resolved(args)  # validated once; simulate() trusts it
     progress = HorizonProgress(
         resolved.config.duration, "geovs-drake simulate", delay_s=args.progress_delay_s

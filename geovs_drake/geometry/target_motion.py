@@ -15,6 +15,11 @@ with ``d/dt(Ad_{X_RB} xi_B) = Ad_{X_RB} xi_B' - ad_{V_r} Ad_{X_RB} xi_B``
 (:func:`frame_wrench`): the wrench of the target frame's motion (its acceleration, the
 Coriolis and centripetal terms). A feed-forward of ``-F_frame`` makes the relative
 dynamics those of a still target.
+
+A target along a trajectory (Drake's ``PiecewisePose``) gives its frame's spatial velocity
+and acceleration in the world (the frame it is measured from), of the frame's origin;
+:func:`body_twist_of_spatial` and :func:`body_twist_rate_of_spatial` make them the body
+twist xi_B and its rate xi_B' that the rest reads.
 """
 
 from __future__ import annotations
@@ -26,6 +31,8 @@ from geovs_drake.geometry.so3 import hat, so3_exp, so3_log
 
 __all__ = [
     "adjoint",
+    "body_twist_of_spatial",
+    "body_twist_rate_of_spatial",
     "frame_wrench",
     "lie_bracket",
     "se3_exp",
@@ -68,6 +75,25 @@ def se3_log(X: np.ndarray) -> np.ndarray:
 def target_pose(X_WB0: np.ndarray, xi_B: np.ndarray, t: float) -> np.ndarray:
     """X_WB(t) = X_WB(0) exp(t xi_B^): the target with the constant body twist xi_B."""
     return np.asarray(X_WB0, dtype=float) @ se3_exp(t * np.asarray(xi_B, dtype=float))
+
+
+def body_twist_of_spatial(R_WB: np.ndarray, V_W: np.ndarray) -> np.ndarray:
+    """The body twist xi_B = (R^T omega_W, R^T v_W) of a frame B whose spatial velocity in
+    W is V_W = (omega_W, v_W), v_W the velocity of B's origin: ``X_WB^-1 dX_WB/dt``."""
+    R_BW = np.asarray(R_WB, dtype=float).T
+    V_W = np.asarray(V_W, dtype=float)
+    return np.concatenate([R_BW @ V_W[:3], R_BW @ V_W[3:]])
+
+
+def body_twist_rate_of_spatial(R_WB: np.ndarray, V_W: np.ndarray, A_W: np.ndarray) -> np.ndarray:
+    """xi_B', the rate of :func:`body_twist_of_spatial`, given B's spatial acceleration
+    A_W = (alpha_W, a_W) in W (a_W that of B's origin): ``(R^T alpha_W, R^T a_W - omega_B x
+    R^T v_W)``, since d/dt R^T = -omega_B^ R^T (the angular part's own term, omega_B x
+    omega_B, is zero)."""
+    R_BW = np.asarray(R_WB, dtype=float).T
+    V_W, A_W = np.asarray(V_W, dtype=float), np.asarray(A_W, dtype=float)
+    w_B, v_B = R_BW @ V_W[:3], R_BW @ V_W[3:]
+    return np.concatenate([R_BW @ A_W[:3], R_BW @ A_W[3:] - cross(tuple(w_B), tuple(v_B))])
 
 
 def adjoint(X_AB: np.ndarray) -> np.ndarray:

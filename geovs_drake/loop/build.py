@@ -254,6 +254,9 @@ def _drive(
         command = adapter
     if isinstance(command, LeafSystem):  # a force system (Eq. 45 or the adapter)
         force = _DisturbedForce(builder, command) if disturbed else command
+        # What the law damps: the carrier's body state (as a moving target's loop
+        # believes it, where the target moves); the carrier takes the law's output.
+        builder.Connect(carrier.body_state, force.body_state_input)
         carrier.connect_force(builder, force)
         return force.convention if disturbed else None
     if disturbed:

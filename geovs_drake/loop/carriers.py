@@ -21,6 +21,8 @@ from pydrake.geometry import (
     CollisionFilterDeclaration,
     Meshcat,
     MeshcatVisualizer,
+    PerceptionProperties,
+    RenderLabel,
     Role,
     SceneGraph,
 )
@@ -74,6 +76,9 @@ __all__ = [
 
 RIG_BODY_NAME = "camera_rig"
 TARGET_BODY_NAME = "target_sphere"
+#: The render label of a moving target drawn apart from the carrier's plant: no body
+#: index of an arm (MultibodyPlant's labels) reaches it.
+TARGET_RENDER_LABEL = 30000
 #: The frame triad drawn at the camera in Meshcat [m].
 _TRIAD_LENGTH, _TRIAD_RADIUS = 0.08, 0.003
 
@@ -85,8 +90,9 @@ class CarrierParts:
     Offers: ``body_pose``, the ``[q, p]`` (7) of the body the camera rides on, in
     the camera system's world, where the target stands at ``X_WB`` and the camera
     at ``X_RC`` on the body; ``body_state`` (13, a free body's layout), what a
-    force law's damping reads; ``state``, the carrier's own state for the loggers
-    (logged as ``state_log_name``). Takes either a force system
+    force law's damping reads (the loop connects it to the law's ``body_state``
+    input; ``connect_force`` wires the law's output); ``state``, the carrier's own
+    state for the loggers (logged as ``state_log_name``). Takes either a force system
     (``ImageJacobianForce`` or ``VelocityTrackingForce``) that ``connect_force`` wires
     in (:attr:`takes_wrench`), or the camera's body twist (Omega, V) at ``twist_input``.
 
@@ -122,16 +128,48 @@ class CarrierParts:
     #: The carrier's own limits on a continuous state: a message naming the one it
     #: breaks (the monitor stops the run with status ``joint_limit``), else None.
     limit_check: Callable[[np.ndarray], str | None] | None = None
+    #: A carrier that stays in the world and draws a moving target apart from its own
+    #: plant (the arms): ``draw_target(builder, target_pose)`` draws the target at the
+    #: ``[q, p]`` (7) of X_WB(t) that ``target_pose`` gives (the scene, the renderer,
+    #: Meshcat). None where the carrier's scene holds the target itself.
+    draw_target: Callable[[DiagramBuilder, OutputPort], None] | None = None
+    #: Where the target moves and the carrier stays in the world (the arms,
+    #: :mod:`geovs_drake.loop.targets`): X_W'W(t), the world's pose (4 x 4) in the frame
+    #: W' where the target stands still, at the time t. :meth:`loop_pose_of_states`
+    #: carries ``pose_of_states``' world poses into W' with it. None: the carrier's world
+    #: is the loop's.
+    world_in_loop: Callable[[float], np.ndarray] | None = None
+    #: Where a carrier driven by a wrench takes the camera twist a moving target's
+    #: believed motion asks of it (6, in C; the dynamic arm's joint damping lets it
+    #: pass), else None.
+    feedforward_input: InputPort | None = None
 
     @property
     def takes_wrench(self) -> bool:
         """Whether the carrier is driven by a wrench (``connect_force``), not a twist."""
         return self.connect_force is not None
 
-    def camera_poses(self, states: np.ndarray) -> np.ndarray:
-        """X_BC (N, 4, 4) for the loop's continuous states (N, n): the body pose the
-        carrier offers, then ``X_WB^-1 X_W,body X_RC``."""
-        components = self.pose_of_states(np.atleast_2d(states), NUMPY)
+    def loop_pose_of_states(
+        self, states: np.ndarray, ops: object, times: np.ndarray | float | None = None
+    ) -> tuple:
+        """The components of ``body_pose`` (the loop's frame) for continuous states, as
+        ``pose_of_states`` gives them: a state (n,) at the time ``times``, or states
+        (N, n) at the times (N,). ``times`` matters only with :attr:`world_in_loop`."""
+        components = self.pose_of_states(states, ops)
+        if self.world_in_loop is None:
+            return components
+        return _carried(components, self.world_in_loop, times)
+
+    def camera_poses(
+        self, states: np.ndarray, times: np.ndarray | float | None = None
+    ) -> np.ndarray:
+        """X_BC (N, 4, 4) for the loop's continuous states (N, n) at the ``times`` (N,)
+        (needed where the target moves and the carrier stays in the world): the body
+        pose the carrier offers, then ``X_WB^-1 X_W,body X_RC``."""
+        states = np.atleast_2d(states)
+        if times is not None:
+            times = np.broadcast_to(np.asarray(times, dtype=float), (len(states),))
+        components = self.loop_pose_of_states(states, NUMPY, times)
         q = np.stack(np.broadcast_arrays(*components[0:4]), axis=-1)
         p = np.stack(np.broadcast_arrays(*components[4:7]), axis=-1)
         X_B_W = self.X_WB.inverse()
@@ -140,6 +178,24 @@ class CarrierParts:
             R = RotationMatrix(Quaternion(q[i] / np.linalg.norm(q[i])))
             out[i] = (X_B_W @ RigidTransform(R, p[i]) @ self.X_RC).GetAsMatrix4()
         return out
+
+
+def _carried(components: tuple, world_in_loop: Callable[[float], np.ndarray], times) -> tuple:
+    """Pose components ``[q, p]`` (floats, or arrays (N,)) of world poses X_WR carried to
+    the loop's frame, ``X_W'W(t) X_WR``, at the times (a float, or (N,))."""
+    if times is None:
+        raise ValueError("the target moves: the poses in its frame need the times")
+    scalar = np.ndim(components[0]) == 0
+    q = np.atleast_2d(np.stack(np.broadcast_arrays(*components[0:4]), axis=-1))
+    p = np.atleast_2d(np.stack(np.broadcast_arrays(*components[4:7]), axis=-1))
+    t = np.broadcast_to(np.asarray(times, dtype=float), (len(q),))
+    out = np.empty((len(q), 7))
+    for i in range(len(q)):
+        X_WR = RigidTransform(Quaternion(q[i] / np.linalg.norm(q[i])), p[i]).GetAsMatrix4()
+        X = world_in_loop(float(t[i])) @ X_WR
+        out[i, 0:4] = RotationMatrix(X[:3, :3]).ToQuaternion().wxyz()
+        out[i, 4:7] = X[:3, 3]
+    return tuple(out[0].tolist()) if scalar else tuple(out.T)
 
 
 #: A carrier factory: ``factory(builder, resolved, draws_marks)`` adds the carrier;
@@ -237,7 +293,6 @@ def _free_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: 
     def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
         # The force system shifts its wrench to the rig's origin in W itself: one
         # kernel call gives both (no system in between on the hot path).
-        builder.Connect(plant.get_state_output_port(), force.body_state_input)
         builder.Connect(
             force.generalized_force_output, plant.get_applied_generalized_force_input_port()
         )
@@ -335,7 +390,6 @@ def _fixed_rig(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
     body_pose = _pose_head(builder, mount.camera_state_output)
 
     def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
-        builder.Connect(mount.camera_state_output, force.body_state_input)
         builder.Connect(force.wrench_C_output, mount.wrench_C_input)
         builder.Connect(
             mount.generalized_force_output, plant.get_applied_generalized_force_input_port()
@@ -486,9 +540,10 @@ def _joint_limits(model: ArmModel) -> Callable[[np.ndarray], str | None]:
 def add_arm_scene(
     builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool, dynamic: bool
 ) -> tuple[ArmModel, MultibodyPlant, SceneGraph, RigidBody, RigidTransform]:
-    """A continuous MultibodyPlant (gravity on) with the arm and the target fixed at X_WB;
-    returns ``(model, plant, scene_graph, link, X_LinkC)``, the camera on ``link`` at
-    ``X_LinkC`` (the loop's arm carriers, and the LCM station's simulated Panda).
+    """A continuous MultibodyPlant (gravity on) with the arm and the target fixed at X_WB
+    (a moving target is drawn apart, :func:`_target_drawing`); returns ``(model, plant,
+    scene_graph, link, X_LinkC)``, the camera on ``link`` at ``X_LinkC`` (the loop's arm
+    carriers, and the LCM station's simulated Panda).
 
     ``dynamic``: the plant is the diagram's (it integrates the arm). Otherwise it only
     registers the arm's geometry with the SceneGraph and stays out of the diagram (no
@@ -503,10 +558,11 @@ def add_arm_scene(
         plant = MultibodyPlant(time_step=0.0)
         plant.RegisterAsSourceForSceneGraph(scene_graph)
     instance, camera = add_arm(plant, model)
-    (add_marked_target_geometry if draws_marks else add_target_geometry)(plant, config)
     X_LinkC = camera.GetFixedPoseInBodyFrame()
     drawing = add_camera_geometry(plant, camera.body(), X_LinkC, resolved.domain.fov_half_angle)
-    drawing += add_goal_ghost(plant, config)
+    if not config.moving_target:  # a moving one: _target_drawing, at its pose X_WB(t)
+        (add_marked_target_geometry if draws_marks else add_target_geometry)(plant, config)
+        drawing += add_goal_ghost(plant, config)
     plant.Finalize()
     # The loop models no contact: an arm's collision geometry (the Panda's spheres, whose
     # links 1 and 3 overlap at home) would otherwise push the links apart with stiff
@@ -521,9 +577,51 @@ def add_arm_scene(
     return model, plant, scene_graph, camera.body(), X_LinkC
 
 
-def _arm_parts(config: ScenarioConfig, scene: tuple, **drive) -> CarrierParts:
+def _target_drawing(
+    scene_graph: SceneGraph, resolved: ResolvedScenario, draws_marks: bool
+) -> Callable[[DiagramBuilder, OutputPort], None]:
+    """A moving target drawn in a carrier's scene at X_WB(t): a plant with no dynamics of
+    its own holds the target (in the extractor's colours with ``draws_marks``) and the
+    goal's ghost, X_BC* on it, both on one free body placed at the pose the port gives
+    (as the kinematic free rig draws its body)."""
+    config = resolved.config
+
+    def draw_target(builder: DiagramBuilder, target_pose: OutputPort) -> None:
+        plant = MultibodyPlant(time_step=0.0)
+        plant.RegisterAsSourceForSceneGraph(scene_graph)
+        body = plant.AddRigidBody(TARGET_BODY_NAME, SpatialInertia.SolidSphereWithMass(1.0, 0.01))
+        target = (add_marked_target_geometry if draws_marks else add_target_geometry)(
+            plant, config, body=body
+        )
+        ghost = add_goal_ghost(plant, config, body=body)
+        plant.Finalize()
+        if draws_marks:
+            _out_of_view(scene_graph, plant, ghost)
+            _relabel(scene_graph, plant, target, TARGET_RENDER_LABEL)
+        _draw_at(builder, plant, scene_graph, target_pose, "target_drawing")
+
+    return draw_target
+
+
+def _relabel(scene_graph: SceneGraph, plant: MultibodyPlant, ids: list, label: int) -> None:
+    """Give ``ids``' perception the render label ``label``: a MultibodyPlant labels a
+    body's geometry by its body index, which a second plant in the scene repeats (the
+    arm's self-mask, which masks the arm's labels, would mask the target too)."""
+    inspector = scene_graph.model_inspector()
+    for geometry_id in ids:
+        properties = PerceptionProperties(inspector.GetPerceptionProperties(geometry_id))
+        properties.UpdateProperty("label", "id", RenderLabel(label))
+        # SceneGraph replaces no perception role in place: removed, then assigned anew.
+        scene_graph.RemoveRole(plant.get_source_id(), geometry_id, Role.kPerception)
+        scene_graph.AssignRole(plant.get_source_id(), geometry_id, properties)
+
+
+def _arm_parts(
+    resolved: ResolvedScenario, draws_marks: bool, scene: tuple, **drive
+) -> CarrierParts:
     """What both arms offer alike (the camera's own pose, X_RC = I; the arm's
     kinematics, drawing and limits), with ``drive``'s entries (how each is driven)."""
+    config = resolved.config
     model, plant, scene_graph, link, X_LinkC = scene
     return CarrierParts(
         X_WB=config.X_WB,
@@ -536,6 +634,9 @@ def _arm_parts(config: ScenarioConfig, scene: tuple, **drive) -> CarrierParts:
         X_BodyC=X_LinkC,
         arm=model,
         limit_check=_joint_limits(model),
+        draw_target=(
+            _target_drawing(scene_graph, resolved, draws_marks) if config.moving_target else None
+        ),
         **drive,
     )
 
@@ -575,7 +676,6 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
     body_pose = _pose_head(builder, arm.camera_state_output)
 
     def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
-        builder.Connect(arm.camera_state_output, force.body_state_input)
         builder.Connect(force.wrench_C_output, arm.wrench_C_input)
         if barrier is not None:  # the barrier's k_p is the NF wrench's own (ImageJacobianForce)
             builder.Connect(force.potential_gain_output, arm.potential_gain_input)
@@ -586,7 +686,8 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
         )
 
     return _arm_parts(
-        config,
+        resolved,
+        draws_marks,
         (model, plant, scene_graph, link, X_LinkC),
         body_pose=body_pose,
         state=plant.get_state_output_port(),
@@ -594,6 +695,7 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
         set_initial_state=set_initial_state,
         body_state=arm.camera_state_output,
         connect_force=connect_force,
+        feedforward_input=arm.feedforward_twist_input,
         phi_input=arm.phi_input if barrier is not None else None,
     )
 
@@ -622,7 +724,8 @@ def _arm_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_ma
         to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id())
     )
     return _arm_parts(
-        config,
+        resolved,
+        draws_marks,
         (model, plant, scene_graph, link, X_LinkC),
         body_pose=arm.camera_pose_output,
         state=arm.arm_position_output,

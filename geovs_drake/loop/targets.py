@@ -48,9 +48,13 @@ from geovs_drake.loop.carriers import CarrierParts
 from geovs_drake.scenario import (
     ESTIMATOR_RATE_HZ,
     FEEDFORWARD_MODES,
+    Arm,
     CameraModel,
+    FreeRig,
     ResolvedScenario,
 )
+from geovs_drake.scenario.targets import target_motion_arguments
+from geovs_drake.systems.target_frame import TargetFrame
 from geovs_drake.systems.target_motion import TargetMotion
 from geovs_drake.systems.target_relative_twist import TargetRelativeTwist
 from geovs_drake.systems.target_relative_wrench import TargetRelativeWrench
@@ -61,6 +65,7 @@ __all__ = [
     "BELIEVED_TWIST_NAME",
     "FEEDFORWARD",
     "LAW_FEEDFORWARD_INPUT",
+    "TARGET_FRAMES",
     "TargetParts",
     "add_target_motion",
     "connect_feedforward",
@@ -93,15 +98,21 @@ def add_target_motion(
     builder: DiagramBuilder, resolved: ResolvedScenario, carrier: CarrierParts
 ) -> TargetParts | None:
     """The target's motion and the carrier's adapter to the target's frame (module
-    docstring), or None for a still target (nothing added). The free rig only (the
-    scenario's check)."""
+    docstring), or None for a still target (nothing added): the carrier's entry of
+    :data:`TARGET_FRAMES` (the scenario's check refuses the others)."""
     config = resolved.config
     if not config.moving_target:
         return None
     motion = builder.AddNamedSystem(
         "target_motion",
-        TargetMotion(X_WB0=config.X_WB, twist=np.asarray(config.target_motion.twist, float)),
+        TargetMotion(X_WB0=config.X_WB, **target_motion_arguments(config.target_motion)),
     )
+    return TARGET_FRAMES[type(config.carrier)](builder, config, carrier, motion)
+
+
+def _relative(builder, config, carrier: CarrierParts, motion) -> TargetParts:
+    """The free rig, simulated in the target's frame W': its plant's state is the
+    relative one, and the target's motion enters as the frame's twist or wrench."""
     builder.Connect(carrier.body_pose, motion.body_pose_input)
     if carrier.takes_wrench:
         return _wrench_driven(builder, config, carrier, motion)
@@ -127,9 +138,9 @@ def _wrench_driven(builder, config, carrier: CarrierParts, motion) -> TargetPart
     builder.Connect(motion.target_acceleration_output, adapter.target_acceleration_input)
 
     def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
-        # The law reads the rig's state through the adapter (the believed relative
-        # twist), and its wrench reaches the plant with the frame's and the feed-forward.
-        builder.Connect(adapter.law_body_state_output, force.body_state_input)
+        # The law reads the rig's state through the adapter (body_state: the believed
+        # relative twist), and its wrench reaches the plant with the frame's and the
+        # feed-forward.
         builder.Connect(force.generalized_force_output, adapter.generalized_force_input)
         builder.Connect(
             adapter.plant_generalized_force_output,
@@ -140,6 +151,52 @@ def _wrench_driven(builder, config, carrier: CarrierParts, motion) -> TargetPart
         carrier, connect_force=connect_force, body_state=adapter.law_body_state_output
     )
     return TargetParts(motion, moved, adapter)
+
+
+def _in_world(builder, config, carrier: CarrierParts, motion) -> TargetParts:
+    """An arm, simulated in the world where its base stands: the target is drawn moving
+    in its scene (``draw_target``), and a :class:`TargetFrame` shows the loop the arm's
+    camera from the target's frame (its pose; the believed relative twist the law damps).
+    A twist-driven arm is commanded the law's twist plus the feed-forward
+    (:class:`TargetRelativeTwist`'s ``commanded_velocity``); a torque-driven one takes
+    the law's wrench as it is, its damping acting on the believed relative twist, and
+    its joint damping on the joint velocity less the one that follows the believed
+    target (``feedforward_input``; the arm's inertia along the path is not fed
+    forward)."""
+    view = builder.AddNamedSystem("target_frame", TargetFrame(X_WB0=config.X_WB))
+    builder.Connect(carrier.body_pose, view.world_pose_input)
+    builder.Connect(motion.target_pose_output, view.target_pose_input)
+    # The odometry (world_body_pose) is the arm's own pose again, through W'.
+    builder.Connect(view.body_pose_output, motion.body_pose_input)
+    if carrier.draw_target is not None:
+        carrier.draw_target(builder, motion.target_pose_output)
+    X_WB0 = config.X_WB.GetAsMatrix4()
+
+    def world_in_loop(t: float) -> np.ndarray:
+        return X_WB0 @ np.linalg.inv(motion.X_WB(t))
+
+    moved = dataclasses.replace(
+        carrier, body_pose=view.body_pose_output, world_in_loop=world_in_loop
+    )
+    if carrier.takes_wrench:
+        builder.Connect(carrier.body_state, view.world_state_input)
+        if carrier.feedforward_input is not None:
+            builder.Connect(view.feedforward_twist_output, carrier.feedforward_input)
+        moved = dataclasses.replace(moved, body_state=view.body_state_output)
+        return TargetParts(motion, moved, view)
+    command = builder.AddNamedSystem(
+        "target_relative_twist", TargetRelativeTwist(X_WB0=config.X_WB)
+    )
+    builder.Connect(view.body_pose_output, command.body_pose_input)
+    builder.Connect(motion.target_twist_output, command.target_twist_input)
+    builder.Connect(command.commanded_velocity_output, carrier.twist_input)
+    moved = dataclasses.replace(moved, twist_input=command.camera_velocity_input)
+    return TargetParts(motion, moved, command)
+
+
+#: How each carrier sees a moving target, by the carrier variant's type: the free rig is
+#: simulated in the target's frame, an arm in the world (its base stands there).
+TARGET_FRAMES: dict[type, Callable[..., TargetParts]] = {FreeRig: _relative, Arm: _in_world}
 
 
 def estimator_timing(resolved: ResolvedScenario) -> tuple[float, int]:
@@ -153,17 +210,22 @@ def estimator_timing(resolved: ResolvedScenario) -> tuple[float, int]:
     return 1.0 / ESTIMATOR_RATE_HZ, 0
 
 
-def _none(builder, resolved, target, camera) -> OutputPort:
+def _zero(builder: DiagramBuilder) -> OutputPort:
     return builder.AddNamedSystem(
         "target_twist_zero", ConstantVectorSource(np.zeros(6))
     ).get_output_port()
 
 
-def _known(builder, resolved, target, camera) -> OutputPort:
-    return target.motion.target_twist_output
+def _none(builder, resolved, target, camera) -> tuple[OutputPort, OutputPort]:
+    zero = _zero(builder)
+    return zero, zero
 
 
-def _estimated(builder, resolved, target, camera) -> OutputPort:
+def _known(builder, resolved, target, camera) -> tuple[OutputPort, OutputPort]:
+    return target.motion.target_twist_output, target.motion.target_acceleration_output
+
+
+def _estimated(builder, resolved, target, camera) -> tuple[OutputPort, OutputPort]:
     config = resolved.config
     period, delay = estimator_timing(resolved)
     estimator = builder.AddNamedSystem(
@@ -192,12 +254,14 @@ def _estimated(builder, resolved, target, camera) -> OutputPort:
     ):
         # At the estimator's own updates: no step of the integrator is cut for it.
         LogVectorOutput(port, builder, publish_period=period).set_name(name)
-    return estimator.twist_estimate_output
+    # The filter's model is a constant twist: it believes no acceleration.
+    return estimator.twist_estimate_output, _zero(builder)
 
 
-#: The twist each feed-forward mode believes: ``add(builder, resolved, target, camera)``
-#: returns its port (6), by the names of :data:`~geovs_drake.scenario.FEEDFORWARD_MODES`.
-FEEDFORWARD: dict[str, Callable[..., OutputPort]] = {
+#: The twist and its rate each feed-forward mode believes: ``add(builder, resolved,
+#: target, camera)`` returns their ports (6 each), by the names of
+#: :data:`~geovs_drake.scenario.FEEDFORWARD_MODES`.
+FEEDFORWARD: dict[str, Callable[..., tuple[OutputPort, OutputPort]]] = {
     "none": _none,
     "known": _known,
     "estimated": _estimated,
@@ -211,10 +275,12 @@ def connect_feedforward(
     """Fill the adapter's ``twist_estimate`` by the scenario's feed-forward mode
     (:data:`FEEDFORWARD`); after the sensor is added (the estimator reads its frames)."""
     mode = resolved.config.target_motion.feedforward
-    port = FEEDFORWARD[mode](builder, resolved, target, camera)
+    port, rate = FEEDFORWARD[mode](builder, resolved, target, camera)
     believed = builder.AddNamedSystem(BELIEVED_TWIST_NAME, PassThrough(6))
     builder.Connect(port, believed.get_input_port())
     builder.Connect(believed.get_output_port(), target.adapter.twist_estimate_input)
+    if target.adapter.HasInputPort("acceleration_estimate"):  # the free rig's wrench
+        builder.Connect(rate, target.adapter.GetInputPort("acceleration_estimate"))
 
 
 def connect_law_feedforward(builder: DiagramBuilder, law: LeafSystem) -> None:

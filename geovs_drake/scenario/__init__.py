@@ -78,7 +78,12 @@ from geovs_drake.scenario.targets import (
     TARGET_VARIANTS,
     Still,
     TargetMotionConfig,
+    Trajectory,
     Twist,
+    target_end_time,
+    target_motion_arguments,
+    target_trajectory,
+    trajectory_of,
 )
 
 __all__ = [
@@ -127,6 +132,7 @@ __all__ = [
     "SuiteConfig",
     "SuiteScenario",
     "TargetMotionConfig",
+    "Trajectory",
     "Twist",
     "damping_of",
     "default_suite_path",
@@ -134,6 +140,10 @@ __all__ = [
     "free_twin",
     "load_scenario",
     "load_suite",
+    "target_end_time",
+    "target_motion_arguments",
+    "target_trajectory",
+    "trajectory_of",
     "resolve",
     "camera_like",
     "radius_error_of",

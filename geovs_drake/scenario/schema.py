@@ -57,6 +57,7 @@ from geovs_drake.scenario.sensors import (
 from geovs_drake.scenario.targets import (
     TARGET_VARIANTS,
     Still,
+    Trajectory,
     Twist,
     check_target_motion,
 )
@@ -238,7 +239,7 @@ class ScenarioConfig:
     #: How the target moves from ``target``: :class:`Still` (the paper's loop) or
     #: :class:`Twist`, a constant body twist in B, with the loop's feed-forward
     #: (:mod:`geovs_drake.scenario.targets`). In YAML ``target_motion: !Twist {twist: [...]}``.
-    target_motion: Still | Twist = field(default_factory=Still)
+    target_motion: Still | Twist | Trajectory = field(default_factory=Still)
     duration: float = 30.0
     #: Samples per second of the logged signals.
     log_rate: float = 50.0
@@ -302,10 +303,12 @@ class ScenarioConfig:
                 f"commands the camera's velocity): got initial_velocity = {twist} "
                 "with plant Kinematic()"
             )
-        if self.moving_target and not isinstance(self.carrier, FreeRig):
+        if self.moving_target and not isinstance(self.carrier, FreeRig | Arm):
+            # Eye-to-hand, the target is the body the loop moves: it has no motion of its own.
             raise ValueError(
-                "target_motion Twist() needs the free rig (carrier FreeRig): the loop runs "
-                f"in the target's frame, got carrier {type(self.carrier).__name__}()"
+                f"target_motion {type(self.target_motion).__name__}() needs a camera in the "
+                "hand (carrier FreeRig or Arm): the fixed camera's loop moves the target "
+                f"itself, got carrier {type(self.carrier).__name__}()"
             )
         if (
             self.moving_target

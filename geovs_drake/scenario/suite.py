@@ -10,7 +10,7 @@ from pydrake.common.yaml import yaml_load_typed
 
 from geovs_drake.scenario.load import _describe, load_tagged_yaml
 from geovs_drake.scenario.pose import PoseConfig, finite_numbers
-from geovs_drake.scenario.targets import Still, Twist, check_target_motion
+from geovs_drake.scenario.targets import Still, Trajectory, Twist, check_target_motion
 
 __all__ = ["SuiteConfig", "SuiteScenario", "default_suite_path", "load_suite"]
 
@@ -26,7 +26,7 @@ class SuiteScenario:
     description: str = ""
     xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, -0.5])
     rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    target_motion: Still | Twist = field(default_factory=Still)
+    target_motion: Still | Twist | Trajectory = field(default_factory=Still)
 
     @property
     def moving_target(self) -> bool:

@@ -167,7 +167,7 @@ class SafeDomainMonitor:
         self._on_step = on_step
         self._reason: dict[str, str] = {}
         self._params_of: tuple = (None, None)
-        self._pose_of_states = loop.carrier.pose_of_states
+        self._pose_of_states = loop.carrier.loop_pose_of_states
         self._limit_check = loop.carrier.limit_check
         self.times: list[float] = []
         self.states: list[np.ndarray] = []
@@ -204,7 +204,7 @@ class SafeDomainMonitor:
             if broken is not None:
                 return self._stop("joint_limit", f"{broken} at t = {root_context.get_time():.4g}")
         # The pose the camera reads from this state (the carrier says which).
-        pose = self._pose_of_states(x, MATH)
+        pose = self._pose_of_states(x, MATH, root_context.get_time())
         out = _camera_kernel(pose, self._params_of[1])
         margins = out[_MARGINS]
         if out[_NU] > 0 and min(margins) > 0:
@@ -340,11 +340,14 @@ def make_simulator(
     return simulator, monitor
 
 
-def camera_signals(loop: Loop, root_context, states: np.ndarray) -> dict[str, np.ndarray]:
+def camera_signals(
+    loop: Loop, root_context, states: np.ndarray, times: np.ndarray | None = None
+) -> dict[str, np.ndarray]:
     """The camera's and the NF's outputs along a batch of states, in one call each.
 
     ``states`` is (N, n) in the diagram's continuous-state layout (a free body's
-    13 or the kinematic body's 7, pose first). The same generated kernels as
+    13 or the kinematic body's 7, pose first), at the ``times`` (N,) (read where the
+    target moves and the carrier stays in the world: an arm). The same generated kernels as
     the systems, on components of shape (N,), with the systems' parameters
     from ``root_context``. Returns ``image_features`` (N, 13), ``visibility``
     (N,), ``margins`` (N, 4) and ``phi`` (N,); where nu <= 0, y and phi are NaN
@@ -354,7 +357,7 @@ def camera_signals(loop: Loop, root_context, states: np.ndarray) -> dict[str, np
     p_cam = camera.GetMyContextFromRoot(root_context).get_numeric_parameter(0).CopyToVector()
     p_nav = nav.navigation_parameters(nav.GetMyContextFromRoot(root_context))
     # The poses the camera reads from these states (the carrier says which).
-    x = loop.carrier.pose_of_states(np.atleast_2d(states), NUMPY)
+    x = loop.carrier.loop_pose_of_states(np.atleast_2d(states), NUMPY, times)
     with np.errstate(invalid="ignore", divide="ignore"):
         out = camera_image(x, p_cam)
         nu = np.asarray(out[_NU], dtype=float)

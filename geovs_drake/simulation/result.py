@@ -15,7 +15,9 @@ from geovs_drake.scenario import (
     FixedCamera,
     Ibvs,
     ScenarioConfig,
+    Twist,
     radius_error_of,
+    target_end_time,
     variant_name,
 )
 
@@ -143,7 +145,7 @@ class TargetTrace:
     """A moving target's estimator along a run (``target_motion`` with the ``estimated``
     feed-forward), at its own updates: ``times`` [s], ``twist_estimate`` (N, 6) and the
     filter's ``covariance_diagonal`` (N, 12, the pose's error then the twist's), against
-    the true twist ``twist`` (6)."""
+    the true twist ``twist`` (N, 6) at those times."""
 
     times: np.ndarray
     twist_estimate: np.ndarray
@@ -367,9 +369,13 @@ class SimulationResult:
         motion = self.config.target_motion
         if self.config.moving_target:
             out["target_motion"] = {
-                "twist": [float(v) for v in motion.twist],
+                "kind": type(motion).__name__,
                 "feedforward": motion.feedforward,
             }
+            if isinstance(motion, Twist):
+                out["target_motion"]["twist"] = [float(v) for v in motion.twist]
+            else:  # a trajectory's knots: its end, where the target stops
+                out["target_motion"]["end_time_s"] = float(target_end_time(motion))
             if self.target is not None:
                 out["target_motion"].update(self.target.summary())
         cam = self.config.sensor

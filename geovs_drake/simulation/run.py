@@ -27,6 +27,7 @@ from geovs_drake.scenario import (
     PathFollowing,
     ResolvedScenario,
     ScenarioConfig,
+    Twist,
     resolve,
 )
 from geovs_drake.simulation.monitor import camera_signals, make_simulator
@@ -109,8 +110,8 @@ def predicted_lag(resolved: ResolvedScenario) -> float | None:
     where the closed form does not model the loop (a carrier other than the free rig, a
     law other than the NF) or the target stands still."""
     config = resolved.config
-    if not config.moving_target or not isinstance(resolved.law, Nf):
-        return None
+    if not isinstance(config.target_motion, Twist) or not isinstance(resolved.law, Nf):
+        return None  # a still target, a trajectory (no steady lag), another law
     if closed_form_refusal(config, "tracking lag") is not None:
         return None
     eps = tracking_lag(config, np.asarray(config.target_motion.twist), resolved.damping)
@@ -125,11 +126,13 @@ def _target_trace(loop: Loop, root) -> tuple[float | None, TargetTrace | None]:
     twist, covariance = (
         diagram.GetSubsystemByName(name).FindLog(root) for name in ESTIMATE_LOG_NAMES
     )
+    times = twist.sample_times().copy()
+    motion = diagram.GetSubsystemByName("target_motion")
     trace = TargetTrace(
-        times=twist.sample_times().copy(),
+        times=times,
         twist_estimate=twist.data().T.copy(),
         covariance_diagonal=covariance.data().T.copy(),
-        twist=np.asarray(resolved.config.target_motion.twist, dtype=float),
+        twist=np.array([motion.xi_B(t) for t in times]).reshape(-1, 6),
     )
     return predicted_lag(resolved), trace
 
@@ -228,7 +231,7 @@ def simulate(
         )
 
     times, states = monitor.resample(config.log_rate)
-    signals = camera_signals(loop, root, states)
+    signals = camera_signals(loop, root, states, times)
     energy = None
     arm = arm_trace(loop, root, states) if loop.carrier.arm is not None else None
     nf_law = isinstance(resolved.law, Nf)
@@ -246,7 +249,7 @@ def simulate(
             potential = combine(potential, arm.joint_barrier)
         energy = kinetic + config.control.potential_gain * potential
     x_final = root.get_continuous_state_vector().CopyToVector()
-    final_X_BC = RigidTransform(loop.carrier.camera_poses(x_final)[0])
+    final_X_BC = RigidTransform(loop.carrier.camera_poses(x_final, root.get_time())[0])
     if status == "completed":
         dp, dr = pose_error(final_X_BC, config.X_BC_goal)
         tol_p, tol_r = convergence_tolerance(config)
@@ -268,7 +271,7 @@ def simulate(
         phi=signals["phi"],
         margins=signals["margins"],
         visibility=signals["visibility"],
-        X_BC=loop.carrier.camera_poses(states),
+        X_BC=loop.carrier.camera_poses(states, times),
         energy=energy,
         final_X_BC=final_X_BC,
         states=states,

@@ -26,6 +26,7 @@ __getattr__, __dir__, __all__ = attach(
         "pinhole_feature_sensor": ("PinholeFeatureSensor", "PinholeFeatureSensor_"),
         "self_mask": ("SelfMask", "SelfMask_"),
         "spherical_camera": ("SphericalCamera", "SphericalCamera_"),
+        "target_frame": ("TargetFrame", "TargetFrame_"),
         "target_motion": ("TargetMotion", "TargetMotion_"),
         "target_relative_twist": ("TargetRelativeTwist", "TargetRelativeTwist_"),
         "target_relative_wrench": ("TargetRelativeWrench", "TargetRelativeWrench_"),

@@ -65,6 +65,7 @@ def ArmCamera_(T):
             - wrench_C
             - phi
             - potential_gain
+            - feedforward_twist
             output_ports:
             - camera_state
             - actuation
@@ -98,6 +99,16 @@ def ArmCamera_(T):
         phi_total = 1 - (1 - phi)(1 - phi_q), does not increase: the arm stays off its
         limits as it stays in D. With w = 0 neither port is read nor need be
         connected.
+
+        Behind a moving target, ``feedforward_twist`` is the camera twist (Omega, V) in C
+        that the target's believed motion asks of it, ``Ad_{X_CB} xi_hat``
+        (:class:`~geovs_drake.systems.TargetFrame`); the joint damping then acts on
+        ``v - v_ff``, ``v_ff = J_C^T (J_C J_C^T + mu^2 I)^-1 (Omega, V)_ff`` (the joint
+        velocity that moves the camera with the target), not on v: otherwise B_q would
+        brake the tracking motion itself and the NF would hold a lag to push against it.
+        Unconnected it reads zero (a still target: the torque above). The arm's inertia
+        along the target's path is not fed forward (a slow target's accelerations are
+        small; the measured lag is in docs/moving-target.md).
 
         A redundant arm (nv > 6: the camera's pose fixes 6 of its joints) adds
         ``-d N v``, N = I - J_C^T (J_C J_C^T + mu^2 I)^-1 J_C (:data:`NULL_SPACE_MU`),
@@ -154,6 +165,9 @@ def ArmCamera_(T):
             self.wrench_C_input = self.DeclareVectorInputPort(name="wrench_C", size=6)
             self.phi_input = self.DeclareVectorInputPort(name="phi", size=1)
             self.potential_gain_input = self.DeclareVectorInputPort(name="potential_gain", size=1)
+            self.feedforward_twist_input = self.DeclareVectorInputPort(
+                name="feedforward_twist", size=_TWIST
+            )
             state = self.input_port_ticket(self.arm_state_input.get_index())
             self.camera_state_output = self.DeclareVectorOutputPort(
                 name="camera_state",
@@ -170,6 +184,7 @@ def ArmCamera_(T):
                     self.input_port_ticket(self.wrench_C_input.get_index()),
                     self.input_port_ticket(self.phi_input.get_index()),
                     self.input_port_ticket(self.potential_gain_input.get_index()),
+                    self.input_port_ticket(self.feedforward_twist_input.get_index()),
                     self.all_parameters_ticket(),
                 },
             )
@@ -204,6 +219,10 @@ def ArmCamera_(T):
             v = self._plant.GetVelocities(self._context)
             p = param_vector(context, self._params_index, T)
             damping, null_damping = p[:-1], p[-1]
+            if self.feedforward_twist_input.HasValue(context):  # a moving target's
+                V_ff = self.feedforward_twist_input.Eval(context)
+                mu2 = NULL_SPACE_MU**2 * np.eye(_TWIST)
+                v = v - J_C.T @ (pm.inv(J_C @ J_C.T + mu2) @ V_ff)
             tau = -self._plant.CalcGravityGeneralizedForces(self._context) - damping * v
             if self._redundant:
                 tau = tau - null_damping * (null_space_projector(J_C) @ v)

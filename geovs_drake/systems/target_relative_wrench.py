@@ -29,6 +29,7 @@ def TargetRelativeWrench_(T):
             - target_twist
             - target_acceleration
             - twist_estimate
+            - acceleration_estimate
             output_ports:
             - law_body_state
             - plant_generalized_force
@@ -37,7 +38,9 @@ def TargetRelativeWrench_(T):
         ``X_WB0``: ``rig_state`` (13, ``[q, p, w, v]``) is the rig's pose and twist
         *relative to the target*, so its kinetic energy is the relative one.
         ``target_twist`` and ``target_acceleration`` are the target's true xi_B and its
-        rate; ``twist_estimate`` the twist the loop believes (zero: no feed-forward).
+        rate; ``twist_estimate`` the twist the loop believes (zero: no feed-forward) and
+        ``acceleration_estimate`` its believed rate (the known motion's own along a
+        trajectory; zero for a constant-twist estimate).
 
         ``plant_generalized_force`` is the law's ``generalized_force`` (torque about R's
         origin, then force, in W') plus, both rotated to W':
@@ -46,8 +49,8 @@ def TargetRelativeWrench_(T):
           (:func:`~geovs_drake.geometry.target_motion.frame_wrench`): the physics of a
           rigid body seen from the moving frame (its acceleration, Coriolis and
           centripetal terms), for the rig's ``mass`` and ``inertia`` about its centre;
-        * the feed-forward ``-F_frame`` of the believed twist (taken as constant), at the
-          relative twist the rig believes, ``V - Ad_{X_RB} xi_hat`` (V the rig's own
+        * the feed-forward ``-F_frame`` of the believed twist and its believed rate, at
+          the relative twist the rig believes, ``V - Ad_{X_RB} xi_hat`` (V the rig's own
           twist in the world, from its odometry). With the known twist the two cancel
           and the relative dynamics are those of a still target: Appendix C's energy
           argument holds in the target's frame.
@@ -77,6 +80,9 @@ def TargetRelativeWrench_(T):
                 "target_acceleration", TWIST_SIZE
             )
             self.twist_estimate_input = self.DeclareVectorInputPort("twist_estimate", TWIST_SIZE)
+            self.acceleration_estimate_input = self.DeclareVectorInputPort(
+                "acceleration_estimate", TWIST_SIZE
+            )
             self.law_body_state_output = self.DeclareVectorOutputPort(
                 "law_body_state",
                 STATE_SIZE,
@@ -119,10 +125,11 @@ def TargetRelativeWrench_(T):
             true = Ad @ self.target_twist_input.Eval(context)
             rate = Ad @ self.target_acceleration_input.Eval(context)
             believed = Ad @ self.twist_estimate_input.Eval(context)
+            believed_rate = Ad @ self.acceleration_estimate_input.Eval(context)
             V_believed = V_r + true - believed  # the odometry's twist less the belief
             J, m = self._inertia, self._mass
             F_R = frame_wrench(V_r, true, rate, J, m) - frame_wrench(
-                V_believed, believed, np.zeros(6), J, m
+                V_believed, believed, believed_rate, J, m
             )
             F = self.generalized_force_input.Eval(context)
             output.SetFromVector(F + np.concatenate([R @ F_R[:3], R @ F_R[3:]]))

@@ -250,9 +250,11 @@ def _run_case(config: ScenarioConfig, scenario: str, law: str) -> Run:
 
 def still_entries_for(suite: SuiteConfig, base: ScenarioConfig | None) -> SuiteConfig:
     """``suite`` for ``base``'s carrier: all of it on the free rig; only its still-target
-    entries on a carrier that cannot run a moving target (the arm, the fixed camera:
-    :meth:`ScenarioConfig.validate` says why), so that the shipped suite's moving entry
-    does not refuse the whole comparison there."""
+    entries elsewhere: the fixed camera cannot run a moving target
+    (:meth:`ScenarioConfig.validate` says why), and the moving entry's target (a 0.25 m
+    circle at 0.2 rad/s about the free rig's goal) is not one an arm's workspace holds
+    (an arm tracks the slow circle of docs/moving-target.md), so that the shipped suite's
+    moving entry does not refuse or spoil the whole comparison there."""
     carrier = base.carrier if base is not None else ScenarioConfig().carrier
     if isinstance(carrier, FreeRig):
         return suite
