@@ -166,7 +166,6 @@ def test_the_ur5_tracks_the_slow_circle_and_its_log_is_the_relative_pose():
 def test_both_arms_track_the_slow_circle_for_20_s(model, plant):
     """The issue's must-show: 0,0,0.1,0.02,0,0 for 20 s with estimated feed-forward, in D
     and inside the joint limits (the monitor stops a run at either)."""
-    pytest.importorskip("example_robot_data") if model == "panda" else None
     result = simulate(_arm_config(model, plant, 20.0))
     assert result.status in ("converged", "not_converged"), result.message
     assert not result.left_domain
