@@ -49,19 +49,24 @@ demo: $(STAMP) system-deps
 # The notebooks run once, in `make docs` (two kernels side by side, GEOVS_FAST=1: the
 # same code paths, fewer samples), which renders them with their outputs; a failing
 # cell fails the build, and tests/test_docs.py (-m built_docs) checks each page's
-# figures. -n auto runs one pytest process per core (pytest-xdist), the wheel check
-# (make wheel-check) among the tests and started first, so that it overlaps the rest;
-# the slow studies are `make test-slow`.
+# figures. -n auto runs one pytest process per core (pytest-xdist); the slow studies
+# are `make test-slow`.
 test: $(STAMP) system-deps
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
-	@# The docs (with the notebooks) build while pytest runs: the wheel check spends
-	@# much of its time installing, and the two overlap there. Then the tests that read
+	@# First the numba kernels compile once into their on-disk cache (geovs_drake.batch.warm):
+	@# on a fresh checkout pytest's workers and the notebooks' kernels, started side by
+	@# side, would each compile them (about 20 s of CPU apiece), while the wheel check
+	@# (its own installs: it reads no cache of ours) runs beside it from the start. Then
+	@# the docs (with the notebooks) build while pytest runs, and last the tests that read
 	@# the built HTML.
-	@$(MAKE) --no-print-directory docs > .docs-build.log 2>&1 & docs=$$!; \
-	GEOVS_FAST=1 $(BIN)/python -m pytest -q -n auto -m "not slow and not built_docs"; tests=$$?; \
-	wait $$docs; built=$$?; cat .docs-build.log; rm -f .docs-build.log; \
-	test $$tests -eq 0 && test $$built -eq 0
+	@$(MAKE) --no-print-directory wheel-check > .wheel-check.log 2>&1 & wheel=$$!; \
+	$(BIN)/python -m geovs_drake.batch.warm; warmed=$$?; \
+	$(MAKE) --no-print-directory docs > .docs-build.log 2>&1 & docs=$$!; \
+	GEOVS_FAST=1 $(BIN)/python -m pytest -q -n auto -m "not slow and not built_docs and not wheel"; \
+	tests=$$?; wait $$docs; built=$$?; wait $$wheel; wheeled=$$?; \
+	cat .wheel-check.log .docs-build.log; rm -f .wheel-check.log .docs-build.log; \
+	test $$warmed -eq 0 && test $$tests -eq 0 && test $$built -eq 0 && test $$wheeled -eq 0
 	$(BIN)/python -m pytest -q -m built_docs
 
 # The long studies and the real-cluster sweeps (pytest -m slow), outside `make test`'s budget.
@@ -77,7 +82,7 @@ docs: $(STAMP)
 # Build the sdist and wheel, install the wheel in fresh venvs outside the checkout
 # (no extras, then [all]) and run the CLI there (tools/check_wheel.py).
 wheel-check: $(STAMP)
-	$(BIN)/python -m pytest -q -rA -m wheel tests/test_wheel.py
+	$(BIN)/python -m pytest -q -rA -p no:cacheprovider -m wheel tests/test_wheel.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -525,6 +525,10 @@ def test_the_ur5_converges_with_the_30_hz_pinhole_camera_from_the_small_move():
     assert result.summary()["min_joint_limit_margin"] > 0
 
 
+# 8 s: make test's budget; the rendered arm stays in it through its own view
+# (test_the_arm_enters_its_own_camera_s_view_and_the_rendered_camera_draws_it) and the
+# moving target's scene (tests/test_moving_target_arm.py).
+@pytest.mark.slow
 def test_the_ur5_converges_with_the_30_hz_rendered_camera_from_the_small_move():
     pytest.importorskip("cv2")
     from geovs_drake.scenario import Rendered

@@ -153,3 +153,17 @@ def test_energy_guarantee_on_1000_moving_starts_and_its_other_side():
     assert 0 < left < 300
     exits = above.status_code == 2
     assert np.all(np.min(above.min_margins[exits], axis=1) < 0)  # the exit state is recorded
+
+
+def test_the_warm_up_compiles_every_kernel_make_test_would_compile_side_by_side():
+    """``python -m geovs_drake.batch.warm`` (make test, before its processes start side by
+    side) calls the batch engine's compiled functions and the loop's generated kernels:
+    each numba dispatcher then holds a compiled signature in this process."""
+    from geovs_drake.batch import engine
+    from geovs_drake.batch.warm import warm
+    from geovs_drake.geometry import kernels
+
+    if not kernels.NUMBA:
+        pytest.skip("numba is not installed: nothing is compiled")
+    assert warm() > 0
+    assert engine._integrate.signatures
