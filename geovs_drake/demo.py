@@ -38,6 +38,8 @@ from geovs_drake.scenario import (
 )
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from geovs_drake.simulation import SimulationResult
 
 __all__ = [
@@ -116,10 +118,27 @@ def record_meshcat(config: ScenarioConfig, html_path: str | Path, progress=None)
     meshcat.StartRecording(frames_per_second=30.0)
     result = simulate(config, meshcat=meshcat, progress=progress)
     meshcat.StopRecording()
-    draw_trail(meshcat, config.X_WB.GetAsMatrix4() @ result.X_BC)
+    draw_trail(meshcat, _drawn_target_poses(result) @ result.X_BC)
     meshcat.PublishRecording()
     Path(html_path).write_text(meshcat.StaticHtml())
     return result
+
+
+def _drawn_target_poses(result) -> np.ndarray:
+    """The target's pose in the frame Meshcat draws, at the result's times (N, 4, 4):
+    X_WB, or a moving target's X_WB(t) where the carrier is drawn in the world (an arm;
+    the free rig is drawn in the target's frame, where X_WB stands still)."""
+    import numpy as np
+
+    from geovs_drake.scenario import target_motion_arguments
+    from geovs_drake.systems.target_motion import TargetMotion
+
+    config = result.config
+    X_WB = config.X_WB.GetAsMatrix4()
+    if not (config.moving_target and isinstance(config.carrier, Arm)):
+        return np.broadcast_to(X_WB, (len(result.times), 4, 4))
+    motion = TargetMotion(X_WB0=config.X_WB, **target_motion_arguments(config.target_motion))
+    return np.stack([motion.X_WB(t) for t in result.times])
 
 
 def run_rendered_demo(config: ScenarioConfig, out: Path) -> SimulationResult:

@@ -109,6 +109,19 @@ def test_each_notebook_has_a_page_that_shows_its_figures(notebook):
         assert (HTML / image).stat().st_size > 1000, image  # a real picture, not a stub
 
 
+@pytest.mark.built_docs
+def test_each_meshcat_recording_the_gallery_embeds_is_beside_it():
+    """The gallery's iframes (notebook 01's servo, notebook 06's tracking arm) point at
+    standalone Meshcat pages this build copied into _static."""
+    if not (HTML / "gallery.html").is_file():
+        pytest.skip("the docs are not built here: `make docs` builds them (make test does)")
+    frames = re.findall(r'<iframe src="(_static/[^"]+\.html)"', (HTML / "gallery.html").read_text())
+    assert {"_static/servo.html", "_static/tracking.html"} <= set(frames)
+    for frame in frames:
+        html = (HTML / frame).read_text()
+        assert "<html" in html.lower() and len(html) > 100_000, frame  # the scene embedded
+
+
 RECORDS = sorted((ROOT / "benchmarks" / "results").glob("*.json"))
 
 

@@ -1,6 +1,6 @@
-"""The wheel as a user installs it (tools/check_wheel.py): about 45 s, so it is marked
-``wheel``: ``make test`` runs it among the other tests and starts it first (it overlaps
-them on another core), ``make wheel-check`` alone."""
+"""The wheel as a user installs it (tools/check_wheel.py): about 50 s, so it is marked
+``wheel``: ``make test`` runs it as ``make wheel-check``, from the start, beside the
+kernels' compile and then the other tests (it overlaps them on another core)."""
 
 from __future__ import annotations
 

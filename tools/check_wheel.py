@@ -13,9 +13,9 @@ Usage::
    commands that need no extra: ``geovs-drake --version``, ``simulate --json --duration
    1`` on the shipped ``default.yaml``, ``demo --duration 1 --no-meshcat``, the shipped
    arm and a brief ``compare`` on the shipped suite (each package-data file found). In
-   each environment, the commands that need one: a small ``sweep``, ``simulate --sensor
-   rendered`` and the LCM ``station`` alone (it needs ``[panda]``). In ``core`` each of
-   those prints the one line
+   each environment, the commands that need one: a small ``sweep`` (in ``[all]`` in its
+   own process, with Dask importable), ``simulate --sensor rendered`` and the LCM
+   ``station`` alone (it needs ``[panda]``). In ``core`` each of those prints the one line
    ``geovs-drake CMD needs PKG: pip install "geovs-drake[EXTRA]"`` with exit code 2
    (``sweep`` must, naming ``[sweep]``: its Parquet dataset needs pyarrow, even with
    ``--workers 1``); in ``[all]`` each must work. No command may print a traceback.
@@ -214,24 +214,29 @@ def exercise(kind: str, env: Path, tmp: Path, report: Report, version: str) -> N
         # The commands that need no extra: once, where only the core is installed.
         _exercise_core_only(cli, cwd, report)
 
-    # A small sweep on Dask's LocalCluster (2 processes): needs the `sweep` extra.
-    # --engine drake reuses the kernels simulate compiled into this venv's numba cache.
+    # A small sweep: needs the `sweep` extra. In core, on Dask's LocalCluster it must name
+    # the extra (dask is not core), and without Dask too (its Parquet dataset needs
+    # pyarrow). In [all], in this process (--workers 1: the Parquet dataset from the
+    # installed wheel), and Dask importable from the extra; the LocalCluster itself runs
+    # in tests/test_sweep.py, from the checkout (2 worker processes here cost 18 s).
     sweep = [cli, "sweep", "--starts", "2", "--chunk", "1", "--duration", "0.5",
              "--engine", "drake", "--out", str(cwd / "sweep"), "--json"]  # fmt: skip
-    run, dt = _run(sweep, cwd)
-    outcome = _check(report, kind, "sweep --workers 2 (Dask)", run, dt, core)
-    if core and outcome != "needs sweep":
-        report.fail(
-            f"core: sweep on Dask should need the sweep extra (dask is not core): {outcome}"
-        )
-
-    if core:  # without Dask, in this process: the Parquet dataset still needs pyarrow
-        run, dt = _run(sweep + ["--workers", "1"], cwd)
-        outcome = _check(report, kind, "sweep --workers 1 (no Dask)", run, dt, core)
+    if core:
+        run, dt = _run(sweep, cwd)
+        outcome = _check(report, kind, "sweep --workers 2 (Dask)", run, dt, core)
         if outcome != "needs sweep":
-            report.fail(f"core: the sweep's Parquet dataset should need the sweep extra: {outcome}")
-        if (cwd / "sweep").exists():
-            report.fail("core: a sweep refused for a missing extra left its --out folder")
+            report.fail(
+                f"core: sweep on Dask should need the sweep extra (dask is not core): {outcome}"
+            )
+    run, dt = _run(sweep + ["--workers", "1"], cwd)
+    outcome = _check(report, kind, "sweep --workers 1 (no Dask)", run, dt, core)
+    if core and outcome != "needs sweep":
+        report.fail(f"core: the sweep's Parquet dataset should need the sweep extra: {outcome}")
+    if core and (cwd / "sweep").exists():
+        report.fail("core: a sweep refused for a missing extra left its --out folder")
+    if not core:
+        run, dt = _run([python, "-c", "import dask.distributed"], cwd)
+        _check(report, kind, "import dask.distributed (the sweep extra)", run, dt, False)
 
     # The LCM station alone on an in-process bus (the shipped panda_lcm.yaml): the Panda's
     # model needs the `panda` extra; with it the station holds the arm, hears no

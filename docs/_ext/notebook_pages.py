@@ -141,21 +141,27 @@ def run_notebooks(app: Sphinx) -> None:
         raise ExtensionError("a notebook failed: " + "; ".join(failures))
 
 
-#: What notebook 01 records in Meshcat, and where the gallery page embeds it.
-MESHCAT_RECORDING = Path("results", "notebooks", "servo.html")
-EMBEDDED_AS = Path("_static", "servo.html")
+#: The Meshcat recordings the notebooks write (notebook 01: the servo; notebook 06: the
+#: arm tracking a moving target), each copied beside the pages as ``_static/<name>``,
+#: where the gallery embeds it.
+MESHCAT_RECORDINGS = (
+    Path("results", "notebooks", "servo.html"),
+    Path("results", "notebooks", "tracking.html"),
+)
+STATIC = Path("_static")
 
 
 def copy_recording(app: Sphinx, exception: Exception | None) -> None:
-    """Put notebook 01's standalone Meshcat recording beside the pages (the gallery
-    embeds it); a build without it (no notebooks run) says so."""
-    source = Path(app.srcdir).parent / MESHCAT_RECORDING
+    """Put the notebooks' standalone Meshcat recordings beside the pages (the gallery
+    embeds them); a build without one (no notebooks run) says so."""
     if exception is not None or app.builder.format != "html":
         return
-    if not source.is_file():
-        logger.warning(f"{MESHCAT_RECORDING}: missing, the gallery's Meshcat view is empty")
-        return
-    shutil.copyfile(source, Path(app.outdir) / EMBEDDED_AS)
+    for recording in MESHCAT_RECORDINGS:
+        source = Path(app.srcdir).parent / recording
+        if not source.is_file():
+            logger.warning(f"{recording}: missing, the gallery's Meshcat view is empty")
+            continue
+        shutil.copyfile(source, Path(app.outdir) / STATIC / recording.name)
 
 
 def setup(app: Sphinx) -> ExtensionMetadata:
