@@ -7,6 +7,7 @@ import pydrake.math as pm
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 
 from geovs_drake.geometry.joint_barrier import joint_barrier, per_joint
+from geovs_drake.geometry.target_motion import lie_bracket
 from geovs_drake.systems._arm_model import (
     CAMERA_FRAME,
     ArmError,
@@ -19,6 +20,7 @@ from geovs_drake.systems._parameters import STATE_SIZE, param_vector
 from geovs_drake.systems._template import template_system
 
 __all__ = [
+    "FEEDFORWARD_MU",
     "NULL_SPACE_MU",
     "ArmCamera",
     "ArmCamera_",
@@ -32,6 +34,14 @@ __all__ = [
 NULL_SPACE_MU = 1e-3
 #: The twist's dimension: an arm with more velocities than this is redundant.
 _TWIST = 6
+#: The damped least squares' mu [m] of the feed-forward's joint motion v_ff = J_C^T (J_C
+#: J_C^T + mu^2 I)^-1 V_ff: near a singularity of the arm (the UR5's wrist, on the slow
+#: circle of docs/moving-target.md) the motion that follows the target asks unbounded
+#: joint rates; damped, it fades there and the NF carries the camera.
+FEEDFORWARD_MU = 0.01
+#: The joint step [rad] of the central difference that gives J_C's rate (its error is
+#: of the step squared, below 1e-10 relative).
+_JACOBIAN_STEP = 1e-5
 
 
 def actuation_permutation(plant) -> np.ndarray:
@@ -102,13 +112,13 @@ def ArmCamera_(T):
 
         Behind a moving target, ``feedforward_twist`` is the camera twist (Omega, V) in C
         that the target's believed motion asks of it, ``Ad_{X_CB} xi_hat``
-        (:class:`~geovs_drake.systems.TargetFrame`); the joint damping then acts on
-        ``v - v_ff``, ``v_ff = J_C^T (J_C J_C^T + mu^2 I)^-1 (Omega, V)_ff`` (the joint
-        velocity that moves the camera with the target), not on v: otherwise B_q would
-        brake the tracking motion itself and the NF would hold a lag to push against it.
-        Unconnected it reads zero (a still target: the torque above). The arm's inertia
-        along the target's path is not fed forward (a slow target's accelerations are
-        small; the measured lag is in docs/moving-target.md).
+        (:class:`~geovs_drake.systems.TargetFrame`). The torque then adds the motion's
+        own, Slotine and Li's ``M(q) a_r + C(q, v) v_ff`` for the joint motion that
+        moves the camera with the target, ``v_ff = J_C^T (J_C J_C^T + mu^2 I)^-1
+        (Omega, V)_ff`` (:data:`FEEDFORWARD_MU`), and the joint damping acts on
+        ``v - v_ff``, not on v (``_feedforward``): otherwise the NF would hold a lag
+        to push the arm's inertia and damping along the target's path. Unconnected it
+        reads zero (a still target: the torque above).
 
         A redundant arm (nv > 6: the camera's pose fixes 6 of its joints) adds
         ``-d N v``, N = I - J_C^T (J_C J_C^T + mu^2 I)^-1 J_C (:data:`NULL_SPACE_MU`),
@@ -212,6 +222,41 @@ def ArmCamera_(T):
                 )
             )
 
+        def _feedforward(self, J_C, v, V_ff) -> tuple:
+            """``(v_ff, tau_ff)``: the joint velocity that moves the camera with the
+            believed target, ``v_ff = J_C^+ V_ff``, and the torque that motion takes,
+            Slotine and Li's ``M(q) a_r + C(q, v) v_ff`` with the reference acceleration
+            ``a_r = J_C^+ (V_ff' - J_C' v_ff)``. ``V_ff' = -[V_r, V_ff]`` is the rate of
+            ``Ad_{X_CB} xi_hat`` for a constant believed twist, V_r = J_C v - V_ff the
+            camera's twist relative to the target; ``J_C'`` is J_C's rate along the arm's
+            motion, a central difference of J_C(q +- h v); ``C(q, v) v_ff`` the
+            Christoffel form, by polarisation of Drake's bias term ``c(v) = C(q, v) v``:
+            ``(c(v + v_ff) - c(v - v_ff)) / 4``. No believed motion (V_ff = 0) adds
+            nothing; at a steady track (V_r = 0, v = v_ff) it is the torque of the
+            arm's own motion, so the NF holds no lag against the arm's inertia."""
+            plant, ctx = self._plant, self._context
+            inverse = pm.inv(J_C @ J_C.T + FEEDFORWARD_MU**2 * np.eye(_TWIST))
+            v_ff = J_C.T @ (inverse @ V_ff)
+            q_v = plant.GetPositionsAndVelocities(ctx)
+            q = plant.GetPositions(ctx)
+            # J_C's rate along q' = v: a step of _JACOBIAN_STEP rad in q, both ways.
+            h = _JACOBIAN_STEP / max(float(np.max(np.abs(v))), _JACOBIAN_STEP)
+            jacobians = []
+            for sign in (1.0, -1.0):
+                plant.SetPositions(ctx, q + sign * h * v)
+                jacobians.append(camera_jacobian(plant, ctx, self._camera))
+            Jdot = (jacobians[0] - jacobians[1]) / (2.0 * h)
+            plant.SetPositionsAndVelocities(ctx, q_v)
+            rate = -lie_bracket(J_C @ v - V_ff, V_ff)
+            a_r = J_C.T @ (inverse @ (rate - Jdot @ v_ff))
+            M = plant.CalcMassMatrix(ctx)
+            coriolis = []
+            for sign in (1.0, -1.0):
+                plant.SetVelocities(ctx, v + sign * v_ff)
+                coriolis.append(plant.CalcBiasTerm(ctx))
+            plant.SetPositionsAndVelocities(ctx, q_v)  # the arm's state back
+            return v_ff, M @ a_r + 0.25 * (coriolis[0] - coriolis[1])
+
         def CalcActuation(self, context, output) -> None:
             self._set(context)
             J_C = camera_jacobian(self._plant, self._context, self._camera)
@@ -219,11 +264,12 @@ def ArmCamera_(T):
             v = self._plant.GetVelocities(self._context)
             p = param_vector(context, self._params_index, T)
             damping, null_damping = p[:-1], p[-1]
+            tau = -self._plant.CalcGravityGeneralizedForces(self._context)
             if self.feedforward_twist_input.HasValue(context):  # a moving target's
-                V_ff = self.feedforward_twist_input.Eval(context)
-                mu2 = NULL_SPACE_MU**2 * np.eye(_TWIST)
-                v = v - J_C.T @ (pm.inv(J_C @ J_C.T + mu2) @ V_ff)
-            tau = -self._plant.CalcGravityGeneralizedForces(self._context) - damping * v
+                v_ff, tau_ff = self._feedforward(J_C, v, self.feedforward_twist_input.Eval(context))
+                v = v - v_ff
+                tau = tau + tau_ff
+            tau = tau - damping * v
             if self._redundant:
                 tau = tau - null_damping * (null_space_projector(J_C) @ v)
             if self._barrier is None:
