@@ -2,8 +2,12 @@
 
 The same default scenario on each plant, the target still (the baseline) and moving with
 the issue's twist (0, 0, 0.2, 0.05, 0, 0) under the ``known`` and the ``estimated``
-feed-forward (:mod:`geovs_drake.loop.targets`). Reported, each as a ratio to the still
-target's (the machine is shared and noisy: the ratios are the figures to compare):
+feed-forward (:mod:`geovs_drake.loop.targets`); then the UR5 arm on each plant, still
+against the slow circle (0, 0, 0.1, 0.02, 0, 0) with the estimated feed-forward, for
+``ARM_DURATION_S`` (the arm stays in the world: the target's frame view, its drawing,
+and on the torque-driven arm the feed-forward's inverse dynamics). Reported, each as a
+ratio to the still target's (the machine is shared and noisy: the ratios are the figures
+to compare):
 
 * the diagram's derivative evaluation (``CalcTimeDerivatives`` at a new state, no cache
   hits): what the target's motion and its adapter add to every step;
@@ -22,7 +26,7 @@ from _record import Figure, record
 from bench_closed_loop import best, derivative_timer
 
 from geovs_drake.loop import build_loop
-from geovs_drake.scenario import PLANT_VARIANTS, ScenarioConfig, Twist
+from geovs_drake.scenario import PLANT_VARIANTS, Arm, ScenarioConfig, Twist
 from geovs_drake.simulation import simulate
 
 #: The issue's target: a circle of radius v / omega = 0.25 m at 0.05 m/s.
@@ -31,6 +35,9 @@ XI_B = [0.0, 0.0, 0.2, 0.05, 0.0, 0.0]
 MODES = ("known", "estimated")
 #: Derivative evaluations per timing.
 EVALUATIONS = 2000
+#: The arms' slow circle (radius 0.2 m) and their runs' length [s].
+ARM_XI_B = [0.0, 0.0, 0.1, 0.02, 0.0, 0.0]
+ARM_DURATION_S = 10.0
 #: The baselines, as the figures name them.
 STILL_DERIVATIVES = "the still target's diagram derivative evaluation"
 STILL_SIMULATE = "the still target's simulate(), same plant and duration"
@@ -40,6 +47,13 @@ def _config(plant: str, mode: str | None) -> ScenarioConfig:
     config = ScenarioConfig(plant=PLANT_VARIANTS[plant]())
     if mode is not None:
         config.target_motion = Twist(twist=list(XI_B), feedforward=mode)
+    return config
+
+
+def _arm_config(plant: str, moving: bool) -> ScenarioConfig:
+    config = ScenarioConfig(carrier=Arm(), plant=PLANT_VARIANTS[plant](), duration=ARM_DURATION_S)
+    if moving:
+        config.target_motion = Twist(twist=list(ARM_XI_B), feedforward="estimated")
     return config
 
 
@@ -84,6 +98,21 @@ def main() -> None:
                 Figure(f"{plant} loop, moving target ({mode}), simulate() of the default "
                        f"scenario ({moving.duration:g} s)", w, "s", STILL_SIMULATE, w_still),
             ]  # fmt: skip
+    for plant in ("dynamic", "kinematic"):
+        still, moving = _arm_config(plant, False), _arm_config(plant, True)
+        t_still, t = _derivative_time(still), _derivative_time(moving)
+        w_still, w = _simulate_time(still, args.repeat), _simulate_time(moving, args.repeat)
+        print(
+            f"UR5 {plant}, slow circle (estimated): derivatives {t * 1e6:.1f} us = "
+            f"{t / t_still:.2f}x still, simulate() {w:.2f} s = {w / w_still:.2f}x still "
+            f"({w_still:.2f} s for {ARM_DURATION_S:g} s)"
+        )
+        figures += [
+            Figure(f"UR5 arm, {plant}, moving target (estimated), diagram derivative "
+                   "evaluation", t * 1e6, "us", STILL_DERIVATIVES, t_still * 1e6),
+            Figure(f"UR5 arm, {plant}, moving target (estimated), simulate() of "
+                   f"{ARM_DURATION_S:g} s", w, "s", STILL_SIMULATE, w_still),
+        ]  # fmt: skip
     if not args.no_record:
         record("bench_moving_target", "The moving target against the still one", figures)
 
