@@ -240,3 +240,56 @@ def test_the_shipped_suite_moves_its_target_on_the_free_rig_only():
     ]
     cases = suite_cases(kept, duration=1.0, base=arm)  # each validated: none refused
     assert {name for name, _, _ in cases} == {s.name for s in kept.scenarios}
+
+
+# ------------------------------------------------------- the baselines' predicted lag
+def test_the_baselines_lag_is_drakes_linearize_of_their_own_loop():
+    """predicted_tracking_lag for every law: the NF's Drake Linearize equals its closed
+    form; PBVS (e' = -lambda e - nu_B at the goal) lags by |nu_B's translation| / lambda;
+    the other baselines by Linearize of their loops; None where no model covers it."""
+    from geovs_drake.analysis.linear.tracking_lag import (
+        kinematic_tracking_lag,
+        predicted_tracking_lag,
+    )
+    from geovs_drake.geometry.target_motion import adjoint
+    from geovs_drake.linear_model import tracking_lag
+    from geovs_drake.scenario import Dynamic, Ibvs, Kinematic, Nf, Pbvs, ScenarioConfig, Twist
+
+    xi = np.array([0.0, 0.0, 0.2, 0.05, 0.0, 0.0])
+    config = ScenarioConfig(plant=Kinematic())
+    np.testing.assert_allclose(
+        kinematic_tracking_lag(config, xi), tracking_lag(config, xi), rtol=1e-8, atol=1e-12
+    )
+    moving = Twist(twist=list(xi), feedforward="none")
+    pbvs = ScenarioConfig(plant=Kinematic(), controller=Pbvs(), target_motion=moving)
+    nu_B = adjoint(pbvs.X_BC_goal.inverse().GetAsMatrix4()) @ xi
+    expected = np.linalg.norm(nu_B[3:]) / pbvs.control.baseline_gain
+    assert predicted_tracking_lag(pbvs) == pytest.approx(expected, rel=1e-9)
+    ibvs = ScenarioConfig(plant=Kinematic(), controller=Ibvs(), target_motion=moving)
+    assert 0 < predicted_tracking_lag(ibvs) < 1
+    assert predicted_tracking_lag(ScenarioConfig(plant=Dynamic(), controller=Pbvs())) is None
+    nf = ScenarioConfig(plant=Dynamic(), controller=Nf(), target_motion=moving)
+    assert predicted_tracking_lag(nf) == pytest.approx(
+        np.linalg.norm(tracking_lag(nf, xi)[3:]), rel=1e-12
+    )
+
+
+@pytest.mark.slow
+def test_the_kinematic_baselines_lag_as_their_linearisation_predicts():
+    """The issue's 15 %: PBVS and point IBVS (true depths) behind the target without
+    feed-forward, 40 s, against predicted_steady_error_m from the command line's JSON."""
+    import json
+    import subprocess
+    import sys
+
+    for law in ("pbvs", "ibvs"):
+        done = subprocess.run(
+            [sys.executable, "-m", "geovs_drake.cli", "simulate", "--plant", "kinematic",
+             "--controller", law, "--target-twist", "0,0,0.2,0.05,0,0", "--feedforward",
+             "none", "--duration", "40", "--json"],
+            capture_output=True, text=True,
+        )  # fmt: skip
+        out = json.loads(done.stdout)
+        assert not out["left_domain"], out["message"]
+        predicted, lag = out["predicted_steady_error_m"], out["steady_tracking_error_m"]
+        assert abs(lag / predicted - 1) < 0.15, (law, lag, predicted)

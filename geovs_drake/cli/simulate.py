@@ -383,6 +383,11 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     finally:
         progress.close()
+    if result.predicted_steady_error is None and resolved.config.moving_target:
+        # A baseline's lag: Drake's Linearize of its loop (the NF's is simulate()'s own).
+        from geovs_drake.analysis.linear.tracking_lag import predicted_tracking_lag
+
+        result.predicted_steady_error = predicted_tracking_lag(resolved)
     if args.json:
         print(json.dumps(result.summary()))
     else:
