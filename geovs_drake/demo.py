@@ -125,9 +125,9 @@ def record_meshcat(config: ScenarioConfig, html_path: str | Path, progress=None)
 
 
 def _drawn_target_poses(result) -> np.ndarray:
-    """The target's pose in the frame Meshcat draws, at the result's times (N, 4, 4):
-    X_WB, or a moving target's X_WB(t) where the carrier is drawn in the world (an arm;
-    the free rig is drawn in the target's frame, where X_WB stands still)."""
+    """The target's pose in the world Meshcat draws, at the result's times (N, 4, 4):
+    X_WB, or a moving target's X_WB(t) (every carrier that takes one is drawn in the
+    world)."""
     import numpy as np
 
     from geovs_drake.scenario import target_motion_arguments
@@ -135,7 +135,7 @@ def _drawn_target_poses(result) -> np.ndarray:
 
     config = result.config
     X_WB = config.X_WB.GetAsMatrix4()
-    if not (config.moving_target and isinstance(config.carrier, Arm)):
+    if not config.moving_target:
         return np.broadcast_to(X_WB, (len(result.times), 4, 4))
     motion = TargetMotion(X_WB0=config.X_WB, **target_motion_arguments(config.target_motion))
     return np.stack([motion.X_WB(t) for t in result.times])

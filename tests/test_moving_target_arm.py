@@ -216,3 +216,37 @@ def test_both_arms_track_the_slow_circle_for_20_s(model, plant):
     # inverse damped near a singularity: docs/moving-target.md) within 0.2 mm.
     bound = 1e-6 if isinstance(plant, Kinematic) else 2e-4
     assert result.steady_tracking_error <= bound, result.message
+
+
+def test_meshcat_draws_the_free_rig_and_its_moving_target_in_the_world():
+    """The free rig runs in the target's frame, but Meshcat's scene is the world's: the
+    target at X_WB(t) and the rig at its world pose, X_WB(t) X_WB(0)^-1 X_W'R (so the
+    camera's relative pose is the loop's), on both plants."""
+    from pydrake.geometry import Meshcat
+
+    meshcat = Meshcat()
+    for plant in (Dynamic(), Kinematic()):
+        config = ScenarioConfig(plant=plant, target_motion=Twist(twist=SLOW_CIRCLE))
+        loop = build_loop(config, meshcat=meshcat)
+        diagram = loop.diagram
+        context = diagram.CreateDefaultContext()
+        loop.carrier.set_initial_state(context)
+        scene_graph = diagram.GetSubsystemByName("world_scene_graph")
+        inspector = scene_graph.model_inspector()
+        frames = {  # the bodies' frames, by name
+            inspector.GetName(inspector.GetFrameId(g)).split("::")[-1]: inspector.GetFrameId(g)
+            for g in inspector.GetAllGeometryIds()
+        }
+        motion = diagram.GetSubsystemByName("target_motion")
+        for t in (0.0, 5.0):
+            context.SetTime(t)
+            query = scene_graph.get_query_output_port().Eval(
+                scene_graph.GetMyContextFromRoot(context)
+            )
+            X_WB = query.GetPoseInWorld(frames[TARGET_BODY_NAME]).GetAsMatrix4()
+            np.testing.assert_allclose(X_WB, motion.X_WB(t), atol=1e-9)
+            X_WR = query.GetPoseInWorld(frames["camera_rig"]).GetAsMatrix4()
+            owner = loop.carrier.body_pose.get_system()
+            X_WpR = matrix_of_pose(loop.carrier.body_pose.Eval(owner.GetMyContextFromRoot(context)))
+            expected = motion.X_WB(t) @ config.X_WB.inverse().GetAsMatrix4() @ X_WpR
+            np.testing.assert_allclose(X_WR, expected, atol=1e-9)

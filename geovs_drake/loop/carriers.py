@@ -30,7 +30,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
 from pydrake.multibody.tree import BodyIndex, RigidBody, RotationalInertia, SpatialInertia
 from pydrake.systems.framework import Context, DiagramBuilder, InputPort, LeafSystem, OutputPort
-from pydrake.systems.primitives import Demultiplexer
+from pydrake.systems.primitives import Demultiplexer, Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from pydrake.visualization import AddFrameTriadIllustration
 
@@ -56,6 +56,7 @@ from geovs_drake.systems import (
     KinematicRigidBody,
 )
 from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmModel, add_arm, arm_plant
+from geovs_drake.systems._parameters import POSE_SIZE
 from geovs_drake.visualization import (
     add_camera_geometry,
     add_goal_ghost,
@@ -72,6 +73,7 @@ __all__ = [
     "carrier_key",
     "leading_pose",
     "no_initial_state",
+    "world_view_meshcat",
 ]
 
 RIG_BODY_NAME = "camera_rig"
@@ -601,6 +603,36 @@ def _target_drawing(
         _draw_at(builder, plant, scene_graph, target_pose, "target_drawing")
 
     return draw_target
+
+
+def world_view_meshcat(
+    resolved: ResolvedScenario, X_RC: RigidTransform, rig_pose: OutputPort, target_pose: OutputPort
+) -> Callable[[DiagramBuilder, Meshcat], None]:
+    """Meshcat for a carrier simulated in a moving target's frame (the free rig), drawn in
+    the world: a scene graph of its own, for illustration, with the rig at its world pose
+    ``rig_pose`` (its camera at X_RC, the frame triad) and the target, the goal's ghost
+    on it, at X_WB(t) ``target_pose`` (both ``[q, p]``, 7). The loop's own scene (the
+    renderer's) stays in the target's frame, where the camera sees the same image."""
+    config = resolved.config
+
+    def add_meshcat(builder: DiagramBuilder, meshcat: Meshcat) -> None:
+        scene_graph = builder.AddNamedSystem("world_scene_graph", SceneGraph())
+        plant = MultibodyPlant(time_step=0.0)
+        plant.RegisterAsSourceForSceneGraph(scene_graph)
+        inertia = SpatialInertia.SolidSphereWithMass(1.0, 0.01)
+        rig = plant.AddRigidBody(RIG_BODY_NAME, inertia)  # positions 0-6, then the target's
+        target = plant.AddRigidBody(TARGET_BODY_NAME, inertia)
+        add_target_geometry(plant, config, body=target)
+        add_goal_ghost(plant, config, body=target)
+        add_camera_geometry(plant, rig, X_RC, resolved.domain.fov_half_angle)
+        plant.Finalize()
+        poses = builder.AddNamedSystem("world_drawing_poses", Multiplexer([POSE_SIZE, POSE_SIZE]))
+        builder.Connect(rig_pose, poses.get_input_port(0))
+        builder.Connect(target_pose, poses.get_input_port(1))
+        _draw_at(builder, plant, scene_graph, poses.get_output_port(), "world_drawing")
+        _meshcat_with_camera(scene_graph, rig, X_RC)(builder, meshcat)
+
+    return add_meshcat
 
 
 def _relabel(scene_graph: SceneGraph, plant: MultibodyPlant, ids: list, label: int) -> None:

@@ -44,7 +44,7 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, PassThrough
 
-from geovs_drake.loop.carriers import CarrierParts
+from geovs_drake.loop.carriers import CarrierParts, world_view_meshcat
 from geovs_drake.scenario import (
     ESTIMATOR_RATE_HZ,
     FEEDFORWARD_MODES,
@@ -107,13 +107,22 @@ def add_target_motion(
         "target_motion",
         TargetMotion(X_WB0=config.X_WB, **target_motion_arguments(config.target_motion)),
     )
-    return TARGET_FRAMES[type(config.carrier)](builder, config, carrier, motion)
+    return TARGET_FRAMES[type(config.carrier)](builder, resolved, carrier, motion)
 
 
-def _relative(builder, config, carrier: CarrierParts, motion) -> TargetParts:
+def _relative(builder, resolved, carrier: CarrierParts, motion) -> TargetParts:
     """The free rig, simulated in the target's frame W': its plant's state is the
-    relative one, and the target's motion enters as the frame's twist or wrench."""
+    relative one, and the target's motion enters as the frame's twist or wrench. Meshcat
+    draws it in the world (:func:`~geovs_drake.loop.carriers.world_view_meshcat`: the rig
+    at its world pose, the target moving), the renderer in W' (the same image)."""
+    config = resolved.config
     builder.Connect(carrier.body_pose, motion.body_pose_input)
+    carrier = dataclasses.replace(
+        carrier,
+        add_meshcat=world_view_meshcat(
+            resolved, carrier.X_RC, motion.world_body_pose_output, motion.target_pose_output
+        ),
+    )
     if carrier.takes_wrench:
         return _wrench_driven(builder, config, carrier, motion)
     adapter = builder.AddNamedSystem(
@@ -153,7 +162,7 @@ def _wrench_driven(builder, config, carrier: CarrierParts, motion) -> TargetPart
     return TargetParts(motion, moved, adapter)
 
 
-def _in_world(builder, config, carrier: CarrierParts, motion) -> TargetParts:
+def _in_world(builder, resolved, carrier: CarrierParts, motion) -> TargetParts:
     """An arm, simulated in the world where its base stands: the target is drawn moving
     in its scene (``draw_target``), and a :class:`TargetFrame` shows the loop the arm's
     camera from the target's frame (its pose; the believed relative twist the law damps).
@@ -163,6 +172,7 @@ def _in_world(builder, config, carrier: CarrierParts, motion) -> TargetParts:
     its joint damping on the joint velocity less the one that follows the believed
     target (``feedforward_input``; the arm's inertia along the path is not fed
     forward)."""
+    config = resolved.config
     view = builder.AddNamedSystem("target_frame", TargetFrame(X_WB0=config.X_WB))
     builder.Connect(carrier.body_pose, view.world_pose_input)
     builder.Connect(motion.target_pose_output, view.target_pose_input)
