@@ -125,12 +125,22 @@ def _relative(builder, resolved, carrier: CarrierParts, motion) -> TargetParts:
     )
     if carrier.takes_wrench:
         return _wrench_driven(builder, config, carrier, motion)
+    # The kinematic body integrates the camera's twist relative to the target.
+    return _twist_driven(builder, config, carrier, motion, carrier.body_pose, "relative_velocity")
+
+
+def _twist_driven(
+    builder, config, carrier: CarrierParts, motion, body_pose: OutputPort, drives: str
+) -> TargetParts:
+    """A twist-driven carrier behind the target: a :class:`TargetRelativeTwist` reads the
+    law's twist (and the camera's pose in W', ``body_pose``) and its output ``drives``
+    (``relative_velocity`` or ``commanded_velocity``) drives the carrier."""
     adapter = builder.AddNamedSystem(
         "target_relative_twist", TargetRelativeTwist(X_WB0=config.X_WB)
     )
-    builder.Connect(carrier.body_pose, adapter.body_pose_input)
+    builder.Connect(body_pose, adapter.body_pose_input)
     builder.Connect(motion.target_twist_output, adapter.target_twist_input)
-    builder.Connect(adapter.relative_velocity_output, carrier.twist_input)
+    builder.Connect(adapter.GetOutputPort(drives), carrier.twist_input)
     moved = dataclasses.replace(carrier, twist_input=adapter.camera_velocity_input)
     return TargetParts(motion, moved, adapter)
 
@@ -194,14 +204,10 @@ def _in_world(builder, resolved, carrier: CarrierParts, motion) -> TargetParts:
             builder.Connect(view.feedforward_twist_output, carrier.feedforward_input)
         moved = dataclasses.replace(moved, body_state=view.body_state_output)
         return TargetParts(motion, moved, view)
-    command = builder.AddNamedSystem(
-        "target_relative_twist", TargetRelativeTwist(X_WB0=config.X_WB)
+    # The arm is commanded the law's twist plus the feed-forward, in the world.
+    return _twist_driven(
+        builder, config, moved, motion, view.body_pose_output, "commanded_velocity"
     )
-    builder.Connect(view.body_pose_output, command.body_pose_input)
-    builder.Connect(motion.target_twist_output, command.target_twist_input)
-    builder.Connect(command.commanded_velocity_output, carrier.twist_input)
-    moved = dataclasses.replace(moved, twist_input=command.camera_velocity_input)
-    return TargetParts(motion, moved, command)
 
 
 #: How each carrier sees a moving target, by the carrier variant's type: the free rig is
