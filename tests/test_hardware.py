@@ -343,3 +343,16 @@ def test_the_station_s_json_is_strict_json_before_any_command(run_cli):
     summary = json.loads(run.out, parse_constant=refuse)
     assert summary["commands_received"] == 0 and summary["first_command_s"] is None
     assert summary["final_joint_speed"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_station_refuses_a_moving_target_in_one_line():
+    """The LCM messages carry no target pose: a moving target is simulate's, and the
+    station says so rather than drawing a target that stands still."""
+    from geovs_drake.scenario import Twist, resolve
+
+    setup = _setup(0.1)
+    config = dataclasses.replace(
+        setup.resolved.config, target_motion=Twist(twist=[0, 0, 0.1, 0.02, 0, 0])
+    )
+    with pytest.raises(ValueError, match=r"the station's target stands still: .*got Twist"):
+        build_station(resolve(config), setup.hardware, DrakeLcm("memq://"))

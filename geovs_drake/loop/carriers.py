@@ -142,8 +142,8 @@ class CarrierParts:
     #: is the loop's.
     world_in_loop: Callable[[float], np.ndarray] | None = None
     #: Where a carrier driven by a wrench takes the camera twist a moving target's
-    #: believed motion asks of it (6, in C; the dynamic arm's joint damping lets it
-    #: pass), else None.
+    #: believed motion asks of it (6, in C: the dynamic arm adds the torque of the joint
+    #: motion that follows it), else None.
     feedforward_input: InputPort | None = None
 
     @property

@@ -1,11 +1,21 @@
 """The moving target: its motion, the loop in its frame, and the feed-forward (issue 32).
 
-A loop whose ``target_motion`` is not :class:`~geovs_drake.scenario.Still` runs in the
-target's frame W' (where the target stands at ``config.X_WB`` for all time): the carrier's
-state is the camera rig's pose and twist *relative to the target*, so the exact camera,
-the sensors, the NF, the safe-domain monitor and the logs read the relative pose as they
-read a still target's, and the run's errors are those of X_BC against X_BC*. The
-target's motion enters where physics puts it:
+A loop whose ``target_motion`` is not :class:`~geovs_drake.scenario.Still` is read in the
+target's frame W' (where the target stands at ``config.X_WB`` for all time): the exact
+camera, the sensors, the NF, the safe-domain monitor and the logs read the camera's pose
+relative to the target as they read a still target's, and the run's errors are those of
+X_BC against X_BC*. How a carrier gets there is its entry of :data:`TARGET_FRAMES`:
+
+* the free rig is *simulated* in W': its state is the rig's pose and twist relative to
+  the target (Meshcat draws it in the world, :func:`~geovs_drake.loop.carriers.
+  world_view_meshcat`);
+* an arm is simulated in the world, where its base stands, the target drawn moving in
+  its scene; a :class:`~geovs_drake.systems.TargetFrame` shows the loop its camera from
+  W', the kinematic arm is commanded the law's twist plus the feed-forward, and the
+  dynamic arm adds the torque of the motion that follows the target
+  (:class:`~geovs_drake.systems.ArmCamera`'s ``feedforward_twist``).
+
+On the free rig the target's motion enters where physics puts it:
 
 * the kinematic free body (Eq. 17): the camera's twist relative to the target is the
   commanded one less the target's carried to C
