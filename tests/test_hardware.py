@@ -345,9 +345,9 @@ def test_the_station_s_json_is_strict_json_before_any_command(run_cli):
     assert summary["final_joint_speed"] == pytest.approx(0.0, abs=1e-9)
 
 
-def test_the_station_refuses_a_moving_target_in_one_line():
+def test_the_station_and_the_controller_refuse_a_moving_target_in_one_line():
     """The LCM messages carry no target pose: a moving target is simulate's, and the
-    station says so rather than drawing a target that stands still."""
+    station and the controller say so rather than serve a target that stands still."""
     from geovs_drake.scenario import Twist, resolve
 
     setup = _setup(0.1)
@@ -356,3 +356,5 @@ def test_the_station_refuses_a_moving_target_in_one_line():
     )
     with pytest.raises(ValueError, match=r"the station's target stands still: .*got Twist"):
         build_station(resolve(config), setup.hardware, DrakeLcm("memq://"))
+    with pytest.raises(ValueError, match=r"the controller's target stands still: .*got Twist"):
+        build_controller(resolve(config), setup.hardware, DrakeLcm("memq://"))

@@ -21,6 +21,8 @@ from typing import Any
 import yaml
 from pydrake.common.yaml import yaml_load_typed
 
+from geovs_drake.scenario import ScenarioConfig
+
 __all__ = [
     "DEFAULT_LCM_URL",
     "HARDWARE_SECTION",
@@ -29,6 +31,7 @@ __all__ = [
     "ChannelsConfig",
     "HardwareConfig",
     "check_lcm_url",
+    "check_still_target",
     "load_hardware",
     "split_station_file",
 ]
@@ -141,6 +144,16 @@ class HardwareConfig:
                 f"hardware.command_rate must be <= status_rate ({self.status_rate}): "
                 f"{self.command_rate!r}"
             )
+
+
+def check_still_target(config: ScenarioConfig, part: str) -> None:
+    """The station and the controller serve a still target: the LCM messages carry no
+    target pose (nor its motion); ValueError in one line naming ``part`` otherwise."""
+    if config.moving_target:
+        raise ValueError(
+            f"the {part}'s target stands still: target_motion must be !Still {{}} (a moving "
+            f"target runs in `geovs-drake simulate`), got {type(config.target_motion).__name__}"
+        )
 
 
 def _check_number(name: str, value: Any, strict: bool) -> None:

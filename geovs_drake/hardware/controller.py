@@ -44,7 +44,7 @@ from geovs_drake.geometry._ops import MATH
 from geovs_drake.geometry.camera import inverse_pose
 from geovs_drake.geometry.prediction import predicted_image
 from geovs_drake.geometry.rigid import quaternion_to_rotation
-from geovs_drake.hardware.config import HardwareConfig
+from geovs_drake.hardware.config import HardwareConfig, check_still_target
 from geovs_drake.hardware.images import (
     ImageFeatureFrames,
     SelfFilter,
@@ -538,6 +538,7 @@ def build_controller(
     )
     decoder = builder.AddNamedSystem("status_decoder", StatusDecoder(nv))
     builder.Connect(status.get_output_port(), decoder.status_input)
+    check_still_target(config, "controller")
     carrier = config.carrier
     barrier = carrier.joint_barrier_width > 0 or carrier.joint_barrier_fraction > 0
     if barrier:

@@ -40,7 +40,7 @@ from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem
 from pydrake.systems.primitives import Demultiplexer, DiscreteTimeDelay
 from pydrake.systems.sensors import RgbdSensor
 
-from geovs_drake.hardware.config import HardwareConfig
+from geovs_drake.hardware.config import HardwareConfig, check_still_target
 from geovs_drake.hardware.images import add_image_camera, check_rendered_over_lcm
 from geovs_drake.hardware.messages import (
     COMMAND_NUM_TORQUE,
@@ -315,11 +315,7 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
         check_rendered_over_lcm(resolved, hardware.drop_every_frame)
     if not config.dynamic:
         raise ValueError("the station simulates the arm's dynamics: plant must be !Dynamic {}")
-    if config.moving_target:  # the LCM messages carry no target pose, the controller no frame
-        raise ValueError(
-            "the station's target stands still: target_motion must be !Still {} (a moving "
-            f"target runs in `geovs-drake simulate`), got {type(config.target_motion).__name__}"
-        )
+    check_still_target(config, "station")
     builder = DiagramBuilder()
     interface = builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
     model, plant, scene_graph, link, X_LinkC = add_arm_scene(builder, resolved, True, True)
