@@ -37,10 +37,10 @@ from geovs_drake.scenario import (
     FreeRig,
     ScenarioConfig,
     Still,
+    Trajectory,
     Twist,
     variant_layer,
 )
-from geovs_drake.scenario.targets import Trajectory
 
 #: The flags that choose the target's motion (the field target_motion): one at most.
 _TARGET_MOTION_FLAGS = ("--target-twist", "--target-trajectory")

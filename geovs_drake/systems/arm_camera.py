@@ -34,7 +34,7 @@ __all__ = [
 NULL_SPACE_MU = 1e-3
 #: The twist's dimension: an arm with more velocities than this is redundant.
 _TWIST = 6
-#: The damped least squares' mu [m] of the feed-forward's joint motion v_ff = J_C^T (J_C
+#: The damped least squares' mu of the feed-forward's joint motion v_ff = J_C^T (J_C
 #: J_C^T + mu^2 I)^-1 V_ff: near a singularity of the arm (the UR5's wrist, on the slow
 #: circle of docs/moving-target.md) the motion that follows the target asks unbounded
 #: joint rates; damped, it fades there and the NF carries the camera.
