@@ -52,6 +52,7 @@ __all__ = [
     "rig_spatial_inertia",
     "second_order_A",
     "tracking_lag",
+    "tracking_transfer",
     "velocity_adjoint",
 ]
 
@@ -196,6 +197,40 @@ def tracking_lag(
         [np.zeros(6), np.linalg.solve(rig_spatial_inertia(config), F_C - Bd @ nu_B)]
     )
     return -np.linalg.solve(A, Eu)[:6]
+
+
+def tracking_transfer(
+    config: ScenarioConfig,
+    frequencies_hz: np.ndarray,
+    damping: tuple[float, ...] | None = None,
+) -> np.ndarray:
+    """G(j 2 pi f) (F, 6, 6), complex: how the linearised loop's relative pose error eps
+    (rotation, then position, as :func:`tracking_lag`'s) answers a target twist xi_B
+    (6, (omega, v) in B) varying at each frequency f [Hz], without feed-forward.
+
+    The target's twist at the goal, ``nu_B = Ad_{X_C*B} xi_B``, drives the loop as in
+    :func:`tracking_lag`: kinematic, ``eps' = A eps - nu_B``; dynamic, the still law
+    damps the rig's own twist and the moving frame's acceleration pushes it,
+    ``M nu' = ... - B nu_B - M nu_B'`` (the frame wrench to first order in xi; its
+    centripetal part is quadratic, outside a linear model). So
+    ``eps(s) = [I 0] (sI - A)^-1 E(s) Ad xi_B(s)`` with ``E(s) = -I`` (kinematic) or
+    ``[0; -M^-1 B - s I]`` (dynamic). At f = 0 it is :func:`tracking_lag` per unit twist
+    for a twist whose centripetal wrench vanishes (a pure translation).
+    """
+    A = closed_form_A(config, damping=damping)
+    n = A.shape[0]
+    Ad = velocity_adjoint(config.X_BC_goal.inverse())
+    if isinstance(config.plant, Kinematic):
+        E0, E1 = -np.eye(6), np.zeros((6, 6))
+    else:
+        Bd = np.diag(config.control.damping if damping is None else damping)
+        E0 = np.vstack([np.zeros((6, 6)), -np.linalg.solve(rig_spatial_inertia(config), Bd)])
+        E1 = np.vstack([np.zeros((6, 6)), -np.eye(6)])
+    out = np.empty((len(np.atleast_1d(frequencies_hz)), 6, 6), dtype=complex)
+    for k, f in enumerate(np.atleast_1d(np.asarray(frequencies_hz, dtype=float))):
+        s = 2j * np.pi * f
+        out[k] = np.linalg.solve(s * np.eye(n) - A, (E0 + s * E1) @ Ad)[:6]
+    return out
 
 
 # --- The goal's model split at the camera: what a sampled, delayed image does to it.
