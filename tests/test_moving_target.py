@@ -383,3 +383,16 @@ def test_a_sliding_target_is_lagged_as_the_transfer_predicts(plant):
     simulated = result.position_errors[last_period].max()
     xi_hat = np.array([0.0, 0.0, 0.0, amplitude * 2 * np.pi * frequency, 0.0, 0.0])
     assert simulated == pytest.approx(_predicted_peak(config, frequency, xi_hat), rel=0.01)
+
+
+def test_the_energy_guarantee_is_claimed_only_where_it_holds():
+    """Appendix C's energy covers a moving target's loop on the free rig with the known
+    twist (the relative dynamics are a still target's); behind an estimated twist the
+    run claims no guarantee, in its JSON nor in its line."""
+    known = simulate(_config(Dynamic(), "known", 1.0))
+    estimated = simulate(_config(Dynamic(), "estimated", 1.0))
+    assert known.energy_applies and known.energy_guarantee is True
+    assert not estimated.energy_applies and estimated.energy_guarantee is None
+    assert estimated.summary()["energy_guarantee"] is None
+    assert "no energy guarantee: behind a moving target" in estimated.one_line()
+    assert "the energy guarantee covers this start" in known.one_line()

@@ -13,6 +13,7 @@ from geovs_drake.geometry.domain import DomainMargins
 from geovs_drake.scenario import (
     CameraModel,
     FixedCamera,
+    FreeRig,
     Ibvs,
     ScenarioConfig,
     Twist,
@@ -253,9 +254,22 @@ class SimulationResult:
         return None if self.energy is None else float(self.config.control.potential_gain)
 
     @property
+    def energy_applies(self) -> bool:
+        """Whether Appendix C's energy argument covers this run's loop: a still target, or
+        the free rig behind a moving one with its known motion fed forward (the relative
+        dynamics are then a still target's, docs/moving-target.md). Behind an estimated
+        or ignored motion, or on an arm simulated in the world, nothing bounds the energy
+        the target's motion brings in."""
+        config = self.config
+        if not config.moving_target:
+            return True
+        return isinstance(config.carrier, FreeRig) and config.target_motion.feedforward == "known"
+
+    @property
     def energy_guarantee(self) -> bool | None:
-        """E0 < k_p: Appendix C's guarantee that phi < 1 throughout (dynamic), else None."""
-        if self.energy is None:
+        """E0 < k_p: Appendix C's guarantee that phi < 1 throughout (dynamic), else None
+        (a kinematic loop, or a loop the argument does not cover: :attr:`energy_applies`)."""
+        if self.energy is None or not self.energy_applies:
             return None
         return bool(self.initial_energy < self.energy_bound)
 
@@ -303,8 +317,11 @@ class SimulationResult:
             width, height = (int(v) for v in cam.resolution)
             sensor = f", {s['sensor']} camera {width}x{height} at {cam.rate:g} Hz"
         energy = ""
-        if self.energy is not None:
+        if self.energy is not None and self.energy_applies:
             energy = f" | {energy_note(self.initial_energy, self.energy_bound)}"
+        elif self.energy is not None:
+            # Appendix C covers the free rig with the known twist only (energy_applies).
+            energy = " | no energy guarantee: behind a moving target it needs the known twist"
         if self.saddle_note:
             energy += f" | {self.saddle_note}"
         law = s["controller"]
