@@ -31,9 +31,7 @@ import numpy as np
 from drake import lcmt_image_array
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
-    MakeRenderEngineVtk,
     PerceptionProperties,
-    RenderEngineVtkParams,
     RenderLabel,
     Rgba,
     SceneGraph,
@@ -65,11 +63,11 @@ from geovs_drake.hardware.messages import (
     VectorSerializer,
     frame_vector_size,
 )
-from geovs_drake.loop.sensors import RENDERER_NAME, camera_config, scene_lights
+from geovs_drake.loop.sensors import add_scene_renderer, camera_config
 from geovs_drake.scenario import ResolvedScenario
 from geovs_drake.systems import SelfMask
 from geovs_drake.systems._arm_model import ArmModel, add_arm
-from geovs_drake.systems.feature_extractor import SCENE_COLOURS, extract_features
+from geovs_drake.systems.feature_extractor import extract_features
 
 __all__ = [
     "COLOR_FRAME_NAME",
@@ -116,20 +114,6 @@ def check_rendered_over_lcm(resolved: ResolvedScenario, drop_every_frame: int = 
         )
     if drop_every_frame > 0:
         raise ValueError("hardware.drop_every_frame is for the pinhole camera (lcmt_scope)")
-
-
-def _add_vtk(scene_graph: SceneGraph) -> None:
-    """The rendered loop's renderer: RenderEngineVtk, EGL (headless), its lights."""
-    scene_graph.AddRenderer(
-        RENDERER_NAME,
-        MakeRenderEngineVtk(
-            RenderEngineVtkParams(
-                backend="EGL",
-                default_clear_color=list(SCENE_COLOURS["background"]),
-                lights=scene_lights(),
-            )
-        ),
-    )
 
 
 #: The colour the arm's collision shapes are drawn in (RGBA): a dark grey that the
@@ -188,7 +172,7 @@ def add_image_camera(
     """The station's camera: the scene drawn on the arm's camera (``body``, ``X_LinkC``)
     and its colour image published on ``channel`` as ``lcmt_image_array`` at the
     camera's capture times (``header.utime`` = the capture). Returns the sensor."""
-    _add_vtk(scene_graph)
+    add_scene_renderer(scene_graph)
     perceive_collision_shapes(plant, scene_graph, body.model_instance())
     rgbd = _rgbd(builder, "rgbd_sensor", resolved, plant, scene_graph, body, X_LinkC)
     # Uncompressed: zlib on every frame costs the station's real time more than the
@@ -272,7 +256,7 @@ def add_self_filter(
     instance, camera = add_arm(plant, model)
     plant.Finalize()
     perceive_collision_shapes(plant, scene_graph, instance)
-    _add_vtk(scene_graph)
+    add_scene_renderer(scene_graph)
     to_pose = builder.AddNamedSystem(
         "self_filter_poses", MultibodyPositionToGeometryPose(plant, input_multibody_state=False)
     )

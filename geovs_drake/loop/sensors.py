@@ -23,6 +23,7 @@ from pydrake.geometry import (
     MakeRenderEngineVtk,
     RenderEngineVtkParams,
     Rgba,
+    SceneGraph,
 )
 from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import LogVectorOutput, ZeroOrderHold
@@ -47,6 +48,7 @@ __all__ = [
     "SENSORS",
     "VTK_PRINCIPAL_POINT_SHIFT",
     "Sensor",
+    "add_scene_renderer",
     "camera_config",
     "scene_lights",
     "vtk_camera_info",
@@ -197,6 +199,23 @@ def vtk_camera_info(intrinsics: PinholeIntrinsics) -> CameraInfo:
     )
 
 
+def add_scene_renderer(scene_graph: SceneGraph) -> None:
+    """The rendered camera's renderer, :data:`RENDERER_NAME`: Drake's RenderEngineVtk on
+    EGL (headless; RenderEngineGl fails here), the extractor's background colour and
+    :func:`scene_lights`. The loop's rendered sensor and the LCM station's and
+    controller's image systems add it alike."""
+    scene_graph.AddRenderer(
+        RENDERER_NAME,
+        MakeRenderEngineVtk(
+            RenderEngineVtkParams(
+                backend="EGL",
+                default_clear_color=list(SCENE_COLOURS["background"]),
+                lights=scene_lights(),
+            )
+        ),
+    )
+
+
 def scene_lights() -> list[LightParameter]:
     """A headlight and four side lights, all in the camera frame, intensity 0.5 each.
 
@@ -262,16 +281,7 @@ def _rendered(builder, resolved, carrier, camera) -> OutputPort:
     cam = config.sensor
     theta = resolved.domain.fov_half_angle
     drake_camera = camera_config(resolved)
-    carrier.scene_graph.AddRenderer(
-        RENDERER_NAME,
-        MakeRenderEngineVtk(
-            RenderEngineVtkParams(
-                backend="EGL",
-                default_clear_color=list(SCENE_COLOURS["background"]),
-                lights=scene_lights(),
-            )
-        ),
-    )
+    add_scene_renderer(carrier.scene_graph)
     color_camera, depth_camera = drake_camera.MakeCameras()
     parent = carrier.plant.GetBodyFrameIdOrThrow(carrier.body.index())
     X_PC = carrier.X_RC if carrier.X_BodyC is None else carrier.X_BodyC
