@@ -338,9 +338,7 @@ def _kinematic_body(builder: DiagramBuilder, resolved: ResolvedScenario, draws_m
     if not draws_marks:
         return parts
     scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
-    plant = MultibodyPlant(time_step=0.0)
-    plant.RegisterAsSourceForSceneGraph(scene_graph)
-    rig = plant.AddRigidBody(RIG_BODY_NAME, SpatialInertia.SolidSphereWithMass(1.0, 0.01))
+    plant, (rig,) = _drawing_plant(scene_graph, RIG_BODY_NAME)
     add_marked_target_geometry(plant, config)
     drawing = add_camera_geometry(plant, rig, RigidTransform(), resolved.domain.fov_half_angle)
     drawing += add_goal_ghost(plant, config)
@@ -466,9 +464,7 @@ def _fixed_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_
     # A camera model: the scene drawn by a plant with no dynamics, the target at the
     # kinematic body's pose (the kinematic free rig's drawing, eye-to-hand).
     scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
-    plant = MultibodyPlant(time_step=0.0)
-    plant.RegisterAsSourceForSceneGraph(scene_graph)
-    target = plant.AddRigidBody(TARGET_BODY_NAME, SpatialInertia.SolidSphereWithMass(1.0, 0.01))
+    plant, (target,) = _drawing_plant(scene_graph, TARGET_BODY_NAME)
     drawing = _fixed_camera_scene(plant, resolved, target, X_WC, draws_marks)
     plant.Finalize()
     _out_of_view(scene_graph, plant, drawing)
@@ -481,6 +477,16 @@ def _fixed_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_
         body=plant.world_body(),
         X_BodyC=X_WC,
     )
+
+
+def _drawing_plant(scene_graph: SceneGraph, *names: str) -> tuple[MultibodyPlant, list[RigidBody]]:
+    """A MultibodyPlant with no dynamics of its own, a source of ``scene_graph``, holding
+    one free body per name (in that order, their ``[q, p]`` its positions): what
+    :func:`_draw_at` poses. Its bodies' mass model is a placeholder (never simulated)."""
+    plant = MultibodyPlant(time_step=0.0)
+    plant.RegisterAsSourceForSceneGraph(scene_graph)
+    inertia = SpatialInertia.SolidSphereWithMass(1.0, 0.01)
+    return plant, [plant.AddRigidBody(name, inertia) for name in names]
 
 
 def _draw_at(builder, plant: MultibodyPlant, scene_graph: SceneGraph, positions, name: str):
@@ -589,9 +595,7 @@ def _target_drawing(
     config = resolved.config
 
     def draw_target(builder: DiagramBuilder, target_pose: OutputPort) -> None:
-        plant = MultibodyPlant(time_step=0.0)
-        plant.RegisterAsSourceForSceneGraph(scene_graph)
-        body = plant.AddRigidBody(TARGET_BODY_NAME, SpatialInertia.SolidSphereWithMass(1.0, 0.01))
+        plant, (body,) = _drawing_plant(scene_graph, TARGET_BODY_NAME)
         target = (add_marked_target_geometry if draws_marks else add_target_geometry)(
             plant, config, body=body
         )
@@ -617,11 +621,8 @@ def world_view_meshcat(
 
     def add_meshcat(builder: DiagramBuilder, meshcat: Meshcat) -> None:
         scene_graph = builder.AddNamedSystem("world_scene_graph", SceneGraph())
-        plant = MultibodyPlant(time_step=0.0)
-        plant.RegisterAsSourceForSceneGraph(scene_graph)
-        inertia = SpatialInertia.SolidSphereWithMass(1.0, 0.01)
-        rig = plant.AddRigidBody(RIG_BODY_NAME, inertia)  # positions 0-6, then the target's
-        target = plant.AddRigidBody(TARGET_BODY_NAME, inertia)
+        # The positions: the rig's [q, p] (0-6), then the target's.
+        plant, (rig, target) = _drawing_plant(scene_graph, RIG_BODY_NAME, TARGET_BODY_NAME)
         add_target_geometry(plant, config, body=target)
         add_goal_ghost(plant, config, body=target)
         add_camera_geometry(plant, rig, X_RC, resolved.domain.fov_half_angle)
