@@ -361,3 +361,7 @@ def test_a_trajectory_with_known_feedforward_is_tracked_to_rounding_on_both_plan
         result = simulate(config)
         assert result.status == "converged" and not result.left_domain, result.message
         assert result.steady_tracking_error <= 1e-6, result.message
+        # The file's last knot (the shipped circle's 20 s), as the run's motion had it.
+        assert result.summary()["target_motion"] == pytest.approx(
+            {"kind": "Trajectory", "feedforward": "known", "end_time_s": 20.0}
+        )

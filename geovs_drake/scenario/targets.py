@@ -37,7 +37,6 @@ __all__ = [
     "Trajectory",
     "Twist",
     "check_target_motion",
-    "target_end_time",
     "target_motion_arguments",
     "target_trajectory",
     "trajectory_of",
@@ -213,11 +212,6 @@ def _knots(motion: Trajectory) -> tuple[np.ndarray, list[RigidTransform]]:
         RigidTransform(Quaternion(q), p) for q, p in zip(quaternions, table[:, 5:], strict=True)
     ]
     return times, poses
-
-
-def target_end_time(motion: Trajectory) -> float:
-    """The last knot's time [s]: from then on the target stands still."""
-    return float(_knots(motion)[0][-1])
 
 
 def target_trajectory(motion: Trajectory) -> PiecewisePose:

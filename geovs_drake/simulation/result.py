@@ -18,7 +18,6 @@ from geovs_drake.scenario import (
     ScenarioConfig,
     Twist,
     radius_error_of,
-    target_end_time,
     variant_name,
 )
 
@@ -211,6 +210,9 @@ class SimulationResult:
     #: the loop), and the estimator's trace (the ``estimated`` feed-forward), else None.
     predicted_steady_error: float | None = None
     target: TargetTrace | None = None
+    #: A moving target's end [s], where it stops (its trajectory's last knot; inf for a
+    #: constant twist), as the run's TargetMotion had it; else None.
+    target_end_time: float | None = None
 
     @property
     def position_errors(self) -> np.ndarray:
@@ -392,7 +394,7 @@ class SimulationResult:
             if isinstance(motion, Twist):
                 out["target_motion"]["twist"] = [float(v) for v in motion.twist]
             else:  # a trajectory's knots: its end, where the target stops
-                out["target_motion"]["end_time_s"] = float(target_end_time(motion))
+                out["target_motion"]["end_time_s"] = self.target_end_time
             if self.target is not None:
                 out["target_motion"].update(self.target.summary())
         cam = self.config.sensor

@@ -280,6 +280,7 @@ def simulate(
     result.step_limit = limit
     if config.moving_target:
         result.predicted_steady_error, result.target = _target_trace(loop, root)
+        result.target_end_time = loop.diagram.GetSubsystemByName("target_motion").end_time()
     # Each check's one warning line, None where it has nothing to say.
     result.step_warning, result.camera_warning, result.effort_warning = warnings
     result.camera_fit = fit

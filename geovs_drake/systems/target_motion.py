@@ -127,6 +127,10 @@ def TargetMotion_(T):
             t = min(max(t, trajectory.start_time()), trajectory.end_time())
             return self._X_WB0 @ trajectory.GetPose(t).GetAsMatrix4()
 
+        def end_time(self) -> float:
+            """When the target stops [s]: its trajectory's end, inf for a constant twist."""
+            return np.inf if self._trajectory is None else float(self._trajectory.end_time())
+
         def _moving(self, t: float) -> bool:
             """Whether t is inside the trajectory's span, where the target moves."""
             trajectory = self._trajectory
