@@ -17,7 +17,7 @@ import dataclasses
 import numpy as np
 
 from geovs_drake.analysis.linear.linearization import INPUTS, OUTPUTS, linearize
-from geovs_drake.linear_model import closed_form_refusal, tracking_lag, velocity_adjoint
+from geovs_drake.linear_model import velocity_adjoint
 from geovs_drake.scenario import (
     FreeRig,
     Kinematic,
@@ -29,6 +29,7 @@ from geovs_drake.scenario import (
     Twist,
     resolve,
 )
+from geovs_drake.simulation.run import predicted_lag
 
 __all__ = ["kinematic_tracking_lag", "predicted_tracking_lag"]
 
@@ -56,15 +57,12 @@ def predicted_tracking_lag(config: ScenarioConfig | ResolvedScenario) -> float |
     model covers the loop (a still target or a trajectory, a carrier other than the free
     rig, a baseline on the dynamic rig, the path follower)."""
     resolved = config if isinstance(config, ResolvedScenario) else resolve(config)
+    if isinstance(resolved.law, Nf):  # the closed form, simulate()'s own
+        return predicted_lag(resolved)
     config = resolved.config
     motion = config.target_motion
     if not isinstance(motion, Twist) or not isinstance(config.carrier, FreeRig):
         return None
-    if isinstance(resolved.law, Nf):
-        if closed_form_refusal(config, "tracking lag") is not None:
-            return None
-        eps = tracking_lag(config, np.asarray(motion.twist), resolved.damping)
-        return float(np.linalg.norm(eps[3:]))
     # The path follower's law follows its plan in time: no constant-twist steady state.
     if not isinstance(config.plant, Kinematic) or isinstance(resolved.law, PathFollowing):
         return None
