@@ -42,10 +42,10 @@ from pydrake.systems.primitives import Linearize
 
 from geovs_drake.analysis.linear.linearization import config_at_goal
 from geovs_drake.geometry import kernels
+from geovs_drake.goal.step_limit import step_limit
 from geovs_drake.loop import build_loop
 from geovs_drake.scenario import PLANT_VARIANTS, ScenarioConfig, resolve
 from geovs_drake.simulation import make_simulator, simulate
-from geovs_drake.simulation.step_limit import step_limit
 from geovs_drake.systems import ImageJacobianForce_, NavigationController_, SphericalCamera_
 
 #: The two Simulator baselines, as the performance page defines them.

@@ -18,7 +18,7 @@ import pytest
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from geovs_drake.analysis.linear.arm_study import linearize_arm_at_goal
-from geovs_drake.loop.arm import (
+from geovs_drake.goal.arm import (
     Unreachable,
     _better_solution,
     arm_model,
@@ -39,7 +39,7 @@ from geovs_drake.scenario import (
     variant_name,
 )
 from geovs_drake.simulation import simulate
-from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
+from geovs_drake.systems.arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 
 #: The UR5's published DH parameters [m, rad] (Universal Robots).
 DH_A = (0.0, -0.425, -0.39225, 0.0, 0.0, 0.0)
@@ -217,7 +217,7 @@ def _with_limit(config: ScenarioConfig, joint: int, q0: np.ndarray) -> ScenarioC
     import tempfile
     from pathlib import Path
 
-    from geovs_drake.systems._arm_model import ARMS, DEFAULT_ARM
+    from geovs_drake.systems.arm_model import ARMS, DEFAULT_ARM
 
     text = Path(DEFAULT_ARM).read_text()
     names = re.findall(r'<joint name="(\w+)" type="revolute">', text)
@@ -369,7 +369,7 @@ def test_the_arm_s_scene_fields_default_to_the_named_arm_s_and_a_file_s_pose_is_
     """Unset, the frame, base and camera are the named arm's (ARMS); a file giving only
     the base's xyz gets rpy zero (not the UR5's -pi/2 yaw), and the named arm's camera."""
     from geovs_drake.scenario import load_scenario
-    from geovs_drake.systems._arm_model import ARMS
+    from geovs_drake.systems.arm_model import ARMS
 
     shipped = ARMS["default"]
     model = arm_model(_arm())
@@ -476,7 +476,7 @@ def test_the_start_branch_keeps_the_pose_and_the_rotation_to_come_inside():
     """start_branch moves joints by whole turns only (forward kinematics: the same camera
     pose), stays inside the limits, and puts the estimated end inside too; at a half turn,
     whose way the start does not decide, it keeps IK's branch."""
-    from geovs_drake.loop.arm import camera_jacobians, start_branch
+    from geovs_drake.goal.arm import camera_jacobians, start_branch
 
     config = ScenarioConfig(carrier=Arm(), initial=_suite_start("roll_179"))
     model = arm_model(config)

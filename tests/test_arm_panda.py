@@ -22,7 +22,7 @@ import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 
 from geovs_drake.analysis.linear.arm_study import linearize_arm_at_goal
-from geovs_drake.loop.arm import (
+from geovs_drake.goal.arm import (
     arm_model,
     camera_jacobians,
     joint_limit_margins,
@@ -40,7 +40,7 @@ from geovs_drake.scenario import (
     variant_name,
 )
 from geovs_drake.simulation import simulate
-from geovs_drake.systems._arm_model import (
+from geovs_drake.systems.arm_model import (
     PANDA_REFLECTED_INERTIA,
     ArmError,
     ArmModel,

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
+from geovs_drake.goal.camera_fit import camera_fit
 from geovs_drake.loop import build_loop
-from geovs_drake.loop.camera_fit import camera_fit
 from geovs_drake.loop.sensors import camera_config, vtk_camera_info
 from geovs_drake.scenario import load_scenario, resolve
 from geovs_drake.simulation import simulate

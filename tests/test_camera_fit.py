@@ -10,7 +10,7 @@ import pytest
 
 from geovs_drake.analysis.linear.arm_study import linearize_arm_at_goal
 from geovs_drake.analysis.linear.latency import sampled_model
-from geovs_drake.loop.camera_fit import GAIN_MARGIN, camera_fit, goal_sampled_model
+from geovs_drake.goal.camera_fit import GAIN_MARGIN, camera_fit, goal_sampled_model
 from geovs_drake.scenario import Arm, Kinematic, Pinhole, PoseConfig, ScenarioConfig, resolve
 from geovs_drake.simulation import simulate
 from geovs_drake.spectrum import assert_spectra_close

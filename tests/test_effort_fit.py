@@ -9,8 +9,8 @@ import json
 import numpy as np
 import pytest
 
+from geovs_drake.goal.effort_fit import _ArmTorques, effort_fit
 from geovs_drake.loop.build import build_loop, effort_check
-from geovs_drake.loop.effort_fit import _ArmTorques, effort_fit
 from geovs_drake.scenario import Arm, Kinematic, Pinhole, PoseConfig, ScenarioConfig, resolve
 from geovs_drake.simulation import simulate
 
@@ -27,7 +27,7 @@ def _torques(gain_scale: float) -> _ArmTorques:
 def ur5_terms():
     """The UR5 at gain scale 10 and at 4, read at a configuration of D near the goal."""
     at = {s: _torques(s) for s in (10.0, 4.0)}
-    from geovs_drake.loop.arm import arm_goal_model
+    from geovs_drake.goal.arm import arm_goal_model
 
     q = arm_goal_model(at[10.0].config).q + np.array([0.1, -0.15, 0.2, -0.1, 0.12, 0.3])
     return at, q

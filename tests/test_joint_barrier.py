@@ -13,10 +13,10 @@ import pytest
 from pydrake.autodiffutils import ExtractGradient, InitializeAutoDiff
 
 from geovs_drake.geometry.joint_barrier import combine, joint_barrier, smooth_step
-from geovs_drake.loop.arm import arm_model, joint_barrier_values
+from geovs_drake.goal.arm import arm_model, joint_barrier_values
 from geovs_drake.scenario import Arm, ScenarioConfig, resolve
 from geovs_drake.simulation import simulate
-from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
+from geovs_drake.systems.arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 
 LOWER, UPPER = np.array([-1.0, -2.0, -0.5]), np.array([1.0, 2.0, 3.0])
 WIDTH = 0.4
@@ -193,7 +193,7 @@ def test_the_barrier_reads_the_nf_wrench_s_own_k_p(arm_config):
     from geovs_drake.geometry.joint_barrier import joint_barrier
     from geovs_drake.loop import build_loop
     from geovs_drake.scenario import resolve
-    from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
+    from geovs_drake.systems.arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 
     config = arm_config
     config.carrier.joint_barrier_width = 2.5
@@ -233,7 +233,7 @@ def test_the_barrier_width_shrinks_the_goals_the_arm_can_reach(arm_config):
     goal IK reaches; the default goal (1.98 rad from its nearest limit) stays reachable
     for the widths the docs suggest."""
     from geovs_drake.analysis.linear.arm_study import reachable_goals
-    from geovs_drake.loop.arm import joint_limit_margins, solve_joints
+    from geovs_drake.goal.arm import joint_limit_margins, solve_joints
 
     config = arm_config
     widths = (0.0, 0.5, 1.5, 2.5)

@@ -19,8 +19,8 @@ from pydrake.math import RigidTransform, RollPitchYaw
 
 from geovs_drake.analysis import sweep
 from geovs_drake.analysis.sweep.summary import STALL_SPEED, run_ends
-from geovs_drake.loop import arm as arm_module
-from geovs_drake.loop.arm import (
+from geovs_drake.goal import arm as arm_module
+from geovs_drake.goal.arm import (
     GOAL_PATH_STEPS,
     arm_model,
     chart_path,
@@ -29,7 +29,7 @@ from geovs_drake.loop.arm import (
     start_branch,
 )
 from geovs_drake.scenario import Arm, ScenarioConfig
-from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant
+from geovs_drake.systems.arm_model import CAMERA_FRAME, arm_plant
 
 #: Start 156 of the sweep's seed 0 (velocity bounded), which stalled with w = 0.5 rad:
 #: X_BC as xyz [m] and Drake's roll-pitch-yaw [rad], and the body twist (Omega, V) in C,

@@ -80,7 +80,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("geovs_drake.geometry", "geovs_drake.sampling", "geovs_drake.progress"),
     ("geovs_drake.systems",),
     ("geovs_drake.scenario", "geovs_drake.scenarios", "geovs_drake.models"),
-    ("geovs_drake.linear_model", "geovs_drake.planning", "geovs_drake.visualization"),
+    ("geovs_drake.goal", "geovs_drake.planning", "geovs_drake.visualization"),
     ("geovs_drake.loop",),
     ("geovs_drake.simulation",),
     # The Panda over LCM (issue 34): the loop's parts and simulate's tolerances, behind a bus.

@@ -35,7 +35,7 @@ from geovs_drake.analysis.linear.linearization import (
 from geovs_drake.batch.engine import _rhs, loop_parameters
 from geovs_drake.geometry.camera import ImageFeatures, camera_map
 from geovs_drake.geometry.navigation import NavigationFunction, image_chart
-from geovs_drake.linear_model import chart_jacobian, navigation_hessian
+from geovs_drake.goal.linear_model import chart_jacobian, navigation_hessian
 from geovs_drake.loop import build_loop
 from geovs_drake.scenario import (
     Dynamic,
@@ -498,8 +498,8 @@ def test_cli_linearize_on_the_arm_is_drakes_model_at_the_goal_and_its_camera_stu
     sampled model at the arm's own gain (auto, chosen for this camera and latency), which
     keeps the margin; the free rig's studies are refused in one line."""
     from geovs_drake.analysis.linear.arm_study import linearize_arm_at_goal
+    from geovs_drake.goal.camera_fit import GAIN_MARGIN, camera_fit
     from geovs_drake.loop.build import fit_gains
-    from geovs_drake.loop.camera_fit import GAIN_MARGIN, camera_fit
     from geovs_drake.scenario import Arm, resolve
 
     held = "sensor: !Pinhole {prediction: none}"
@@ -524,7 +524,7 @@ def test_cli_linearize_on_the_arm_is_drakes_model_at_the_goal_and_its_camera_stu
         run_cli("linearize", "--carrier", "arm", "--latency", "1", "--json").out
     )["camera"]
     assert predicted["prediction"] == "odometry" and predicted["gain_scale"] == 10.0
-    from geovs_drake.loop.camera_fit import goal_sampled_model
+    from geovs_drake.goal.camera_fit import goal_sampled_model
 
     held_model = goal_sampled_model(
         resolve(fit_gains(ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=sensor)))

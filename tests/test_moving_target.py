@@ -15,7 +15,7 @@ from geovs_drake.geometry.target_motion import (
     se3_log,
     target_pose,
 )
-from geovs_drake.linear_model import tracking_lag
+from geovs_drake.goal.linear_model import tracking_lag
 from geovs_drake.loop import build_loop
 from geovs_drake.scenario import (
     Dynamic,
@@ -224,7 +224,7 @@ def test_lag_without_feedforward_is_the_linear_models(plant):
 def test_tracking_lag_of_the_kinematic_loop_is_A_inverse_times_the_carried_twist():
     """The kinematic closed form at its simplest: a pure translation of the target along
     the goal's optical axis is carried to C unchanged, eps_ss = A^-1 (0, v)."""
-    from geovs_drake.linear_model import closed_form_A
+    from geovs_drake.goal.linear_model import closed_form_A
 
     config = ScenarioConfig(plant=Kinematic())
     xi = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.02])  # along z_B = the goal's optical axis
@@ -333,7 +333,7 @@ def _sine_target(amplitude: float, frequency: float, duration: float) -> list[li
 
 def _predicted_peak(config, frequency: float, xi_hat: np.ndarray) -> float:
     """The largest |position error| over a period of eps(t) = Re(G xi_hat e^{jwt})."""
-    from geovs_drake.linear_model import tracking_transfer
+    from geovs_drake.goal.linear_model import tracking_transfer
 
     response = tracking_transfer(config, [frequency])[0] @ xi_hat
     phases = np.linspace(0.0, 2 * np.pi, 721)
@@ -345,7 +345,7 @@ def test_the_transfer_at_zero_frequency_is_the_lag():
     (no centripetal wrench), on both plants; far above the loop's bandwidth the camera
     cannot follow at all, and the error is the target's own displacement, -nu_B / s
     (s G(s) -> -Ad_{X_C*B})."""
-    from geovs_drake.linear_model import tracking_transfer, velocity_adjoint
+    from geovs_drake.goal.linear_model import tracking_transfer, velocity_adjoint
 
     xi = np.array([0.0, 0.0, 0.0, 0.05, 0.02, 0.0])
     fast = 1e4  # [Hz]: the next term is A / s, A up to about 60 / s here

@@ -10,13 +10,13 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces
 
 from geovs_drake.geometry.target_motion import adjoint, se3_exp, se3_log
+from geovs_drake.goal.arm import arm_model
 from geovs_drake.loop import build_loop
-from geovs_drake.loop.arm import arm_model
 from geovs_drake.loop.carriers import TARGET_BODY_NAME
 from geovs_drake.scenario import Arm, Dynamic, Kinematic, ScenarioConfig, Twist
 from geovs_drake.simulation import simulate
 from geovs_drake.systems import ArmCamera
-from geovs_drake.systems._arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
+from geovs_drake.systems.arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 from geovs_drake.systems.target_frame import TargetFrame
 from geovs_drake.systems.target_motion import matrix_of_pose, pose_of_matrix
 

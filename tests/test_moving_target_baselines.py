@@ -252,7 +252,7 @@ def test_the_baselines_lag_is_drakes_linearize_of_their_own_loop():
         predicted_tracking_lag,
     )
     from geovs_drake.geometry.target_motion import adjoint
-    from geovs_drake.linear_model import tracking_lag
+    from geovs_drake.goal.linear_model import tracking_lag
     from geovs_drake.scenario import Dynamic, Ibvs, Kinematic, Nf, Pbvs, ScenarioConfig, Twist
 
     xi = np.array([0.0, 0.0, 0.2, 0.05, 0.0, 0.0])

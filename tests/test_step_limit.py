@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import SimulatorConfig
 
-from geovs_drake.linear_model import closed_form_A
+from geovs_drake.goal.linear_model import closed_form_A
+from geovs_drake.goal.step_limit import STABILITY_MARGIN, step_limit
 from geovs_drake.scenario import (
     DEFAULT_MAX_STEP,
     Arm,
@@ -27,7 +28,6 @@ from geovs_drake.scenario import (
     variant_name,
 )
 from geovs_drake.simulation import simulate
-from geovs_drake.simulation.step_limit import STABILITY_MARGIN, step_limit
 
 #: The issue's small start, from which the kinematic loop stalled at 1e-7 m.
 NEAR = PoseConfig(xyz=[0.02, -0.01, -0.52], rpy=[0.02, -0.01, 0.1])

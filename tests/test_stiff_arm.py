@@ -20,6 +20,13 @@ import numpy as np
 import pytest
 
 from geovs_drake.analysis.linear.arm_study import linearize_arm_at_goal
+from geovs_drake.goal.step_limit import (
+    IMPLICIT_REMEDY,
+    STABILITY_MARGIN,
+    STABILITY_POLYNOMIALS,
+    STIFFNESS_RATIO,
+    step_limit,
+)
 from geovs_drake.scenario import (
     DEFAULT_MAX_STEP,
     Arm,
@@ -29,13 +36,6 @@ from geovs_drake.scenario import (
     resolve,
 )
 from geovs_drake.simulation import simulate
-from geovs_drake.simulation.step_limit import (
-    IMPLICIT_REMEDY,
-    STABILITY_MARGIN,
-    STABILITY_POLYNOMIALS,
-    STIFFNESS_RATIO,
-    step_limit,
-)
 
 DATA = Path(__file__).parent / "data"
 STIFF_URDF = DATA / "stiff_6r.urdf"

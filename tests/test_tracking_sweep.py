@@ -15,7 +15,7 @@ from geovs_drake.analysis.studies.tracking import (
     predicted_edge_speed,
     tracking_sweep,
 )
-from geovs_drake.linear_model import tracking_lag
+from geovs_drake.goal.linear_model import tracking_lag
 from geovs_drake.scenario import Dynamic, Kinematic, ScenarioConfig, resolve
 from geovs_drake.simulation import simulate
 

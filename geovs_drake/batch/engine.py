@@ -19,7 +19,7 @@ starts and compares their states.
 **Step.** By default each start's step is error-controlled (the
 tolerance is ``config.simulator.accuracy``, as for Drake's integrators, and
 the Drake loop's step limit caps it,
-:func:`~geovs_drake.simulation.step_limit.step_limit`), because a fixed step
+:func:`~geovs_drake.goal.step_limit.step_limit`), because a fixed step
 cannot serve the kinematic loop: its speed grows without bound near the
 boundary of D (dphi ~ 1/beta),
 and with a fixed 0.01 s step 122 of 400 random starts left D where error
@@ -51,10 +51,10 @@ from numba import njit, prange
 
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
+from geovs_drake.goal.step_limit import step_limit
 from geovs_drake.loop.state import initial_body_states
 from geovs_drake.scenario import Exact, FreeRig, Nf, ScenarioConfig, resolve, variant_name
 from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
-from geovs_drake.simulation.step_limit import step_limit
 from geovs_drake.systems.spherical_camera import CAMERA_OFFSET
 
 __all__ = [
@@ -97,7 +97,7 @@ class LoopParameters:
     pose_error: np.ndarray  # [R_RC, p_RC, R_WC*, p_WC*]
     potential_gain: float  # k_p: the energy bound of Appendix C (1 for phi, kinematic)
     #: The error control's step limit [s]: the Drake loop's, decided in one place
-    #: (:func:`~geovs_drake.simulation.step_limit.step_limit`).
+    #: (:func:`~geovs_drake.goal.step_limit.step_limit`).
     max_step_size: float
 
 

@@ -188,7 +188,7 @@ def _camera(config, args, design) -> dict:
     the goal's closed form through J_C at the arm's own gains (``gain_scale``, auto
     chosen for this camera)."""
     from geovs_drake.analysis.linear.latency import camera_of, sampled_model
-    from geovs_drake.linear_model import check_camera
+    from geovs_drake.goal.linear_model import check_camera
     from geovs_drake.scenario import PREDICTIONS, Arm, camera_like
 
     camera = camera_of(config)
@@ -198,8 +198,8 @@ def _camera(config, args, design) -> dict:
     check_camera(rate, args.latency)
     studied = config
     if isinstance(config.carrier, Arm):
+        from geovs_drake.goal.camera_fit import goal_sampled_model
         from geovs_drake.loop.build import fit_gains
-        from geovs_drake.loop.camera_fit import goal_sampled_model
         from geovs_drake.scenario import resolve
 
         camera_config = copy.deepcopy(config)

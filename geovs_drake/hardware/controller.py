@@ -44,6 +44,7 @@ from geovs_drake.geometry._ops import MATH
 from geovs_drake.geometry.camera import inverse_pose
 from geovs_drake.geometry.prediction import predicted_image
 from geovs_drake.geometry.rigid import quaternion_to_rotation
+from geovs_drake.goal.arm import arm_model
 from geovs_drake.hardware.config import HardwareConfig, check_still_target
 from geovs_drake.hardware.images import (
     ImageFeatureFrames,
@@ -74,15 +75,14 @@ from geovs_drake.hardware.station import (
     FRAME_Y,
     US_PER_S,
 )
-from geovs_drake.loop.arm import arm_model
 from geovs_drake.loop.laws import add_nf_law
 from geovs_drake.scenario import Rendered, ResolvedScenario
 from geovs_drake.systems import (
     ArmCamera,
     NavigationController,
 )
-from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmModel, arm_plant, camera_jacobian
 from geovs_drake.systems.arm_camera import actuation_permutation
+from geovs_drake.systems.arm_model import CAMERA_FRAME, ArmModel, arm_plant, camera_jacobian
 
 __all__ = [
     "LATENCY_BINS",

@@ -40,6 +40,7 @@ from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem
 from pydrake.systems.primitives import Demultiplexer, DiscreteTimeDelay
 from pydrake.systems.sensors import RgbdSensor
 
+from geovs_drake.goal.arm import initial_joints
 from geovs_drake.hardware.config import HardwareConfig, check_still_target
 from geovs_drake.hardware.images import add_image_camera, check_rendered_over_lcm
 from geovs_drake.hardware.messages import (
@@ -52,12 +53,11 @@ from geovs_drake.hardware.messages import (
     command_vector,
     subscribe_vector,
 )
-from geovs_drake.loop.arm import initial_joints
 from geovs_drake.loop.carriers import add_arm_scene
 from geovs_drake.scenario import Pinhole, Rendered, ResolvedScenario
 from geovs_drake.systems import ArmCamera, PinholeFeatureSensor
-from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmModel, arm_plant
 from geovs_drake.systems.arm_camera import actuation_permutation
+from geovs_drake.systems.arm_model import CAMERA_FRAME, ArmModel, arm_plant
 
 __all__ = [
     "FRAME_VALUE_SIZE",

@@ -47,9 +47,9 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import Adder, LogVectorOutput
 
-from geovs_drake.loop.camera_fit import GAIN_MARGIN, camera_fit
+from geovs_drake.goal.camera_fit import GAIN_MARGIN, camera_fit
+from geovs_drake.goal.effort_fit import EffortFit, effort_fit
 from geovs_drake.loop.carriers import CARRIERS, CarrierParts, carrier_key
-from geovs_drake.loop.effort_fit import EffortFit, effort_fit
 from geovs_drake.loop.laws import LAWS
 from geovs_drake.loop.sensors import SENSORS, add_feature_loggers
 from geovs_drake.loop.targets import add_target_motion, connect_feedforward
@@ -151,7 +151,7 @@ def build_loop(
     study_ports: bool = False,
 ) -> Loop:
     """The loop ``config`` describes (the arm's ``gain_scale: auto`` chosen for its
-    camera, :func:`~geovs_drake.loop.camera_fit.fit_gains`, then validated and resolved
+    camera, :func:`~geovs_drake.goal.camera_fit.fit_gains`, then validated and resolved
     once, :func:`resolve`; a :class:`~geovs_drake.scenario.ResolvedScenario` is trusted
     as it is).
 
@@ -173,7 +173,7 @@ def build_loop(
         # studies model the still target; a moving one's lag is linear_model.tracking_lag.
         raise ValueError(
             "study_ports: a study diagram's target stands still (target_motion Still()); "
-            "a moving target's lag is geovs_drake.linear_model.tracking_lag"
+            "a moving target's lag is geovs_drake.goal.linear_model.tracking_lag"
         )
     sensor = SENSORS[type(config.sensor)]
     builder = DiagramBuilder()
@@ -298,7 +298,7 @@ def fit_gains(config: ScenarioConfig) -> ScenarioConfig:
     """``config`` with the arm's ``gain_scale: auto`` chosen (a copy), any other config as
     it is: the plant's :data:`~geovs_drake.scenario.NOMINAL_GAIN_SCALES`, at most the
     largest stable gain scale at the camera's rate and latency over ``GAIN_MARGIN``
-    (:func:`~geovs_drake.loop.camera_fit.camera_fit` of the nominal gains; the nominal
+    (:func:`~geovs_drake.goal.camera_fit.camera_fit` of the nominal gains; the nominal
     where no scale is stable, and the run's warning says so) and, with ``torque_limits:
     respect`` on the dynamic arm, at most the largest scale whose torques over the
     start's energy level set stay inside the effort limits (:func:`effort_check`). What
@@ -321,7 +321,7 @@ def fit_gains(config: ScenarioConfig) -> ScenarioConfig:
 
 def effort_check(resolved: ResolvedScenario) -> EffortFit | None:
     """The dynamic arm's torques over its start's energy level set against its effort
-    limits (:func:`~geovs_drake.loop.effort_fit.effort_fit`, on this scenario's loop
+    limits (:func:`~geovs_drake.goal.effort_fit.effort_fit`, on this scenario's loop
     with the exact sensor: the law read at each configuration's own y); None off the
     dynamic arm."""
     config = resolved.config

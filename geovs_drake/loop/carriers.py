@@ -37,7 +37,7 @@ from pydrake.visualization import AddFrameTriadIllustration
 from geovs_drake.geometry._ops import MATH, NUMPY
 from geovs_drake.geometry.joint_barrier import joint_widths
 from geovs_drake.geometry.rigid import fixed_camera_relative_pose
-from geovs_drake.loop.arm import arm_model, initial_joints
+from geovs_drake.goal.arm import arm_model, initial_joints
 from geovs_drake.loop.state import POSE, fixed_camera_pose, initial_rig_pose, initial_rig_state
 from geovs_drake.scenario import (
     Arm,
@@ -55,8 +55,8 @@ from geovs_drake.systems import (
     KinematicArm,
     KinematicRigidBody,
 )
-from geovs_drake.systems._arm_model import CAMERA_FRAME, ArmModel, add_arm, arm_plant
 from geovs_drake.systems._parameters import POSE_SIZE
+from geovs_drake.systems.arm_model import CAMERA_FRAME, ArmModel, add_arm, arm_plant
 from geovs_drake.visualization import (
     add_camera_geometry,
     add_goal_ghost,

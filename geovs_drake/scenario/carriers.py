@@ -65,7 +65,7 @@ class Arm:
     URDF or SDFormat file. Its first body is welded to the world at ``base_pose``; the
     camera frame C sits at ``camera_offset`` (X_EC, the optical axis along z_C) on
     ``end_effector_frame``. Left unset, these three are the named arm's own
-    (:data:`geovs_drake.loop.arm.ARMS`: a scene where the goal, the default start and
+    (:data:`geovs_drake.goal.arm.ARMS`: a scene where the goal, the default start and
     the comparison suite's starts are all reachable); a model file needs
     ``end_effector_frame``, and its base and camera default to the world's origin and
     the frame itself. The start is ``initial_joints`` [rad] if given, else the
@@ -112,7 +112,7 @@ class Arm:
     #: latency carry with a gain margin of 2 (:func:`geovs_drake.loop.fit_gains`).
     gain_scale: float | str = AUTO
     #: What the dynamic arm's effort limits do to the gains (:data:`TORQUE_LIMITS`,
-    #: :mod:`geovs_drake.loop.effort_fit`): ``warn``, one warning line where the run's
+    #: :mod:`geovs_drake.goal.effort_fit`): ``warn``, one warning line where the run's
     #: torques over its energy level set can pass a limit; ``respect``, ``gain_scale:
     #: auto`` also stays at or below the largest scale that keeps them inside.
     torque_limits: str = "warn"
@@ -186,7 +186,7 @@ def check_carrier(carrier: object) -> None:
             )
         check_at_least("carrier.gain_scale", carrier.gain_scale, 0.0, True)
     # Here, not at the top: the command line starts without the loop's modules.
-    from geovs_drake.systems._arm_model import ARMS
+    from geovs_drake.systems.arm_model import ARMS
 
     if carrier.model in ARMS:
         ARMS[carrier.model].locate()  # its package installed (MissingExtra names the extra)

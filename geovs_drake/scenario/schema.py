@@ -159,7 +159,7 @@ class ControlConfig:
 
 
 #: The automatic step limit's cap [s]; the NF's loops on the free rig run with the
-#: smaller of it and their goal's stability bound (:mod:`geovs_drake.simulation.step_limit`).
+#: smaller of it and their goal's stability bound (:mod:`geovs_drake.goal.step_limit`).
 DEFAULT_MAX_STEP = 0.05
 
 
@@ -168,7 +168,7 @@ class SimulatorSettings:
     """The simulator: Drake's ``SimulatorConfig`` fields, the same names in YAML, with the
     project's defaults (RK3 at accuracy 1e-6). ``max_step_size`` [s] left unset (None,
     ``null`` in YAML) is automatic: the goal's stability bound, at most
-    :data:`DEFAULT_MAX_STEP` (:func:`geovs_drake.simulation.step_limit.step_limit`); a
+    :data:`DEFAULT_MAX_STEP` (:func:`geovs_drake.goal.step_limit.step_limit`); a
     value is the user's and is used as given. :meth:`to_drake` gives Drake's struct for
     ``ApplySimulatorConfig``."""
 

@@ -101,7 +101,7 @@ class CameraModel:
     @property
     def model_latency_frames(self) -> int:
         """The whole frames of latency the sampled-data model counts
-        (:mod:`geovs_drake.loop.camera_fit`): ``latency_frames``, plus one for a
+        (:mod:`geovs_drake.goal.camera_fit`): ``latency_frames``, plus one for a
         sub-frame ``output_delay`` (rounded up: a longer delay only makes the sampled
         loop less stable, so the fit errs on the safe side)."""
         return int(self.latency_frames) + (1 if self.output_delay > 0 else 0)

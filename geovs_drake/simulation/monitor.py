@@ -27,9 +27,9 @@ from geovs_drake.geometry.kernels import (
     navigation,
 )
 from geovs_drake.geometry.rigid import quaternion_to_rotation
+from geovs_drake.goal.step_limit import step_limit
 from geovs_drake.loop.build import Loop
 from geovs_drake.simulation.result import MARGIN_NAMES
-from geovs_drake.simulation.step_limit import step_limit
 from geovs_drake.systems._held_frames import waiting
 
 __all__ = [
@@ -315,7 +315,7 @@ def make_simulator(
     ``record`` makes the monitor keep every accepted step (for logs); ``on_step``
     is called with each accepted step's time (progress); ``max_step_size``, if given,
     is the integrator's step limit, by default the one
-    :func:`~geovs_drake.simulation.step_limit.step_limit` decides for the scenario (the
+    :func:`~geovs_drake.goal.step_limit.step_limit` decides for the scenario (the
     configured ``simulator.max_step_size`` is None where it is automatic).
     A law with feature points
     (point IBVS) gets them checked too (:func:`feature_point_check`). For the dynamic

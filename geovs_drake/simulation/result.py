@@ -206,7 +206,7 @@ class SimulationResult:
     #: Drake's continuous states at ``times`` (for the linearisation along the run).
     states: np.ndarray | None = None
     #: A moving target: the lag the linearised loop predicts without feed-forward
-    #: [m] (:func:`geovs_drake.linear_model.tracking_lag`; None where it does not model
+    #: [m] (:func:`geovs_drake.goal.linear_model.tracking_lag`; None where it does not model
     #: the loop), and the estimator's trace (the ``estimated`` feed-forward), else None.
     predicted_steady_error: float | None = None
     target: TargetTrace | None = None

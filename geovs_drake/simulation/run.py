@@ -10,16 +10,17 @@ from pydrake.math import RigidTransform
 
 from geovs_drake.geometry.joint_barrier import combine, joint_widths
 from geovs_drake.geometry.navigation import NavigationFunction
-from geovs_drake.linear_model import closed_form_refusal, tracking_lag
-from geovs_drake.loop.arm import (
+from geovs_drake.goal.arm import (
     joint_barrier_values,
     joint_count,
     joint_limit_margins,
     self_motion_speeds,
     smallest_singular_values,
 )
+from geovs_drake.goal.camera_fit import camera_fit
+from geovs_drake.goal.linear_model import closed_form_refusal, tracking_lag
+from geovs_drake.goal.step_limit import step_limit
 from geovs_drake.loop.build import Loop, build_loop, effort_check, fit_gains
-from geovs_drake.loop.camera_fit import camera_fit
 from geovs_drake.loop.targets import ESTIMATE_LOG_NAMES
 from geovs_drake.planning import plan_for_scenario
 from geovs_drake.scenario import (
@@ -42,8 +43,7 @@ from geovs_drake.simulation.result import (
     pose_error,
     saddle_note,
 )
-from geovs_drake.simulation.step_limit import step_limit
-from geovs_drake.systems._arm_model import arm_plant
+from geovs_drake.systems.arm_model import arm_plant
 
 __all__ = ["StartOutsideDomain", "arm_trace", "check_start", "predicted_lag", "simulate"]
 
@@ -106,7 +106,7 @@ def arm_trace(loop: Loop, root, states: np.ndarray) -> ArmTrace:
 
 def predicted_lag(resolved: ResolvedScenario) -> float | None:
     """The position lag [m] the linearised loop predicts without feed-forward behind the
-    scenario's moving target (:func:`~geovs_drake.linear_model.tracking_lag`), or None
+    scenario's moving target (:func:`~geovs_drake.goal.linear_model.tracking_lag`), or None
     where the closed form does not model the loop (a carrier other than the free rig, a
     law other than the NF) or the target stands still."""
     config = resolved.config

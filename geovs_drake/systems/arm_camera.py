@@ -8,7 +8,9 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_
 
 from geovs_drake.geometry.joint_barrier import joint_barrier, per_joint
 from geovs_drake.geometry.target_motion import lie_bracket
-from geovs_drake.systems._arm_model import (
+from geovs_drake.systems._parameters import STATE_SIZE, param_vector
+from geovs_drake.systems._template import template_system
+from geovs_drake.systems.arm_model import (
     CAMERA_FRAME,
     ArmError,
     ArmModel,
@@ -16,8 +18,6 @@ from geovs_drake.systems._arm_model import (
     camera_jacobian,
     default_arm_model,
 )
-from geovs_drake.systems._parameters import STATE_SIZE, param_vector
-from geovs_drake.systems._template import template_system
 
 __all__ = [
     "FEEDFORWARD_MU",

@@ -60,7 +60,7 @@ def FramePredictor_(T):
         It reads ``body_pose`` now, so the law sees y
         continuously: exact for a still target and an exact camera, the hold and the
         latency removed (the sampled-data model of the loop becomes the continuous
-        one's, :mod:`geovs_drake.loop.camera_fit`). NaN in, NaN out (no frame yet).
+        one's, :mod:`geovs_drake.goal.camera_fit`). NaN in, NaN out (no frame yet).
         Double only, as the sensors it follows.
         """
 

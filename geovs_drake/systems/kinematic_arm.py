@@ -7,15 +7,15 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.math import inv
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 
-from geovs_drake.systems._arm_model import (
+from geovs_drake.systems._parameters import POSE_SIZE, param_vector
+from geovs_drake.systems._template import template_system
+from geovs_drake.systems.arm_model import (
     CAMERA_FRAME,
     ArmModel,
     arm_plant,
     camera_jacobian,
     default_arm_model,
 )
-from geovs_drake.systems._parameters import POSE_SIZE, param_vector
-from geovs_drake.systems._template import template_system
 
 __all__ = ["KinematicArm", "KinematicArm_"]
 

@@ -58,7 +58,7 @@ def TargetRelativeWrench_(T):
         ``law_body_state`` is the rig's state as the law reads it: the relative pose and
         that believed relative twist, in W' (the law damps it, Eq. 45). With no
         feed-forward it is the rig's own twist in the world, as the still target's law
-        reads it; the lag it makes is :func:`geovs_drake.linear_model.tracking_lag`'s.
+        reads it; the lag it makes is :func:`geovs_drake.goal.linear_model.tracking_lag`'s.
         """
 
         def _construct(

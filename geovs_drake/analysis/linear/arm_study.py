@@ -30,8 +30,9 @@ from pydrake.systems.framework import InputPortSelection, OutputPortSelection
 from pydrake.systems.primitives import Linearize
 
 from geovs_drake._json import json_ready
+from geovs_drake.goal.arm import arm_goal_model, arm_model, solve_joints
+from geovs_drake.goal.step_limit import arm_goal_A
 from geovs_drake.loop import build_loop
-from geovs_drake.loop.arm import arm_goal_model, arm_model, solve_joints
 from geovs_drake.loop.build import fit_gains
 from geovs_drake.scenario import (
     Arm,
@@ -42,7 +43,6 @@ from geovs_drake.scenario import (
     exact_twin,
     resolve,
 )
-from geovs_drake.simulation.step_limit import arm_goal_A
 from geovs_drake.spectrum import EigenvalueFacts, canonical_eigenvalues
 
 __all__ = [
@@ -144,7 +144,7 @@ def reachable_goals(
     """Sample n goal poses X_BC in D, 0.2-0.8 m from the target, and count those the
     arm reaches with every joint ``w`` or more from its limits, for each width w."""
     from geovs_drake.analysis.linear.region import poses_in_domain
-    from geovs_drake.loop.arm import Unreachable, joint_limit_margins
+    from geovs_drake.goal.arm import Unreachable, joint_limit_margins
     from geovs_drake.sampling import random_visible_poses
 
     model = arm_model(config)

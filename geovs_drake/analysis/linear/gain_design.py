@@ -1,7 +1,7 @@
 """Gains from the linearisation at the goal: a requested local response, what it costs,
 and how well the linear prediction holds in the nonlinear loop.
 
-The closed form (:func:`~geovs_drake.linear_model.closed_form_A`) is
+The closed form (:func:`~geovs_drake.goal.linear_model.closed_form_A`) is
 ``M eps'' + B eps' + k_p K_1 eps = 0`` on the dynamic rig (``K_1 = C_chart^T H
 C_chart``, Appendix C) and ``eps' = -k C_chart^-1 H C_chart eps`` on the kinematic
 body (Eqs. 17-19), whose eigenvalues are ``-k eig(H)``.
@@ -38,7 +38,7 @@ import numpy as np
 from geovs_drake._json import json_ready
 from geovs_drake.batch.engine import run_batch
 from geovs_drake.geometry.so3 import so3_exp
-from geovs_drake.linear_model import (
+from geovs_drake.goal.linear_model import (
     closed_form_A,
     closed_form_refusal,
     goal_stiffness,

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from geovs_drake.analysis.linear.linearization import INPUTS, OUTPUTS, linearize, noise_directions
-from geovs_drake.linear_model import SampledModel
+from geovs_drake.goal.linear_model import SampledModel
 from geovs_drake.scenario import (
     PREDICTIONS,
     CameraModel,
@@ -228,10 +228,10 @@ def camera_map(
 ) -> list[MapCase]:
     """Issue 31's maps on the arm: each ``gain_scale`` x camera rate x latency x
     ``prediction``, the goal's closed-form sampled model
-    (:func:`~geovs_drake.loop.camera_fit.goal_sampled_model`) against the pinhole loop
+    (:func:`~geovs_drake.goal.camera_fit.goal_sampled_model`) against the pinhole loop
     from ``start`` (no noise, no calibration error). ``config``'s carrier must be an
     :class:`~geovs_drake.scenario.Arm` (the scale is its ``gain_scale``)."""
-    from geovs_drake.loop.camera_fit import goal_sampled_model
+    from geovs_drake.goal.camera_fit import goal_sampled_model
     from geovs_drake.scenario import Arm, resolve
 
     if not isinstance(config.carrier, Arm):

@@ -51,7 +51,7 @@ from geovs_drake.geometry.camera import ImageFeatures
 from geovs_drake.geometry.navigation import image_chart
 from geovs_drake.geometry.rigid import quaternion_multiply, quaternion_to_rotation
 from geovs_drake.geometry.so3 import hat
-from geovs_drake.linear_model import (
+from geovs_drake.goal.linear_model import (
     closed_form_A,
     closed_form_refusal,
     navigation_hessian,

@@ -1,6 +1,6 @@
 """The lag behind a moving target without feed-forward, predicted for every law.
 
-The NF's is closed form (:func:`geovs_drake.linear_model.tracking_lag`); a baseline's
+The NF's is closed form (:func:`geovs_drake.goal.linear_model.tracking_lag`); a baseline's
 (PBVS, point IBVS, the sphere features) comes from Drake's ``Linearize`` of its own
 closed loop (:func:`~geovs_drake.analysis.linear.linearization.linearize`). On the
 kinematic free rig the loop runs in the target's frame, where the target's constant
@@ -17,7 +17,7 @@ import dataclasses
 import numpy as np
 
 from geovs_drake.analysis.linear.linearization import INPUTS, OUTPUTS, linearize
-from geovs_drake.linear_model import velocity_adjoint
+from geovs_drake.goal.linear_model import velocity_adjoint
 from geovs_drake.scenario import (
     FreeRig,
     Kinematic,

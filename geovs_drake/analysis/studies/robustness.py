@@ -51,7 +51,7 @@ from geovs_drake.geometry.camera import camera_map, camera_map_inverse, image_ja
 from geovs_drake.geometry.features import FEATURE_FAILURES, TargetMarks, pinhole_measurement
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.geometry.so3 import so3_exp
-from geovs_drake.linear_model import SampledModel
+from geovs_drake.goal.linear_model import SampledModel
 from geovs_drake.sampling import random_features_in_domain
 from geovs_drake.scenario import (
     PREDICTIONS,
@@ -186,7 +186,7 @@ def sampled_spectral_radius(config: ScenarioConfig) -> float:
     coordinates (eps, nu) at frame k; between frames ``xdot = A_d x + A_p
     x_{k-L}``, ``A_d = [[0, I], [0, -M^-1 B]]`` (kinematics and the damping
     ``config.damping``, continuous) and ``A_p = [[0, 0], [-M^-1 K, 0]]`` (the
-    potential, sampled and held). :class:`~geovs_drake.linear_model.SampledModel`
+    potential, sampled and held). :class:`~geovs_drake.goal.linear_model.SampledModel`
     discretises it (Drake's ``DiscreteTimeApproximation``, a zero-order hold) and adds
     the delay. Below 1: locally stable. With a continuous ``sensor.prediction``
     (odometry: the held frame moved by the rig's motion, exact at the equilibrium) the

@@ -9,7 +9,7 @@ start in D (:func:`~geovs_drake.analysis.studies.monte_carlo.random_initial_pose
 fraction of the runs stayed in D and the median steady tracking error of those that did
 (the largest position error relative to the target over each run's last quarter).
 
-Against it, :func:`~geovs_drake.linear_model.tracking_lag`'s prediction without
+Against it, :func:`~geovs_drake.goal.linear_model.tracking_lag`'s prediction without
 feed-forward: the lag at each speed, whether the goal pose lagged by it,
 ``X_BC* exp(eps_ss^)``, is still in D, and the speed where it leaves D (the predicted
 edge, by bisection: the dynamic loop's lag is not linear in the speed, the frame's
@@ -34,7 +34,7 @@ from geovs_drake.analysis.studies.monte_carlo import random_initial_poses
 from geovs_drake.geometry._ops import OutOfDomainError
 from geovs_drake.geometry.camera import camera_map
 from geovs_drake.geometry.target_motion import se3_exp
-from geovs_drake.linear_model import closed_form_refusal, tracking_lag
+from geovs_drake.goal.linear_model import closed_form_refusal, tracking_lag
 from geovs_drake.scenario import (
     FEEDFORWARD_MODES,
     Nf,

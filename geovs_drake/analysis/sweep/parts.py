@@ -43,7 +43,7 @@ from geovs_drake.scenario import (
 )
 
 if TYPE_CHECKING:  # the Drake loop stays out of the batch engine's workers
-    from geovs_drake.systems._arm_model import ArmModel
+    from geovs_drake.systems.arm_model import ArmModel
 
 __all__ = ["ROW_FIELDS", "SUMMARY_KEY", "Part", "part_name", "read_part_summary", "run_part"]
 
@@ -263,7 +263,7 @@ class _ArmStarts:
 
     @classmethod
     def of(cls, config: ScenarioConfig, p: LoopParameters) -> _ArmStarts:
-        from geovs_drake.loop.arm import arm_model
+        from geovs_drake.goal.arm import arm_model
 
         k_p_arm = resolve(config).config.control.potential_gain
         return cls(arm_model(config), free_twin(config), p, k_p_arm / p.potential_gain)
@@ -271,7 +271,7 @@ class _ArmStarts:
     def row(self, config: ScenarioConfig, X: np.ndarray, twist) -> dict:
         """:func:`_drake_row` on the arm: IK for the joints, the twist to joint velocities."""
         from geovs_drake.analysis.sweep.starts import kinetic_energy
-        from geovs_drake.loop.arm import (
+        from geovs_drake.goal.arm import (
             Unreachable,
             chart_path,
             joint_velocity_for,
@@ -336,8 +336,8 @@ def _arm_end(r) -> dict[str, float]:
     if r.arm is None or r.states is None or len(r.states) == 0:
         return dict.fromkeys(_ARM_END, math.nan)
     from geovs_drake.geometry.joint_barrier import joint_barrier, joint_widths
-    from geovs_drake.loop.arm import arm_model
-    from geovs_drake.systems._arm_model import arm_plant
+    from geovs_drake.goal.arm import arm_model
+    from geovs_drake.systems.arm_model import arm_plant
 
     plant = arm_plant(arm_model(r.config))
     nq, nv = plant.num_positions(), plant.num_velocities()

@@ -1,7 +1,7 @@
 """Whether the loop's gains survive its camera: the goal's sampled-data model, checked
 when a run starts (issue 31).
 
-The NF's loop at the goal, in closed form (:mod:`geovs_drake.linear_model`), splits at
+The NF's loop at the goal, in closed form (:mod:`geovs_drake.goal.linear_model`), splits at
 the camera: the law's stiffness reads the held image, its damping the carrier's own
 velocity, continuously. With the camera's displacement eps (in C, rotation first):
 
@@ -9,11 +9,11 @@ velocity, continuously. With the camera's displacement eps (in C, rotation first
   rig's spatial inertia at the camera, ``K = k_p C_chart^T H C_chart``;
 * arm, dynamic: the same through ``J_C`` at the goal's joints,
   ``M(q*) dq'' + (s J^T B J + D_joint) dq' = -s J^T K J dq_held``
-  (:class:`~geovs_drake.loop.arm.ArmGoalModel`);
+  (:class:`~geovs_drake.goal.arm.ArmGoalModel`);
 * kinematic (free rig or arm, Eqs. 17-19): ``eps' = -s k C_chart^-1 H C_chart eps_held``.
 
 The hold over a frame and the frames of latency make it a sampled loop
-(:class:`~geovs_drake.linear_model.SampledModel`); its spectral radius at the camera's
+(:class:`~geovs_drake.goal.linear_model.SampledModel`); its spectral radius at the camera's
 rate decides local stability. ``s`` scales the law's gains (k_p and B, or k), as the
 arm's ``gain_scale`` does: :func:`camera_fit` finds the largest stable ``s``, and a run
 whose gains keep less than :data:`GAIN_MARGIN` of it gets one warning line naming it.
@@ -29,13 +29,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geovs_drake.linear_model import (
+from geovs_drake.goal.arm import arm_goal_model
+from geovs_drake.goal.linear_model import (
     SampledModel,
     goal_stiffness,
     log_bisection,
     rig_spatial_inertia,
 )
-from geovs_drake.loop.arm import arm_goal_model
 from geovs_drake.scenario import (
     PREDICTIONS,
     Arm,

@@ -1,7 +1,7 @@
 """The arm as a carrier's model: which arm a scenario means, and its start by IK.
 
 :func:`arm_model` turns a scenario's ``arm`` into the hashable
-:class:`~geovs_drake.systems._arm_model.ArmModel` that the systems and the
+:class:`~geovs_drake.systems.arm_model.ArmModel` that the systems and the
 carrier load. :func:`solve_joints` finds a joint configuration that puts the
 camera at a pose X_BC, with Drake's ``InverseKinematics`` (the joint limits are
 its bounds) from a few seeds, keeping the solution farthest from the joint limits
@@ -29,14 +29,14 @@ from geovs_drake.geometry.navigation import (
     model_coordinates,
 )
 from geovs_drake.scenario import Nf, ScenarioConfig
-from geovs_drake.systems._arm_model import (
+from geovs_drake.systems.arm_camera import null_space_projector
+from geovs_drake.systems.arm_model import (
     ARMS,
     CAMERA_FRAME,
     ArmModel,
     arm_plant,
     camera_jacobian,
 )
-from geovs_drake.systems.arm_camera import null_space_projector
 
 __all__ = [
     "ARMS",
@@ -136,7 +136,7 @@ def arm_model(config: ScenarioConfig) -> ArmModel:
 class ArmGoalModel:
     """The arm at rest at the goal, what its linear model there needs: the joints ``q``
     (IK of X_BC*), the mass matrix ``M`` (rotor inertia included), the camera frame's
-    Jacobian ``J`` (:func:`~geovs_drake.systems._arm_model.camera_jacobian`) and the
+    Jacobian ``J`` (:func:`~geovs_drake.systems.arm_model.camera_jacobian`) and the
     damping that reads the joints alone, ``D_joint``: ``B_q I``, the model file's own
     joint damping and, for a redundant arm, ``d N`` (:class:`~geovs_drake.systems.ArmCamera`).
     The law's stiffness K and damping B act through J: ``K_q = J^T K J``,

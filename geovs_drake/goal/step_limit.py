@@ -12,7 +12,7 @@ from it after 30 s and 6.4e-10 m after 40 s with 0.05 s, beyond its bound of 0.0
 
 :func:`step_limit` finds the largest h whose ``h lambda`` stay in the region, for every
 eigenvalue of the goal's A (:func:`goal_A`: the free rig's closed form,
-:func:`~geovs_drake.linear_model.closed_form_A`, or the dynamic arm's, :func:`arm_goal_A`),
+:func:`~geovs_drake.goal.linear_model.closed_form_A`, or the dynamic arm's, :func:`arm_goal_A`),
 and takes :data:`STABILITY_MARGIN` of it where that bound, not the cap, limits the step
 (RK3: ``h abs(lambda)`` <= 0.8 x 2.51 = 2.0 on a real mode).
 It is the one place that decides the step limit: the simulator
@@ -53,7 +53,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from geovs_drake.geometry.navigation import NavigationFunction
-from geovs_drake.linear_model import (
+from geovs_drake.goal.linear_model import (
     chart_jacobian,
     closed_form_A,
     closed_form_refusal,
@@ -270,7 +270,7 @@ def stable_step(resolved: ResolvedScenario) -> tuple[complex, float] | None:
 
 def goal_A(resolved: ResolvedScenario) -> GoalModel | None:
     """The NF loop's A at the goal where the package has it in closed form: the free rig
-    in the hand (:func:`~geovs_drake.linear_model.closed_form_A`, minimal coordinates),
+    in the hand (:func:`~geovs_drake.goal.linear_model.closed_form_A`, minimal coordinates),
     the dynamic arm (:func:`arm_goal_A`, on (q, v)); None for another law or loop, and
     for an arm that cannot reach the goal (the run says so itself)."""
     config = resolved.config
@@ -279,7 +279,7 @@ def goal_A(resolved: ResolvedScenario) -> GoalModel | None:
     if isinstance(config.carrier, Arm):
         # Imported here: the batch engine's workers read the free rig's limit and never
         # load the arm's MultibodyPlant.
-        from geovs_drake.loop.arm import Unreachable
+        from geovs_drake.goal.arm import Unreachable
 
         if not config.dynamic:
             return None
@@ -297,9 +297,9 @@ def arm_goal_A(resolved: ResolvedScenario) -> GoalModel:
     writes the same and checks it against Drake's ``Linearize``):
     ``M(q*) ddq = -J_C^T K J_C dq - (J_C^T B J_C + D_joint) dq_dot``, K the NF's stiffness
     ``k_p C_chart^T H C_chart`` and B the loop's damping (the arm's gain scale applied),
-    D_joint the joints' own (:class:`~geovs_drake.loop.arm.ArmGoalModel`)."""
-    from geovs_drake.loop.arm import arm_goal_model, arm_model, joint_names
-    from geovs_drake.systems._arm_model import arm_plant
+    D_joint the joints' own (:class:`~geovs_drake.goal.arm.ArmGoalModel`)."""
+    from geovs_drake.goal.arm import arm_goal_model, arm_model, joint_names
+    from geovs_drake.systems.arm_model import arm_plant
 
     config = resolved.config
     goal = arm_goal_model(config)

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geovs_drake.loop.arm import (
+from geovs_drake.goal.arm import (
     arm_goal_model,
     initial_joints,
     joint_names,
@@ -225,7 +225,7 @@ def _effort_fit(arm: _ArmTorques, level: float | None) -> EffortFit:
 
 
 def _camera_jacobian(plant, context) -> np.ndarray:
-    from geovs_drake.systems._arm_model import CAMERA_FRAME, camera_jacobian
+    from geovs_drake.systems.arm_model import CAMERA_FRAME, camera_jacobian
 
     return camera_jacobian(plant, context, plant.GetFrameByName(CAMERA_FRAME))
 

@@ -9,7 +9,7 @@ then its twist on the dynamic loop):
   chart Hessian of phi at y*;
 * kinematic (Eqs. 17-19): ``eps' = -k C_chart^-1 H C_chart eps``.
 
-Its readers: the integrator's step limit (:mod:`geovs_drake.simulation.step_limit`), the
+Its readers: the integrator's step limit (:mod:`geovs_drake.goal.step_limit`), the
 linearisation studies, which check it against Drake's ``Linearize``
 (:mod:`geovs_drake.analysis.linear.linearization`), gain design and the arm at the goal. It sits
 below the simulation layer, as pure linear algebra over the scenario and the geometry.
