@@ -42,9 +42,8 @@ from pydrake.systems.primitives import Linearize
 
 from geovs_drake.analysis.linear.linearization import config_at_goal
 from geovs_drake.geometry import kernels
-from geovs_drake.goal.step_limit import step_limit
-from geovs_drake.loop import build_loop
-from geovs_drake.scenario import PLANT_VARIANTS, ScenarioConfig, resolve
+from geovs_drake.loop import build_loop, resolve
+from geovs_drake.scenario import PLANT_VARIANTS, ScenarioConfig
 from geovs_drake.simulation import make_simulator, simulate
 from geovs_drake.systems import ImageJacobianForce_, NavigationController_, SphericalCamera_
 
@@ -127,7 +126,7 @@ def framework_floor(config: ScenarioConfig) -> float:
 
 
 def real_time_factors(config: ScenarioConfig, repeat: int) -> dict[str, float]:
-    limit = step_limit(resolve(config)).max_step_size
+    limit = resolve(config).step_limit.max_step_size
     out = {}
     out["simulate() (recorder)"] = max(
         (r := simulate(config)).sim_time_s / r.wall_time_s for _ in range(repeat)

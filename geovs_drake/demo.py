@@ -25,16 +25,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from geovs_drake._optional import MissingExtra, require
+from geovs_drake.loop import exact_twin
 from geovs_drake.progress import HorizonProgress
 from geovs_drake.scenario import (
-    Arm,
     CarrierConfig,
     FreeRig,
     PoseConfig,
     Rendered,
     ScenarioConfig,
     camera_like,
-    exact_twin,
 )
 
 if TYPE_CHECKING:
@@ -208,7 +207,7 @@ def run_demo(
     check_demo_args(out, duration)
     config = demo_config(duration, carrier)
     config.validate()
-    on_arm = isinstance(config.carrier, Arm)
+    on_arm = config.carrier.traits.joints
     if rendered:
         # The rendered run is the demo's extra: without the vision extra the demo
         # still runs (like the block diagram without Graphviz), and says so first.

@@ -394,7 +394,7 @@ def plan_for_scenario(config: ScenarioConfig, law: PathFollowing | None = None) 
     (start, goal, domain, gains, duration, fallback): the diagram builder and
     ``simulate`` ask for the same plan."""
     law = config.controller if law is None else law
-    if not isinstance(law, PathFollowing):  # another law: the path law's defaults
+    if not law.traits.plans:  # another law: the path law's defaults
         law = PathFollowing()
     key = (
         tuple(config.initial_features().to_vector().tolist()),

@@ -253,7 +253,7 @@ def plot_sensor_comparison(runs: dict, path: str | Path | None = None):
         colour = f"C{k}"
         goal = result.config.X_BC_goal
         err = np.array([pose_error(RigidTransform(X), goal) for X in result.X_BC])
-        tol = convergence_tolerance(result.config)
+        tol = convergence_tolerance(result.resolved)
         for j, (ax, unit) in enumerate(zip(axes, ("m", "rad"), strict=True)):
             ax.semilogy(result.times, err[:, j], color=colour, label=f"{label}: {result.status}")
             ax.axhline(tol[j], color=colour, ls=":", lw=0.9, label=f"{label}: tolerance {unit}")

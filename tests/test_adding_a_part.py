@@ -36,8 +36,7 @@ def registries():
 
 
 def test_the_sensor_example_holds_y_for_a_frame_and_converges(registries):
-    from geovs_drake.loop import build_loop
-    from geovs_drake.scenario import exact_twin
+    from geovs_drake.loop import build_loop, exact_twin
     from geovs_drake.simulation import simulate
 
     ns = _run_example("Example: a sensor of one's own")

@@ -26,6 +26,7 @@ from geovs_drake.goal.arm import (
     smallest_singular_values,
     solve_joints,
 )
+from geovs_drake.loop import resolve
 from geovs_drake.scenario import (
     Arm,
     Dynamic,
@@ -35,7 +36,6 @@ from geovs_drake.scenario import (
     PoseConfig,
     ScenarioConfig,
     load_suite,
-    resolve,
     variant_name,
 )
 from geovs_drake.simulation import simulate
@@ -412,8 +412,7 @@ def test_a_model_file_s_package_uris_resolve_through_arm_packages(tmp_path, run_
     the loop builds and draws the mesh; a folder that is not there is one line, exit 2."""
     from pydrake.geometry import Mesh
 
-    from geovs_drake.loop import build_loop
-    from geovs_drake.scenario import resolve
+    from geovs_drake.loop import build_loop, resolve
 
     package = tmp_path / "my_arm_description"
     package.mkdir()

@@ -102,8 +102,7 @@ def test_the_panda_is_made_ready_for_the_continuous_loop():
     assert [a.effort_limit() for a in actuators] == [87.0] * 4 + [12.0] * 3
     assert np.allclose([a.default_reflected_inertia() for a in actuators], PANDA_REFLECTED_INERTIA)
 
-    from geovs_drake.loop import build_loop
-    from geovs_drake.scenario import resolve
+    from geovs_drake.loop import build_loop, resolve
 
     loop = build_loop(resolve(_panda()), log=False)
     inspector = loop.carrier.scene_graph.model_inspector()

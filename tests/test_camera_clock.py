@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from geovs_drake.goal.camera_fit import camera_fit
-from geovs_drake.loop import build_loop
+from geovs_drake.loop import build_loop, resolve
 from geovs_drake.loop.sensors import camera_config, vtk_camera_info
-from geovs_drake.scenario import load_scenario, resolve
+from geovs_drake.scenario import load_scenario
 from geovs_drake.simulation import simulate
 from geovs_drake.simulation.monitor import make_simulator
 from geovs_drake.systems import FrameWait
@@ -140,8 +140,8 @@ def test_the_gain_fit_counts_a_sub_frame_delay_as_a_frame():
     """The sampled-data model has whole frames of latency: an output delay is counted
     as one more (the safe side: more delay, less margin)."""
     base = "{sensor: !Pinhole {prediction: none, latency_frames: 1%s}}"
-    plain = camera_fit(resolve(load_scenario(data=base % "")))
-    delayed = camera_fit(resolve(load_scenario(data=base % ", output_delay: 0.01")))
+    plain = resolve(load_scenario(data=base % "")).camera_fit
+    delayed = resolve(load_scenario(data=base % ", output_delay: 0.01")).camera_fit
     two = camera_fit(resolve(load_scenario(data=base.replace("1%s", "2") % ())))
     assert (plain.latency_frames, delayed.latency_frames) == (1, 2)
     assert delayed.spectral_radius == pytest.approx(two.spectral_radius, rel=1e-12)

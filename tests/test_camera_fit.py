@@ -10,8 +10,9 @@ import pytest
 
 from geovs_drake.analysis.linear.arm_study import linearize_arm_at_goal
 from geovs_drake.analysis.linear.latency import sampled_model
-from geovs_drake.goal.camera_fit import GAIN_MARGIN, camera_fit, goal_sampled_model
-from geovs_drake.scenario import Arm, Kinematic, Pinhole, PoseConfig, ScenarioConfig, resolve
+from geovs_drake.goal.camera_fit import GAIN_MARGIN, goal_sampled_model
+from geovs_drake.loop import resolve
+from geovs_drake.scenario import Arm, Kinematic, Pinhole, PoseConfig, ScenarioConfig
 from geovs_drake.simulation import simulate
 from geovs_drake.spectrum import assert_spectra_close
 
@@ -66,7 +67,7 @@ def test_the_predicted_edge_is_where_the_simulated_arm_loop_turns_unstable():
     gain scale the loop decays, above it it grows until it leaves D (issue 31's check:
     half the edge converges towards the goal, 1.5 times it does not)."""
     base = ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole(latency_frames=1, **HELD))
-    fit = camera_fit(resolve(base))
+    fit = resolve(base).camera_fit
     edge = fit.largest_stable_gain
     assert fit.gain_name == "gain_scale" and fit.gain_value == 10.0
     assert not fit.stable and 0 < edge < 10.0  # the default gain_scale is beyond it
@@ -94,11 +95,9 @@ def test_a_gain_the_camera_cannot_carry_gets_one_warning_line(run_cli):
         "--scenario-text", "sensor: !Pinhole {latency_frames: 1}",
         "--gain-scale", "10", "--duration", "0.2", "--json",
     )  # fmt: skip
-    fit = camera_fit(
-        resolve(
-            ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole(latency_frames=1, **HELD))
-        )
-    )
+    fit = resolve(
+        ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole(latency_frames=1, **HELD))
+    ).camera_fit
     edge = fit.largest_stable_gain
     warning = [line for line in run.err.splitlines() if "warning: the 30 Hz camera" in line]
     assert len(warning) == 1, run.err
@@ -128,17 +127,16 @@ def test_a_gain_the_camera_cannot_carry_gets_one_warning_line(run_cli):
     ids=["free rig", "arm", "free rig held", "arm held"],
 )
 def test_the_defaults_with_a_30_hz_camera_keep_the_margin_and_warn_nothing(config):
-    from geovs_drake.loop.build import fit_gains
 
-    fit = camera_fit(resolve(fit_gains(config)))
+    fit = resolve(config).camera_fit
     assert fit.stable and fit.margin >= GAIN_MARGIN and fit.warning() is None
 
 
 def test_no_fit_without_a_camera_or_a_closed_form():
     from geovs_drake.scenario import FixedCamera, Ibvs
 
-    assert camera_fit(resolve(ScenarioConfig())) is None  # the exact sensor
-    assert camera_fit(resolve(ScenarioConfig(sensor=Pinhole(), controller=Ibvs()))) is None
+    assert resolve(ScenarioConfig()).camera_fit is None  # the exact sensor
+    assert resolve(ScenarioConfig(sensor=Pinhole(), controller=Ibvs())).camera_fit is None
     assert goal_sampled_model(resolve(ScenarioConfig(carrier=FixedCamera()))) is None
 
 
@@ -150,51 +148,51 @@ def test_the_kinematic_plant_takes_a_camera_and_the_warning_names_its_gain():
     config = ScenarioConfig(
         plant=Kinematic(), sensor=Pinhole(**HELD), initial=NEAR_GOAL, duration=4.0
     )
-    fit = camera_fit(resolve(config))
+    fit = resolve(config).camera_fit
     assert not fit.stable and fit.gain_name == "control.kinematic_gain"
     assert f"control.kinematic_gain {fit.largest_stable_gain / GAIN_MARGIN:.3g}" in fit.warning()
     assert simulate(config).status == "left_domain"
     config.control.kinematic_gain = fit.largest_stable_gain / GAIN_MARGIN
-    assert camera_fit(resolve(config)).warning() is None
+    assert resolve(config).camera_fit.warning() is None
     assert simulate(config).status == "converged"
 
 
 def test_auto_gain_scale_is_the_nominal_where_nothing_limits_it():
-    from geovs_drake.loop.build import fit_gains
     from geovs_drake.scenario import NOMINAL_GAIN_SCALES, Dynamic
 
     assert Arm().gain_scale == "auto" and NOMINAL_GAIN_SCALES[Dynamic] == 10.0
     for config in (ScenarioConfig(carrier=Arm()), ScenarioConfig(carrier=Arm(), sensor=Pinhole())):
-        assert fit_gains(config).carrier.gain_scale == 10.0
-    # Without a camera scenario.resolve() chooses it alone; with one, it says who does.
-    assert resolve(ScenarioConfig(carrier=Arm())).gain_scale == 10.0
+        resolved = resolve(config)
+        assert resolved.gain_scale == 10.0
+        assert resolved.fitted_config.carrier.gain_scale == 10.0
+        assert resolved.config.control.potential_gain == 10.0 * config.control.potential_gain
     kinematic = resolve(ScenarioConfig(carrier=Arm(), plant=Kinematic()))
     assert kinematic.gain_scale == 1.0 and kinematic.config.control.kinematic_gain == 4.0
-    with pytest.raises(ValueError, match=r"gain_scale auto with a camera is fitted .*fit_gains"):
-        resolve(ScenarioConfig(carrier=Arm(), sensor=Pinhole()))
 
 
 def test_auto_gain_scale_keeps_the_margin_and_the_loop_converges_at_it():
     """Issue 31: gain_scale auto picks a gain the sampled-data model calls stable with the
     margin (the largest stable over GAIN_MARGIN where the camera limits the nominal),
     and the simulated loop converges at it (the same start leaves D at the nominal 10)."""
-    from geovs_drake.loop.build import fit_gains
 
     config = ScenarioConfig(
         carrier=Arm(), sensor=Pinhole(latency_frames=1, **HELD), initial=NEAR_GOAL, duration=10.0
     )
-    fitted = fit_gains(config)
+    resolved = resolve(config)
+    fitted = resolved.fitted_config
     assert config.carrier.gain_scale == "auto"  # a copy: the caller's config untouched
-    nominal = camera_fit(
-        resolve(
-            ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole(latency_frames=1, **HELD))
-        )
-    )
+    nominal = resolve(
+        ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole(latency_frames=1, **HELD))
+    ).camera_fit
     picked = fitted.carrier.gain_scale
     assert picked == pytest.approx(nominal.largest_stable_gain / GAIN_MARGIN)
-    fit = camera_fit(resolve(fitted))
+    # The resolver's own fit, moved to the picked scale without a second search, is a
+    # fresh search's at that scale: the same spectral radius and margin.
+    fit = resolve(fitted).camera_fit
     assert fit.stable and fit.margin == pytest.approx(GAIN_MARGIN, rel=1e-6)
-    assert fit.warning() is None
+    assert resolved.camera_fit.spectral_radius == pytest.approx(fit.spectral_radius, rel=1e-12)
+    assert resolved.camera_fit.margin == pytest.approx(fit.margin, rel=1e-6)
+    assert resolved.camera_fit.warning() is None and fit.warning() is None
     run = simulate(config)  # auto, resolved by simulate itself
     assert run.status == "converged", run.message
     assert run.summary()["camera"]["largest_stable_gain"]["this_run"] == pytest.approx(picked)

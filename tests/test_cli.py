@@ -15,15 +15,8 @@ from pydrake.common.yaml import yaml_dump_typed
 from geovs_drake import cli
 from geovs_drake.cli import EXIT_CODES, main
 from geovs_drake.geometry.navigation import NavigationFunction
-from geovs_drake.scenario import (
-    AXES,
-    CarrierConfig,
-    Ibvs,
-    Kinematic,
-    PoseConfig,
-    ScenarioConfig,
-    resolve,
-)
+from geovs_drake.loop import resolve
+from geovs_drake.scenario import AXES, CarrierConfig, Ibvs, Kinematic, PoseConfig, ScenarioConfig
 from geovs_drake.simulation import SimulationResult, simulate
 
 

@@ -4,6 +4,7 @@ tests are in test_cli.py)."""
 import copy
 import json
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -32,6 +33,7 @@ from geovs_drake.scenario import (
     load_scenario,
     variant_name,
 )
+from geovs_drake.scenario.traits import LawTraits
 from geovs_drake.simulation import StartOutsideDomain, make_simulator, pose_error, simulate
 
 OFFSET = PoseConfig(xyz=[0.03, -0.02, 0.05], rpy=[0.1, 0.2, -0.3])
@@ -402,6 +404,10 @@ class ConstantRoll:
     """A user's law variant (not one of the package's): a constant roll rate [rad/s]."""
 
     rate: float = 0.5
+
+    traits: ClassVar[LawTraits] = LawTraits(
+        navigation=False, commands="twist", plans=False, batch_kernel=False
+    )
 
 
 def _constant_roll(builder, resolved):

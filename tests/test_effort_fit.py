@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from geovs_drake.goal.effort_fit import _ArmTorques, effort_fit
-from geovs_drake.loop.build import build_loop, effort_check
-from geovs_drake.scenario import Arm, Kinematic, Pinhole, PoseConfig, ScenarioConfig, resolve
+from geovs_drake.loop import resolve
+from geovs_drake.loop.build import build_loop
+from geovs_drake.scenario import Arm, Kinematic, Pinhole, PoseConfig, ScenarioConfig
 from geovs_drake.simulation import simulate
 
 SMALL_MOVE = PoseConfig(xyz=[0.05, -0.03, -0.55], rpy=[0.1, -0.05, 0.3])
@@ -95,10 +96,17 @@ def test_respect_runs_at_that_scale_with_every_torque_inside_its_limit():
     config = ScenarioConfig(carrier=Arm(torque_limits="respect"), initial=SMALL_MOVE, duration=20.0)
     result = simulate(config)
     fit = result.effort_fit
-    nominal = effort_check(
-        resolve(ScenarioConfig(carrier=Arm(gain_scale=10.0), initial=SMALL_MOVE))
-    )
+    nominal = resolve(
+        ScenarioConfig(carrier=Arm(gain_scale=10.0), initial=SMALL_MOVE), effort=True
+    ).effort
     assert fit.gain_scale == pytest.approx(nominal.largest_scale)
+    # The resolver's check, moved to the chosen scale without a second sampling, is a
+    # fresh check's at that scale (a start at rest: the level does not depend on k_p).
+    fresh = resolve(
+        ScenarioConfig(carrier=Arm(gain_scale=fit.gain_scale), initial=SMALL_MOVE), effort=True
+    ).effort
+    assert fit.worst_ratio == pytest.approx(fresh.worst_ratio, rel=1e-12)
+    assert fit.largest_scale == pytest.approx(fresh.largest_scale, rel=1e-9)
     assert fit.within and result.effort_warning is None
     assert result.status == "converged", result.message
     arm = _torques(fit.gain_scale)
@@ -112,8 +120,8 @@ def test_respect_runs_at_that_scale_with_every_torque_inside_its_limit():
 
 
 def test_no_effort_check_off_the_dynamic_arm_and_a_bad_setting_is_one_line():
-    assert effort_check(resolve(ScenarioConfig())) is None
-    assert effort_check(resolve(ScenarioConfig(carrier=Arm(), plant=Kinematic()))) is None
+    assert resolve(ScenarioConfig(), effort=True).effort is None
+    assert resolve(ScenarioConfig(carrier=Arm(), plant=Kinematic()), effort=True).effort is None
     camera = resolve(ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=Pinhole()))
     with pytest.raises(ValueError, match="build the loop with the exact sensor, not Pinhole"):
         effort_fit(build_loop(camera, log=False))

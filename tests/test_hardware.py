@@ -214,7 +214,7 @@ def test_velocity_mode_moves_the_camera_to_the_goal():
 def test_velocity_mode_converges_in_lockstep():
     setup, station, root, errors = _velocity_lockstep(10.0, (10.0,))
     dp, dr = pose_error(station.X_BC(root), setup.resolved.config.X_BC_goal)
-    tol_p, tol_r = convergence_tolerance(setup.resolved.config)
+    tol_p, tol_r = convergence_tolerance(setup.resolved)
     assert dp <= tol_p and dr <= tol_r, (dp, dr)
 
 
@@ -348,7 +348,8 @@ def test_the_station_s_json_is_strict_json_before_any_command(run_cli):
 def test_the_station_and_the_controller_refuse_a_moving_target_in_one_line():
     """The LCM messages carry no target pose: a moving target is simulate's, and the
     station and the controller say so rather than serve a target that stands still."""
-    from geovs_drake.scenario import Twist, resolve
+    from geovs_drake.loop import resolve
+    from geovs_drake.scenario import Twist
 
     setup = _setup(0.1)
     config = dataclasses.replace(

@@ -14,7 +14,8 @@ from pydrake.autodiffutils import ExtractGradient, InitializeAutoDiff
 
 from geovs_drake.geometry.joint_barrier import combine, joint_barrier, smooth_step
 from geovs_drake.goal.arm import arm_model, joint_barrier_values
-from geovs_drake.scenario import Arm, ScenarioConfig, resolve
+from geovs_drake.loop import resolve
+from geovs_drake.scenario import Arm, ScenarioConfig
 from geovs_drake.simulation import simulate
 from geovs_drake.systems.arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 
@@ -191,8 +192,7 @@ def test_the_barrier_reads_the_nf_wrench_s_own_k_p(arm_config):
     rest, doubling k_p doubles the NF wrench F_C, so the torque changes by
     (1 - phi_q) J_C^T F_C - k_p (1 - phi) dphi_q/dq (ArmCamera's law, written here)."""
     from geovs_drake.geometry.joint_barrier import joint_barrier
-    from geovs_drake.loop import build_loop
-    from geovs_drake.scenario import resolve
+    from geovs_drake.loop import build_loop, resolve
     from geovs_drake.systems.arm_model import CAMERA_FRAME, arm_plant, camera_jacobian
 
     config = arm_config

@@ -28,6 +28,7 @@ from geovs_drake.goal.arm import (
     solve_joints,
     start_branch,
 )
+from geovs_drake.loop import resolve
 from geovs_drake.scenario import Arm, ScenarioConfig
 from geovs_drake.systems.arm_model import CAMERA_FRAME, arm_plant
 
@@ -91,7 +92,7 @@ def test_the_chart_path_runs_from_the_start_to_the_goal_the_nf_s_way_round(arm_c
 
     config = arm_config
     X_BC = _stalling_start()[0]
-    path = chart_path(config, X_BC)
+    path = chart_path(config, resolve(config).domain, X_BC)
     assert len(path) == GOAL_PATH_STEPS + 1
     np.testing.assert_allclose(
         path[0].GetAsMatrix4(), (config.X_WB @ X_BC).GetAsMatrix4(), atol=1e-9
@@ -109,7 +110,7 @@ def test_the_chart_path_runs_from_the_start_to_the_goal_the_nf_s_way_round(arm_c
     assert np.all(steps > 0) or np.all(steps < 0)
     assert 3.0 < abs(angle[-1] - angle[0]) < np.pi  # 179 deg, the short way
     config.controller = Ibvs()
-    assert chart_path(config, X_BC) is None
+    assert chart_path(config, resolve(config).domain, X_BC) is None
 
 
 def test_the_goal_on_a_start_s_branch_is_the_goal_pose_in_the_start_s_posture(arm_config):
@@ -125,7 +126,7 @@ def test_the_goal_on_a_start_s_branch_is_the_goal_pose_in_the_start_s_posture(ar
     X_BC = _stalling_start()[0]
     X_WC, X_goal = config.X_WB @ X_BC, config.X_WB @ config.X_BC_goal
     q0 = solve_joints(model, X_WC)
-    goal = goal_on_branch(model, q0, chart_path(config, X_BC))
+    goal = goal_on_branch(model, q0, chart_path(config, resolve(config).domain, X_BC))
     plant.SetPositions(context, goal)
     np.testing.assert_allclose(
         camera.CalcPoseInWorld(context).GetAsMatrix4(), X_goal.GetAsMatrix4(), atol=1e-9
@@ -150,7 +151,7 @@ def test_a_start_that_stalls_at_the_barrier_converges_from_the_goal_s_branch_wit
     model = arm_model(config)
     X_WC, X_goal = config.X_WB @ X_BC, config.X_WB @ config.X_BC_goal
     found = solve_joints(model, X_WC)
-    new = start_branch(model, found, X_WC, X_goal, chart_path(config, X_BC))
+    new = start_branch(model, found, X_WC, X_goal, chart_path(config, resolve(config).domain, X_BC))
     old = start_branch(model, found, X_WC, X_goal)  # no path: the first-order estimate
     np.testing.assert_allclose((new - old) / (2 * np.pi), [0, 0, 0, 0, 0, -1], atol=1e-12)
     with monkeypatch.context() as patch:  # the sweep's start on the first-order branch

@@ -36,7 +36,7 @@ from geovs_drake.batch.engine import _rhs, loop_parameters
 from geovs_drake.geometry.camera import ImageFeatures, camera_map
 from geovs_drake.geometry.navigation import NavigationFunction, image_chart
 from geovs_drake.goal.linear_model import chart_jacobian, navigation_hessian
-from geovs_drake.loop import build_loop
+from geovs_drake.loop import build_loop, exact_twin, resolve
 from geovs_drake.scenario import (
     Dynamic,
     Kinematic,
@@ -44,7 +44,6 @@ from geovs_drake.scenario import (
     PlantConfig,
     PoseConfig,
     ScenarioConfig,
-    exact_twin,
     variant_name,
 )
 from geovs_drake.simulation import StartOutsideDomain, check_start, simulate
@@ -357,7 +356,7 @@ def test_cli_json_at_the_goal_is_the_closed_forms_spectrum(run_cli, tmp_path):
     assert run.code == 0, run.err
     out = json.loads(run.out)
     assert out["plant"] == "kinematic" and out["stable"] and out["at_equilibrium"]
-    closed = canonical_eigenvalues(closed_form_A(ScenarioConfig(), Kinematic()))
+    closed = canonical_eigenvalues(closed_form_A(resolve(ScenarioConfig()), Kinematic()))
     lam = np.array([complex(re, im) for re, im in out["eigenvalues"]])
     assert_spectra_close(lam, closed, rtol=1e-9)
     assert np.allclose(lam, closed, rtol=1e-9)  # the JSON's order is the canonical one
@@ -498,9 +497,9 @@ def test_cli_linearize_on_the_arm_is_drakes_model_at_the_goal_and_its_camera_stu
     sampled model at the arm's own gain (auto, chosen for this camera and latency), which
     keeps the margin; the free rig's studies are refused in one line."""
     from geovs_drake.analysis.linear.arm_study import linearize_arm_at_goal
-    from geovs_drake.goal.camera_fit import GAIN_MARGIN, camera_fit
-    from geovs_drake.loop.build import fit_gains
-    from geovs_drake.scenario import Arm, resolve
+    from geovs_drake.goal.camera_fit import GAIN_MARGIN
+    from geovs_drake.loop import resolve
+    from geovs_drake.scenario import Arm
 
     held = "sensor: !Pinhole {prediction: none}"
     run = run_cli(
@@ -513,7 +512,7 @@ def test_cli_linearize_on_the_arm_is_drakes_model_at_the_goal_and_its_camera_stu
     eigenvalues = np.array([complex(re, im) for re, im in out["eigenvalues"]])
     assert_spectra_close(eigenvalues, np.linalg.eigvals(closed), rtol=0, atol=1e-8)
     sensor = Pinhole(latency_frames=1, prediction="none")
-    fit = camera_fit(resolve(fit_gains(ScenarioConfig(carrier=Arm(), sensor=sensor))))
+    fit = resolve(ScenarioConfig(carrier=Arm(), sensor=sensor)).camera_fit
     camera = out["camera"]
     assert camera["prediction"] == "none"
     assert camera["gain_scale"] == pytest.approx(fit.gain_value)
@@ -527,7 +526,7 @@ def test_cli_linearize_on_the_arm_is_drakes_model_at_the_goal_and_its_camera_stu
     from geovs_drake.goal.camera_fit import goal_sampled_model
 
     held_model = goal_sampled_model(
-        resolve(fit_gains(ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=sensor)))
+        resolve(ScenarioConfig(carrier=Arm(gain_scale=10.0), sensor=sensor))
     )
     A = held_model.A_c + held_model.B_n @ held_model.C_xi  # the continuous loop's
     slowest = np.max(np.linalg.eigvals(A).real)

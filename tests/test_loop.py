@@ -11,7 +11,7 @@ import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import Simulator
 
-from geovs_drake.loop import CARRIERS, LAWS, SENSORS, build_loop, refusal
+from geovs_drake.loop import CARRIERS, LAWS, SENSORS, build_loop, refusal, resolve
 from geovs_drake.scenario import (
     CONTROLLERS,
     LAW_VARIANTS,
@@ -26,7 +26,6 @@ from geovs_drake.scenario import (
     PoseConfig,
     Rendered,
     ScenarioConfig,
-    resolve,
     variant_name,
 )
 from geovs_drake.simulation import simulate

@@ -16,16 +16,8 @@ from geovs_drake.geometry.target_motion import (
     target_pose,
 )
 from geovs_drake.goal.linear_model import tracking_lag
-from geovs_drake.loop import build_loop
-from geovs_drake.scenario import (
-    Dynamic,
-    Kinematic,
-    ScenarioConfig,
-    Still,
-    Twist,
-    load_scenario,
-    resolve,
-)
+from geovs_drake.loop import build_loop, resolve
+from geovs_drake.scenario import Dynamic, Kinematic, ScenarioConfig, Still, Twist, load_scenario
 from geovs_drake.simulation import simulate
 from geovs_drake.systems.target_motion import TargetMotion, matrix_of_pose, pose_of_matrix
 
@@ -215,9 +207,7 @@ def test_lag_without_feedforward_is_the_linear_models(plant):
     result = simulate(_config(plant, "none", SHORT_S, initial=start))
     assert not result.left_domain
     predicted = result.predicted_steady_error
-    assert predicted == pytest.approx(
-        np.linalg.norm(tracking_lag(result.config, XI_B, resolve(result.config).damping)[3:])
-    )
+    assert predicted == pytest.approx(np.linalg.norm(tracking_lag(result.resolved, XI_B)[3:]))
     assert abs(result.steady_tracking_error - predicted) <= LAG_TOLERANCE * predicted
 
 
@@ -228,8 +218,9 @@ def test_tracking_lag_of_the_kinematic_loop_is_A_inverse_times_the_carried_twist
 
     config = ScenarioConfig(plant=Kinematic())
     xi = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.02])  # along z_B = the goal's optical axis
+    resolved = resolve(config)
     np.testing.assert_allclose(
-        tracking_lag(config, xi), np.linalg.solve(closed_form_A(config), xi), atol=1e-15
+        tracking_lag(resolved, xi), np.linalg.solve(closed_form_A(resolved), xi), atol=1e-15
     )
 
 
@@ -335,7 +326,7 @@ def _predicted_peak(config, frequency: float, xi_hat: np.ndarray) -> float:
     """The largest |position error| over a period of eps(t) = Re(G xi_hat e^{jwt})."""
     from geovs_drake.goal.linear_model import tracking_transfer
 
-    response = tracking_transfer(config, [frequency])[0] @ xi_hat
+    response = tracking_transfer(resolve(config), [frequency])[0] @ xi_hat
     phases = np.linspace(0.0, 2 * np.pi, 721)
     return max(np.linalg.norm(np.real(response * np.exp(1j * p))[3:]) for p in phases)
 
@@ -351,8 +342,8 @@ def test_the_transfer_at_zero_frequency_is_the_lag():
     fast = 1e4  # [Hz]: the next term is A / s, A up to about 60 / s here
     for plant in (Kinematic(), Dynamic()):
         config = ScenarioConfig(plant=plant)
-        G = tracking_transfer(config, [0.0, fast])
-        np.testing.assert_allclose(G[0].real @ xi, tracking_lag(config, xi), atol=1e-15)
+        G = tracking_transfer(resolve(config), [0.0, fast])
+        np.testing.assert_allclose(G[0].real @ xi, tracking_lag(resolve(config), xi), atol=1e-15)
         assert np.all(np.abs(G[0].imag) < 1e-15)
         Ad = velocity_adjoint(config.X_BC_goal.inverse())
         np.testing.assert_allclose(2j * np.pi * fast * G[1], -Ad, atol=0.01 * np.abs(Ad).max())

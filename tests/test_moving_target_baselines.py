@@ -20,7 +20,7 @@ from geovs_drake.geometry.baselines import (
 )
 from geovs_drake.geometry.camera import camera_map
 from geovs_drake.geometry.target_motion import adjoint, se3_exp
-from geovs_drake.loop import build_loop
+from geovs_drake.loop import build_loop, resolve
 from geovs_drake.scenario import (
     Dynamic,
     Ibvs,
@@ -258,7 +258,7 @@ def test_the_baselines_lag_is_drakes_linearize_of_their_own_loop():
     xi = np.array([0.0, 0.0, 0.2, 0.05, 0.0, 0.0])
     config = ScenarioConfig(plant=Kinematic())
     np.testing.assert_allclose(
-        kinematic_tracking_lag(config, xi), tracking_lag(config, xi), rtol=1e-8, atol=1e-12
+        kinematic_tracking_lag(config, xi), tracking_lag(resolve(config), xi), rtol=1e-8, atol=1e-12
     )
     moving = Twist(twist=list(xi), feedforward="none")
     pbvs = ScenarioConfig(plant=Kinematic(), controller=Pbvs(), target_motion=moving)
@@ -270,7 +270,7 @@ def test_the_baselines_lag_is_drakes_linearize_of_their_own_loop():
     assert predicted_tracking_lag(ScenarioConfig(plant=Dynamic(), controller=Pbvs())) is None
     nf = ScenarioConfig(plant=Dynamic(), controller=Nf(), target_motion=moving)
     assert predicted_tracking_lag(nf) == pytest.approx(
-        np.linalg.norm(tracking_lag(nf, xi)[3:]), rel=1e-12
+        np.linalg.norm(tracking_lag(resolve(nf), xi)[3:]), rel=1e-12
     )
 
 

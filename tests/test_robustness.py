@@ -25,13 +25,14 @@ from geovs_drake.analysis.studies.robustness import (
     sampled_spectral_radius,
     summarize_robustness,
 )
-from geovs_drake.scenario import Dynamic, Pinhole, ScenarioConfig, exact_twin
+from geovs_drake.loop import exact_twin, resolve
+from geovs_drake.scenario import Dynamic, Pinhole, ScenarioConfig
 from geovs_drake.simulation import simulate
 
 
 def test_stiffness_of_the_measured_loop_is_the_closed_form():
     config = ScenarioConfig()
-    K_closed = -rig_spatial_inertia(config) @ closed_form_A(config, Dynamic())[6:, :6]
+    K_closed = -rig_spatial_inertia(config) @ closed_form_A(resolve(config), Dynamic())[6:, :6]
     scale = np.max(np.abs(K_closed))
     assert np.max(np.abs(potential_stiffness(config) - K_closed)) < 1e-8 * scale
     # The pinhole sensor, noise-free, measures c(H): the same stiffness.

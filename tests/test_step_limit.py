@@ -15,7 +15,8 @@ import pytest
 from pydrake.systems.analysis import SimulatorConfig
 
 from geovs_drake.goal.linear_model import closed_form_A
-from geovs_drake.goal.step_limit import STABILITY_MARGIN, step_limit
+from geovs_drake.goal.step_limit import STABILITY_MARGIN
+from geovs_drake.loop import resolve
 from geovs_drake.scenario import (
     DEFAULT_MAX_STEP,
     Arm,
@@ -24,7 +25,6 @@ from geovs_drake.scenario import (
     Kinematic,
     PoseConfig,
     ScenarioConfig,
-    resolve,
     variant_name,
 )
 from geovs_drake.simulation import simulate
@@ -35,8 +35,8 @@ NEAR = PoseConfig(xyz=[0.02, -0.01, -0.52], rpy=[0.02, -0.01, 0.1])
 
 def test_the_stable_step_of_a_real_mode_is_rk3s_real_axis_bound():
     config = ScenarioConfig(plant=Kinematic())
-    limit = step_limit(resolve(config))
-    eigenvalues = np.linalg.eigvals(closed_form_A(config))
+    limit = resolve(config).step_limit
+    eigenvalues = np.linalg.eigvals(closed_form_A(resolve(config)))
     assert np.allclose(eigenvalues.imag, 0) and limit.fastest_mode == pytest.approx(
         eigenvalues.real.min()
     )
@@ -56,17 +56,17 @@ def test_the_stable_step_of_a_real_mode_is_rk3s_real_axis_bound():
 def test_a_limit_the_user_sets_is_used_as_given():
     config = ScenarioConfig(plant=Kinematic())
     # Not set: None, automatic; Drake's struct gets Drake's own default for it.
-    assert config.simulator.max_step_size is None and step_limit(resolve(config)).automatic
+    assert config.simulator.max_step_size is None and resolve(config).step_limit.automatic
     assert config.simulator.to_drake().max_step_size == SimulatorConfig().max_step_size
     # Any value is the user's, Drake's default 0.1 too (it used to read as "not set").
     config.simulator.max_step_size = SimulatorConfig().max_step_size
-    assert step_limit(resolve(config)).max_step_size == 0.1
+    assert resolve(config).step_limit.max_step_size == 0.1
     config.simulator.max_step_size = DEFAULT_MAX_STEP  # the old default, now explicit
-    limit = step_limit(resolve(config))
+    limit = resolve(config).step_limit
     assert not limit.automatic and limit.max_step_size == DEFAULT_MAX_STEP
     assert limit.beyond_bound and "outside runge_kutta3's" in limit.warning("runge_kutta3")
     config.simulator.max_step_size = 0.01  # inside the bound: nothing to say
-    assert step_limit(resolve(config)).warning("runge_kutta3") is None
+    assert resolve(config).step_limit.warning("runge_kutta3") is None
 
 
 @pytest.mark.parametrize("plant", [Kinematic(), Dynamic()], ids=variant_name)
@@ -121,7 +121,7 @@ def test_the_closed_forms_readers_refuse_a_loop_it_does_not_model_alike(carrier)
         with pytest.raises(ValueError) as error:
             call()
         assert str(error.value) == f"{who}: the closed form is the eye-in-hand free rig's {got}"
-    limit = step_limit(resolve(config))
+    limit = resolve(config).step_limit
     if isinstance(carrier, Arm):
         assert limit.stable_step is not None and limit.max_step_size < DEFAULT_MAX_STEP
     else:

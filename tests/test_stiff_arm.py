@@ -25,16 +25,9 @@ from geovs_drake.goal.step_limit import (
     STABILITY_MARGIN,
     STABILITY_POLYNOMIALS,
     STIFFNESS_RATIO,
-    step_limit,
 )
-from geovs_drake.scenario import (
-    DEFAULT_MAX_STEP,
-    Arm,
-    PoseConfig,
-    ScenarioConfig,
-    load_scenario,
-    resolve,
-)
+from geovs_drake.loop import resolve
+from geovs_drake.scenario import DEFAULT_MAX_STEP, Arm, PoseConfig, ScenarioConfig, load_scenario
 from geovs_drake.simulation import simulate
 
 DATA = Path(__file__).parent / "data"
@@ -71,7 +64,7 @@ def _rk3_inside(h: float, modes: np.ndarray) -> bool:
 
 def test_the_stiff_arms_fastest_mode_is_drakes_its_last_joints_damping_over_its_inertia():
     config = _stiff()
-    limit = step_limit(resolve(config))
+    limit = resolve(config).step_limit
     modes = _drake_modes(config)
     fastest, slowest = modes[np.argmax(np.abs(modes))], modes[np.argmin(np.abs(modes))]
     assert limit.fastest_mode == pytest.approx(complex(fastest), rel=1e-6)
@@ -102,7 +95,7 @@ def test_the_named_arms_step_keeps_drakes_goal_modes_in_rk3s_region_and_no_warni
         except importlib.metadata.PackageNotFoundError:
             pytest.skip('the Panda needs example-robot-data: pip install "geovs-drake[panda]"')
     config = ScenarioConfig(carrier=Arm(model=model))
-    limit = step_limit(resolve(config))
+    limit = resolve(config).step_limit
     modes = _drake_modes(config)
     assert _rk3_inside(limit.max_step_size, modes)
     assert not limit.stiff and limit.stiffness < 100
@@ -142,7 +135,7 @@ def test_the_stiff_arm_gets_one_warning_line_naming_the_mode_and_the_remedy(run_
     warnings = [line for line in run.err.splitlines() if "warning: the loop is stiff" in line]
     assert run.code == 3 and len(warnings) == 1, run.err
     line = warnings[0]
-    limit = step_limit(resolve(_stiff(duration=0.02)))
+    limit = resolve(_stiff(duration=0.02)).step_limit
     assert f"fastest mode ({limit.fastest_mode.real:.4g} 1/s, mostly wrist_3_joint)" in line
     assert f"runge_kutta3 is stable there only for steps below {limit.stable_step:.3g} s" in line
     # The remedy as the line writes it: a layer that loads, and names the implicit scheme.

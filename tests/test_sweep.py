@@ -206,7 +206,7 @@ def test_interrupt_keeps_the_finished_parts_and_resume_finishes_identically(tmp_
         ({"starts": sweep.SampledStarts(21, seed=2)}, "starts 20, this run 21"),
         ({"starts": sweep.SampledStarts(20, seed=3)}, "seed 2, this run 3"),
         ({"duration": 2.0}, "duration 1.0, this run 2.0"),
-        ({"config": ScenarioConfig(radius=0.2)}, "holds another sweep: the scenario"),
+        ({"config": ScenarioConfig(radius=0.12)}, "holds another sweep: the scenario"),
     ):
         settings = {"config": config, "starts": starts, "duration": 1.0} | change
         with pytest.raises(sweep.SweepError, match=needle):

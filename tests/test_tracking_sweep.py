@@ -16,7 +16,8 @@ from geovs_drake.analysis.studies.tracking import (
     tracking_sweep,
 )
 from geovs_drake.goal.linear_model import tracking_lag
-from geovs_drake.scenario import Dynamic, Kinematic, ScenarioConfig, resolve
+from geovs_drake.loop import resolve
+from geovs_drake.scenario import Dynamic, Kinematic, ScenarioConfig
 from geovs_drake.simulation import simulate
 
 #: The issue's speed (TRACKING_TWIST's, 0.05 m/s) and four times it [m/s].
@@ -49,7 +50,6 @@ def test_short_sweep_known_is_the_still_loop_and_none_lags_as_predicted():
         config = copy.deepcopy(base)
         config.initial = pose
         still.append(simulate(config).steady_tracking_error)
-    damping = resolve(base).damping
     for speed in SPEEDS:
         known, none = rows[speed, "known"], rows[speed, "none"]
         assert known.in_domain == 1.0 and none.in_domain == 1.0
@@ -57,7 +57,7 @@ def test_short_sweep_known_is_the_still_loop_and_none_lags_as_predicted():
             float(np.median(still)), abs=SAME_AS_STILL_M
         )
         twist = np.asarray(TRACKING_TWIST) * speed / TRACKING_TWIST[3]
-        lag = float(np.linalg.norm(tracking_lag(base, twist, damping)[3:]))
+        lag = float(np.linalg.norm(tracking_lag(resolve(base), twist)[3:]))
         assert none.predicted_lag_m == pytest.approx(lag, rel=1e-12)
         assert none.median_steady_error_m == pytest.approx(lag, rel=LAG_TOLERANCE)
         assert none.predicted_in_domain is True

@@ -45,17 +45,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
 
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
-from geovs_drake.goal.step_limit import step_limit
 from geovs_drake.loop.state import initial_body_states
-from geovs_drake.scenario import Exact, FreeRig, Nf, ScenarioConfig, resolve, variant_name
+from geovs_drake.scenario import ScenarioConfig, variant_name
 from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
 from geovs_drake.systems.spherical_camera import CAMERA_OFFSET
+
+if TYPE_CHECKING:  # the record only: the workers import no loop
+    from geovs_drake.loop.resolved import ResolvedScenario
 
 __all__ = [
     "DEFAULT_STEP",
@@ -101,33 +104,37 @@ class LoopParameters:
     max_step_size: float
 
 
-def loop_parameters(config: ScenarioConfig) -> LoopParameters:
-    """The parameter vectors of the systems of ``config``'s diagram (``config.plant``).
+def loop_parameters(config: ScenarioConfig | ResolvedScenario) -> LoopParameters:
+    """The parameter vectors of the systems of ``config``'s diagram (``config.plant``),
+    resolved once (:func:`~geovs_drake.loop.resolver`).
 
-    The engine runs the NF's loops only: another law raises ValueError.
+    The engine runs the parts whose entries declare a batch kernel (the NF on the free
+    rig with the exact sensor): another raises ValueError.
     """
-    if not isinstance(config.controller, Nf):
+    # Here, not at the top: a sweep's workers get these parameters from the client and
+    # run the kernels without importing the Drake systems (geovs_drake._lazy).
+    from geovs_drake.loop import assemble_loop, resolve
+
+    resolved = resolve(config)
+    config = resolved.config
+    if not config.controller.traits.batch_kernel:
         raise ValueError(
             f"the batch engine runs the NF's loops only: controller = {config.controller!r} "
             "(use simulate() or the Drake engine for other laws)"
         )
-    if not isinstance(config.carrier, FreeRig):
+    if not config.carrier.traits.batch_kernel:
         raise ValueError(
             f"the batch engine runs the eye-in-hand free rig only: carrier = "
             f"{type(config.carrier).__name__} (use the Drake engine, sweep --engine drake, "
             "or simulate())"
         )
-    if not isinstance(config.sensor, Exact):
+    if not config.sensor.traits.batch_kernel:
         raise ValueError(
             f"the batch engine reads the exact y = c(H); sensor "
             f"{type(config.sensor).__name__} runs through simulate()"
         )
-    # Here, not at the top: a sweep's workers get these parameters from the client and
-    # run the kernels without importing the Drake systems (geovs_drake._lazy).
-    from geovs_drake.loop.build import build_loop
-
     dynamic = config.dynamic
-    diagram = build_loop(config, log=False).diagram
+    diagram = assemble_loop(resolved, log=False).diagram
     root = diagram.CreateDefaultContext()
 
     def params(name: str) -> np.ndarray:
@@ -147,7 +154,7 @@ def loop_parameters(config: ScenarioConfig) -> LoopParameters:
         body=np.array([config.carrier.mass, *config.carrier.inertia_diagonal], dtype=float),
         pose_error=np.concatenate([camera[CAMERA_OFFSET], goal]),
         potential_gain=config.control.potential_gain if dynamic else 1.0,
-        max_step_size=step_limit(resolve(config)).max_step_size,
+        max_step_size=resolved.step_limit.max_step_size,
     )
 
 

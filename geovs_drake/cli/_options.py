@@ -18,17 +18,12 @@ import math
 import textwrap
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
-from geovs_drake.scenario import (
-    AUTO,
-    AXES,
-    ResolvedScenario,
-    ScenarioConfig,
-    load_scenario,
-    resolve,
-    variant_name,
-)
+from geovs_drake.scenario import AUTO, AXES, ScenarioConfig, load_scenario, variant_name
+
+if TYPE_CHECKING:  # the command line starts without the loop's modules
+    from geovs_drake.loop.resolved import ResolvedScenario
 
 EXIT_CONVERGED = 0
 EXIT_BAD_INPUT = 2
@@ -359,14 +354,14 @@ def load_layers(args: argparse.Namespace) -> ScenarioConfig:
     return config
 
 
-def load_resolved(args: argparse.Namespace) -> ResolvedScenario:
-    """The scenario of ``args`` (:func:`load_layers`), validated and resolved once. What is
-    built from it trusts it."""
-    config = load_layers(args)
+def load_resolved(args: argparse.Namespace, effort: bool = False) -> ResolvedScenario:
+    """The scenario of ``args`` (:func:`load_layers`), validated and resolved once (the
+    arm's ``gain_scale: auto`` fitted there; ``effort``: with the dynamic arm's effort
+    check, for a warning line). What is built from it trusts it."""
     # Here, not at the top: the command line starts without the loop's modules.
-    from geovs_drake.loop.build import fit_gains
+    from geovs_drake.loop.resolver import resolve
 
-    return resolve(fit_gains(config))  # the arm's gain_scale: auto, chosen once
+    return resolve(load_layers(args), effort=effort)
 
 
 def load_config(args: argparse.Namespace) -> ScenarioConfig:

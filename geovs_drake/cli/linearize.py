@@ -199,14 +199,13 @@ def _camera(config, args, design) -> dict:
     studied = config
     if isinstance(config.carrier, Arm):
         from geovs_drake.goal.camera_fit import goal_sampled_model
-        from geovs_drake.loop.build import fit_gains
-        from geovs_drake.scenario import resolve
+        from geovs_drake.loop import resolve
 
         camera_config = copy.deepcopy(config)
         camera_config.sensor = camera_like(
             camera, type(camera), rate=rate, latency_frames=args.latency
         )
-        resolved = resolve(fit_gains(camera_config))
+        resolved = resolve(camera_config)
         summary = goal_sampled_model(resolved, continuous=continuous).summary(rate, args.latency)
         return {
             "gains": "scenario",

@@ -372,7 +372,7 @@ def _start_outside_domain() -> type[Exception]:
 def run(args: argparse.Namespace) -> int:
     """Run ``simulate``; the exit code."""
     _check_one_target_motion(args)
-    resolved = load_resolved(args)  # validated once; simulate() trusts it
+    resolved = load_resolved(args, effort=True)  # once, with the effort check it warns from
     progress = HorizonProgress(
         resolved.config.duration, "geovs-drake simulate", delay_s=args.progress_delay_s
     )
@@ -387,7 +387,8 @@ def run(args: argparse.Namespace) -> int:
         # A baseline's lag: Drake's Linearize of its loop (the NF's is simulate()'s own).
         from geovs_drake.analysis.linear.tracking_lag import predicted_tracking_lag
 
-        result.predicted_steady_error = predicted_tracking_lag(resolved)
+        lag = predicted_tracking_lag(resolved)
+        result = dataclasses.replace(result, predicted_steady_error=lag)
     if args.json:
         print(json.dumps(result.summary()))
     else:

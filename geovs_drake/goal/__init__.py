@@ -1,5 +1,5 @@
 """The loop's model at the goal, in one room: what a run derives about its goal before it
-starts, for :func:`~geovs_drake.loop.resolve` to compute once.
+starts, for :func:`~geovs_drake.loop.resolver` to compute once.
 
 * :mod:`~geovs_drake.goal.linear_model`: the closed-form A of each carrier and plant at
   the goal (the NF's Hessian through the chart), the moving target's lag and transfer,

@@ -22,13 +22,14 @@ from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import Solve
 
 from geovs_drake.geometry.camera import camera_map, camera_map_inverse
+from geovs_drake.geometry.domain import SafeDomain
 from geovs_drake.geometry.joint_barrier import joint_barrier
 from geovs_drake.geometry.navigation import (
     ModelCoordinates,
     features_from_model,
     model_coordinates,
 )
-from geovs_drake.scenario import Nf, ScenarioConfig
+from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems.arm_camera import null_space_projector
 from geovs_drake.systems.arm_model import (
     ARMS,
@@ -362,9 +363,10 @@ def _describe(X: RigidTransform) -> str:
     return f"xyz {np.round(X.translation(), 3).tolist()} rpy {np.round(rpy, 3).tolist()} in W"
 
 
-def initial_joints(config: ScenarioConfig) -> np.ndarray:
+def initial_joints(config: ScenarioConfig, domain: SafeDomain) -> np.ndarray:
     """The arm's start: ``carrier.initial_joints``, else X_BC(0) solved by IK (ValueError
-    for a wrong number of joints, :class:`Unreachable` for a pose out of reach)."""
+    for a wrong number of joints, :class:`Unreachable` for a pose out of reach), on the
+    branch of the NF's way to the goal in ``domain`` (the resolved D)."""
     model = arm_model(config)
     nq = arm_plant(model).num_positions()
     given = config.carrier.initial_joints
@@ -375,12 +377,15 @@ def initial_joints(config: ScenarioConfig) -> np.ndarray:
             )
         return np.asarray(given, dtype=float)
     X_WC0, X_WC_goal = config.X_WB @ config.X_BC_initial, config.X_WB @ config.X_BC_goal
-    path = chart_path(config, config.X_BC_initial)
+    path = chart_path(config, domain, config.X_BC_initial)
     return start_branch(model, solve_joints(model, X_WC0), X_WC0, X_WC_goal, path)
 
 
 def chart_path(
-    config: ScenarioConfig, X_BC: RigidTransform, steps: int = GOAL_PATH_STEPS
+    config: ScenarioConfig,
+    domain: SafeDomain,
+    X_BC: RigidTransform,
+    steps: int = GOAL_PATH_STEPS,
 ) -> list[RigidTransform] | None:
     """The camera's poses X_WC on the straight path in the NF's model chart from the image
     of X_BC to the goal's (:mod:`geovs_drake.geometry.navigation`): lambda and the two
@@ -395,12 +400,12 @@ def chart_path(
     that the arm reaches. The rotation's geodesic in SE(3) need not wind so: from a start
     rolled 179 deg it can turn the other way round (docs/arm.md, "The barrier's spurious
     equilibria")."""
-    domain, radius = config.domain.to_domain(), config.radius
+    radius = config.radius  # D is the resolved scenario's (``domain``)
     try:
         y0 = camera_map(X_BC.inverse(), radius)
     except ValueError:  # not visible
         return None
-    if not isinstance(config.controller, Nf) or not bool(domain.contains(y0)):
+    if not config.controller.traits.navigation or not bool(domain.contains(y0)):
         return None
     goal = camera_map(config.X_BC_goal.inverse(), radius)
     ends = [model_coordinates(y, domain) for y in (y0, goal)]

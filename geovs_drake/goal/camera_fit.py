@@ -24,27 +24,21 @@ this local model is what is left to check.
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from geovs_drake.goal.arm import arm_goal_model
+from geovs_drake.goal.inputs import GoalInputs
 from geovs_drake.goal.linear_model import (
     SampledModel,
     goal_stiffness,
     log_bisection,
     rig_spatial_inertia,
 )
-from geovs_drake.scenario import (
-    PREDICTIONS,
-    Arm,
-    CameraModel,
-    FreeRig,
-    Nf,
-    ResolvedScenario,
-    variant_name,
-)
+from geovs_drake.scenario import PREDICTIONS, variant_name
 
 __all__ = ["GAIN_MARGIN", "CameraFit", "camera_fit", "goal_sampled_model"]
 
@@ -63,7 +57,7 @@ _BISECTIONS = 30
 
 
 def goal_sampled_model(
-    resolved: ResolvedScenario, scale: float = 1.0, continuous: bool = False
+    resolved: GoalInputs, scale: float = 1.0, continuous: bool = False
 ) -> SampledModel | None:
     """The goal's closed-form model split at the camera (module docstring), the law's
     gains times ``scale``, ``continuous`` where a predictor feeds the law between frames;
@@ -92,6 +86,10 @@ class _GoalParts:
     D_carrier: np.ndarray
     R: np.ndarray
 
+    def scaled(self, factor: float) -> _GoalParts:
+        """The same goal with the law's gains (K and B) times ``factor``."""
+        return dataclasses.replace(self, K=factor * self.K, B=factor * self.B)
+
     def split(self, scale: float, continuous: bool = False) -> SampledModel:
         """The model at gains times ``scale``; ``continuous``: the law reads the image
         continuously (a predictor between frames), so the stiffness joins ``A_c`` and
@@ -113,18 +111,18 @@ class _GoalParts:
         return SampledModel(A_c=A_c, B_n=B_n, C_xi=C_xi)
 
 
-def _goal_parts(resolved: ResolvedScenario) -> _GoalParts | None:
+def _goal_parts(resolved: GoalInputs) -> _GoalParts | None:
     config = resolved.config
-    if not isinstance(resolved.law, Nf) or not isinstance(config.carrier, FreeRig | Arm):
+    if not (resolved.law.traits.navigation and config.carrier.traits.goal_model):
         return None
-    K1, KC = goal_stiffness(config)
+    K1, KC = goal_stiffness(resolved)
     if not config.dynamic:
         KC = config.control.kinematic_gain * KC
         zero = np.zeros_like(KC)
         return _GoalParts(M=None, K=KC, B=zero, D_carrier=zero, R=np.eye(len(KC)))
     K = config.control.potential_gain * K1
     B = np.diag(resolved.damping)
-    if isinstance(config.carrier, Arm):
+    if config.carrier.traits.joints:
         goal = arm_goal_model(config)
         J = goal.J
         R = np.linalg.svd(J, full_matrices=False)[2].T  # the row space of J (nv x 6)
@@ -157,6 +155,26 @@ class CameraFit:
     prediction: str
     spectral_radius: float
     largest_stable_scale: float
+    #: The goal's model the fit searched (at this run's gains), kept so that
+    #: :meth:`rebased` moves the run's gains without a second search.
+    model: _GoalParts | None = field(default=None, repr=False, compare=False)
+
+    def rebased(self, factor: float) -> CameraFit:
+        """The fit of the same loop with its gains times ``factor``: the spectral radius
+        there, and the same largest stable gain (so the scale relative to the new gains
+        is ``largest_stable_scale / factor``). What the resolver reports after it has
+        chosen the arm's ``gain_scale: auto`` from this fit."""
+        continuous = PREDICTIONS[self.prediction].continuous
+        radius = self.model.split(factor, continuous).spectral_radius(
+            self.rate, self.latency_frames
+        )
+        return dataclasses.replace(
+            self,
+            gain_value=self.gain_value * factor,
+            spectral_radius=radius,
+            largest_stable_scale=self.largest_stable_scale / factor,
+            model=self.model.scaled(factor),
+        )
 
     @property
     def stable(self) -> bool:
@@ -198,11 +216,12 @@ class CameraFit:
         )
 
 
-def camera_fit(resolved: ResolvedScenario) -> CameraFit | None:
+def camera_fit(resolved: GoalInputs) -> CameraFit | None:
     """The run's gains against its camera (:class:`CameraFit`), or None where the loop
-    has no camera (the exact sensor) or the closed form does not model it."""
+    has no camera (the exact sensor) or the closed form does not model it. The resolver
+    calls it once (:func:`~geovs_drake.loop.resolver`); a run reads ``resolved.camera_fit``."""
     camera = resolved.config.sensor
-    parts = _goal_parts(resolved) if isinstance(camera, CameraModel) else None
+    parts = _goal_parts(resolved) if camera.traits.camera else None
     if parts is None:
         return None
     rate, latency = float(camera.rate), camera.model_latency_frames
@@ -220,13 +239,14 @@ def camera_fit(resolved: ResolvedScenario) -> CameraFit | None:
         prediction=camera.prediction,
         spectral_radius=radius(1.0),
         largest_stable_scale=_largest_stable_scale(radius),
+        model=parts,
     )
 
 
-def _gain_field(resolved: ResolvedScenario) -> dict:
+def _gain_field(resolved: GoalInputs) -> dict:
     """The field that scales the law's gains in this run, and its value (:class:`CameraFit`)."""
     config = resolved.config
-    if isinstance(config.carrier, Arm):
+    if config.carrier.traits.gain_scale:
         return dict(gain_name="gain_scale", gain_value=resolved.gain_scale)
     if not config.dynamic:
         return dict(gain_name="control.kinematic_gain", gain_value=config.control.kinematic_gain)

@@ -32,7 +32,7 @@ may hold a worse configuration), which is why :data:`SAMPLES` is large.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -42,7 +42,6 @@ from geovs_drake.goal.arm import (
     joint_names,
     model_joint_damping,
 )
-from geovs_drake.scenario import Arm, Dynamic, Exact
 from geovs_drake.systems.arm_camera import null_space_projector
 
 __all__ = ["SAMPLES", "EffortFit", "TorqueTerms", "effort_fit"]
@@ -76,6 +75,18 @@ class EffortFit:
     joint: str
     samples: int
     worst_ratio: float
+    #: What the estimate was made of (the sampled configurations' torque terms, the
+    #: effort limits, the gains at ``gain_scale``, the joints' names), kept so that
+    #: :meth:`at` reads another gain scale without a second sampling.
+    basis: _Basis | None = field(default=None, repr=False, compare=False)
+
+    def at(self, gain_scale: float) -> EffortFit:
+        """The same estimate at another gain scale: the same sampled configurations and
+        level (so exact where the level does not depend on k_p: a start at rest), the
+        worst ratio and the joint at ``gain_scale``."""
+        basis = self.basis
+        k_p = basis.k_p * gain_scale / self.gain_scale
+        return _largest_scale(basis.rows, basis.limits, gain_scale, k_p, self.level, basis.names)
 
     @property
     def within(self) -> bool:
@@ -99,8 +110,8 @@ class EffortFit:
 def effort_fit(loop, level: float | None = None) -> EffortFit:
     """The loop's torques against the arm's effort limits over the sub-level set
     ``E <= level k_p`` (module docstring). ``loop`` is a dynamic arm's
-    :class:`~geovs_drake.loop.build.Loop` with the exact sensor (the law read at each
-    configuration's own y; :func:`~geovs_drake.loop.build.effort_check` builds it);
+    :class:`~geovs_drake.loop.Loop` with the exact sensor (the law read at each
+    configuration's own y; :func:`~geovs_drake.loop.effort_check` builds it);
     ``level`` None is the run's own start's, ``E0 / k_p`` (E never rises above E0, so
     these are all the states the run can reach); 1 is every start the guarantee covers."""
     return _effort_fit(_ArmTorques(loop), level)
@@ -141,12 +152,12 @@ class _ArmTorques:
     def __init__(self, loop) -> None:
         resolved = loop.resolved
         config = resolved.config
-        if not (isinstance(config.carrier, Arm) and isinstance(config.plant, Dynamic)):
+        if not (config.carrier.traits.effort_limits and config.dynamic):
             raise ValueError(
                 f"effort_fit needs the dynamic arm, got {type(config.carrier).__name__} on "
                 f"{type(config.plant).__name__}"
             )
-        if not isinstance(config.sensor, Exact):
+        if config.sensor.traits.camera:
             raise ValueError(
                 "effort_fit reads the law at each configuration's own y: build the loop with "
                 f"the exact sensor, not {type(config.sensor).__name__}"
@@ -159,6 +170,7 @@ class _ArmTorques:
         self.camera_context = loop.camera.GetMyContextFromRoot(self.context)
         self.navigation_context = loop.navigation.GetMyContextFromRoot(self.context)
         self.scale = resolved.gain_scale
+        self.domain = resolved.domain
         self.B = np.diag(resolved.damping)
         nq = self.plant.num_positions()
         self.own = config.carrier.joint_damping * np.eye(nq) + np.diag(
@@ -202,7 +214,7 @@ def _effort_fit(arm: _ArmTorques, level: float | None) -> EffortFit:
     k_p = config.control.potential_gain
     rows = []
     if level is None:  # the run's own start: in the set, and where E is largest
-        start = arm.terms(initial_joints(config))
+        start = arm.terms(initial_joints(config, arm.domain))
         if start is None:
             raise ValueError("the arm's start is not in D: no energy level to check")
         v0 = np.asarray(config.carrier.initial_joint_velocity or np.zeros(nq), dtype=float)
@@ -230,12 +242,23 @@ def _camera_jacobian(plant, context) -> np.ndarray:
     return camera_jacobian(plant, context, plant.GetFrameByName(CAMERA_FRAME))
 
 
+@dataclass(frozen=True)
+class _Basis:
+    """What an :class:`EffortFit` was estimated from (:meth:`EffortFit.at`)."""
+
+    rows: tuple[TorqueTerms, ...]
+    limits: np.ndarray
+    k_p: float
+    names: tuple[str, ...]
+
+
 def _largest_scale(
     rows: list[TorqueTerms], effort: np.ndarray, s1: float, k_p1: float, level: float, names
 ) -> EffortFit:
     """Bisection on the gain scale s for the largest with every sampled joint's largest
     torque within its limit (the torques grow with s, so the set of good scales is an
     interval from 0)."""
+    basis = _Basis(tuple(rows), effort, k_p1, tuple(names))
 
     def ratios(s: float) -> np.ndarray:
         return np.array([t.largest(s, k_p1 * s / s1, level) for t in rows]) / effort
@@ -243,12 +266,14 @@ def _largest_scale(
     worst = ratios(s1)
     joint = names[int(np.argmax(worst.max(axis=0)))]
     if ratios(0.0).max() > 1:
-        return EffortFit(s1, level, 0.0, joint, len(rows), float(worst.max()))
+        return EffortFit(s1, level, 0.0, joint, len(rows), float(worst.max()), basis)
     low, high = 0.0, 1e3 * s1
     if ratios(high).max() <= 1:
-        return EffortFit(s1, level, math.inf, joint, len(rows), float(worst.max()))
+        return EffortFit(s1, level, math.inf, joint, len(rows), float(worst.max()), basis)
     for _ in range(_BISECTIONS):
         mid = 0.5 * (low + high)
         low, high = (mid, high) if ratios(mid).max() <= 1 else (low, mid)
     at_edge = ratios(high).max(axis=0)
-    return EffortFit(s1, level, low, names[int(np.argmax(at_edge))], len(rows), float(worst.max()))
+    return EffortFit(
+        s1, level, low, names[int(np.argmax(at_edge))], len(rows), float(worst.max()), basis
+    )

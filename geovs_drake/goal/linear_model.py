@@ -36,7 +36,8 @@ from geovs_drake.geometry.navigation import (
 )
 from geovs_drake.geometry.so3 import hat
 from geovs_drake.geometry.target_motion import frame_wrench
-from geovs_drake.scenario import FreeRig, Kinematic, PlantConfig, ScenarioConfig
+from geovs_drake.goal.inputs import GoalInputs
+from geovs_drake.scenario import PlantConfig, ScenarioConfig
 
 __all__ = [
     "MAX_RATE_HZ",
@@ -63,7 +64,7 @@ def closed_form_refusal(config: ScenarioConfig, who: str) -> str | None:
     body; the fixed camera and the arm have other dynamics). The one place that decides
     it, for the step limit, the linearisation and gain design; the law (the NF's) is
     each caller's own question."""
-    if isinstance(config.carrier, FreeRig):
+    if config.carrier.traits.rigid_body_goal:
         return None
     return (
         f"{who}: the closed form is the eye-in-hand free rig's (carrier FreeRig), got "
@@ -109,15 +110,12 @@ def rig_spatial_inertia(config: ScenarioConfig) -> np.ndarray:
     return Ad.T @ M_R @ Ad
 
 
-def goal_stiffness(config: ScenarioConfig) -> tuple[np.ndarray, np.ndarray]:
+def goal_stiffness(resolved: GoalInputs) -> tuple[np.ndarray, np.ndarray]:
     """The NF's stiffness at the goal per unit gain, in minimal coordinates:
     ``K_1 = C_chart^T H C_chart`` (the dynamic loop's, times k_p) and
     ``C_chart^-1 H C_chart`` (the kinematic loop's, times k), H the chart Hessian of phi
-    at y* (:func:`navigation_hessian`, one AutoDiffXd pass)."""
-    y = config.goal_features()
-    nf = NavigationFunction(config.domain.to_domain(), y, config.navigation.to_gains())
-    H = navigation_hessian(nf, y)
-    Cc = chart_jacobian(y, config.radius)
+    at y* (the resolver's, :func:`navigation_hessian`) and C_chart at the true radius."""
+    H, Cc = resolved.hessian, chart_jacobian(resolved.y_goal, resolved.config.radius)
     return Cc.T @ H @ Cc, np.linalg.solve(Cc, H @ Cc)
 
 
@@ -131,11 +129,7 @@ def second_order_A(M: np.ndarray, K: np.ndarray, B: np.ndarray) -> np.ndarray:
     return A
 
 
-def closed_form_A(
-    config: ScenarioConfig,
-    plant: PlantConfig | None = None,
-    damping: tuple[float, ...] | None = None,
-) -> np.ndarray:
+def closed_form_A(resolved: GoalInputs, plant: PlantConfig | None = None) -> np.ndarray:
     """The closed-form linearisation at the goal, in minimal coordinates (the camera's
     right-trivialised displacement eps, then its twist, for the dynamic loop):
 
@@ -143,23 +137,20 @@ def closed_form_A(
       ``K = k_p C_chart^T H C_chart``, M the rig's spatial inertia about the camera;
     * kinematic (Eqs. 17-19): ``A = -k C_chart^-1 H C_chart``.
 
-    ``damping``: the B the loop runs with (:attr:`ResolvedScenario.damping`), by default
-    ``control.damping``. :mod:`geovs_drake.analysis.linear.linearization` checks it against
-    Drake's ``Linearize``.
+    B is the damping the loop runs with, ``resolved.damping`` (one answer, the
+    resolver's); ``plant`` (default: the scenario's) picks the loop.
+    :mod:`geovs_drake.analysis.linear.linearization` checks it against Drake's ``Linearize``.
     """
+    config = resolved.config
     plant = config.plant if plant is None else plant
-    K1, KC = goal_stiffness(config)
-    if isinstance(plant, Kinematic):
+    K1, KC = goal_stiffness(resolved)
+    if not plant.traits.dynamic:
         return -config.control.kinematic_gain * KC
-    Bd = np.diag(config.control.damping if damping is None else damping)
+    Bd = np.diag(resolved.damping)
     return second_order_A(rig_spatial_inertia(config), config.control.potential_gain * K1, Bd)
 
 
-def tracking_lag(
-    config: ScenarioConfig,
-    twist_B: np.ndarray,
-    damping: tuple[float, ...] | None = None,
-) -> np.ndarray:
+def tracking_lag(resolved: GoalInputs, twist_B: np.ndarray) -> np.ndarray:
     """eps_ss (6): where the linearised loop settles, without feed-forward, behind a
     target moving with the constant body twist ``twist_B`` = (omega, v) in B.
 
@@ -179,31 +170,27 @@ def tracking_lag(
       M^-1 (-B nu_B + F_frame)]`` and ``eps_ss = K^-1 (-B nu_B + F_frame)``.
 
     ``eps_ss = -A^-1 E u`` in both, with ``X_BC = X_BC* exp(eps^)`` (rotation first):
-    the position error is ``|eps_ss[3:]|`` to first order. ``damping``: the B the loop
-    runs with (:attr:`ResolvedScenario.damping`), by default ``control.damping``.
+    the position error is ``|eps_ss[3:]|`` to first order; B is ``resolved.damping``.
     """
+    config = resolved.config
     twist_B = np.asarray(twist_B, dtype=float)
     X_CB = config.X_BC_goal.inverse()
     nu_B = velocity_adjoint(X_CB) @ twist_B
-    A = closed_form_A(config, damping=damping)
-    if isinstance(config.plant, Kinematic):
+    A = closed_form_A(resolved)
+    if not config.dynamic:
         return np.linalg.solve(A, nu_B)
     rig = config.carrier  # a FreeRig (closed_form_refusal)
     xi_R = velocity_adjoint(config.X_RC @ X_CB) @ twist_B
     F_R = frame_wrench(np.zeros(6), xi_R, np.zeros(6), np.diag(rig.inertia_diagonal), rig.mass)
     F_C = velocity_adjoint(config.X_RC).T @ F_R  # the same wrench about C, in C
-    Bd = np.diag(config.control.damping if damping is None else damping)
+    Bd = np.diag(resolved.damping)
     Eu = np.concatenate(
         [np.zeros(6), np.linalg.solve(rig_spatial_inertia(config), F_C - Bd @ nu_B)]
     )
     return -np.linalg.solve(A, Eu)[:6]
 
 
-def tracking_transfer(
-    config: ScenarioConfig,
-    frequencies_hz: np.ndarray,
-    damping: tuple[float, ...] | None = None,
-) -> np.ndarray:
+def tracking_transfer(resolved: GoalInputs, frequencies_hz: np.ndarray) -> np.ndarray:
     """G(j 2 pi f) (F, 6, 6), complex: how the linearised loop's relative pose error eps
     (rotation, then position, as :func:`tracking_lag`'s) answers a target twist xi_B
     (6, (omega, v) in B) varying at each frequency f [Hz], without feed-forward.
@@ -217,13 +204,14 @@ def tracking_transfer(
     ``[0; -M^-1 B - s I]`` (dynamic). At f = 0 it is :func:`tracking_lag` per unit twist
     for a twist whose centripetal wrench vanishes (a pure translation).
     """
-    A = closed_form_A(config, damping=damping)
+    config = resolved.config
+    A = closed_form_A(resolved)
     n = A.shape[0]
     Ad = velocity_adjoint(config.X_BC_goal.inverse())
-    if isinstance(config.plant, Kinematic):
+    if not config.dynamic:
         E0, E1 = -np.eye(6), np.zeros((6, 6))
     else:
-        Bd = np.diag(config.control.damping if damping is None else damping)
+        Bd = np.diag(resolved.damping)
         E0 = np.vstack([np.zeros((6, 6)), -np.linalg.solve(rig_spatial_inertia(config), Bd)])
         E1 = np.vstack([np.zeros((6, 6)), -np.eye(6)])
     out = np.empty((len(np.atleast_1d(frequencies_hz)), 6, 6), dtype=complex)

@@ -52,20 +52,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from geovs_drake.geometry.navigation import NavigationFunction
+from geovs_drake.goal.inputs import GoalInputs
 from geovs_drake.goal.linear_model import (
     chart_jacobian,
     closed_form_A,
     closed_form_refusal,
-    navigation_hessian,
     second_order_A,
 )
-from geovs_drake.scenario import (
-    DEFAULT_MAX_STEP,
-    Arm,
-    Nf,
-    ResolvedScenario,
-)
+from geovs_drake.scenario import DEFAULT_MAX_STEP, ScenarioConfig
 
 __all__ = [
     "IMPLICIT_REMEDY",
@@ -76,7 +70,6 @@ __all__ = [
     "StepLimit",
     "arm_goal_A",
     "goal_A",
-    "stable_step",
     "step_limit",
 ]
 
@@ -200,15 +193,15 @@ def _stable(coefficients: tuple[float, ...], z: np.ndarray) -> bool:
     return bool(np.all(np.abs(R) <= 1.0 + 1e-12))
 
 
-def step_limit(resolved: ResolvedScenario) -> StepLimit:
-    """The :class:`StepLimit` the loop runs with (the one place it is decided)."""
-    config = resolved.config
+def step_limit(config: ScenarioConfig, model: GoalModel | None) -> StepLimit:
+    """The :class:`StepLimit` the loop runs with (the one place it is decided), from the
+    goal's linear ``model`` (:func:`goal_A`; None: no model covers the loop). The resolver
+    calls it once; a run reads ``resolved.step_limit``."""
     configured = config.simulator.max_step_size
     automatic = configured is None
     chosen = DEFAULT_MAX_STEP if automatic else float(configured)
     coefficients = STABILITY_POLYNOMIALS.get(config.simulator.integration_scheme)
-    model = None if coefficients is None else goal_A(resolved)
-    if model is None:
+    if coefficients is None or model is None:
         return StepLimit(max_step_size=chosen, automatic=automatic)
     eigenvalues, vectors = np.linalg.eig(model.A)
     modulus = np.abs(eigenvalues)
@@ -258,25 +251,15 @@ def _bound(coefficients: tuple[float, ...], eigenvalues: np.ndarray) -> tuple[co
     return fastest, lo
 
 
-def stable_step(resolved: ResolvedScenario) -> tuple[complex, float] | None:
-    """The goal's fastest mode and the largest stable step h for the configured scheme,
-    or None where they do not apply (a scheme without a stability polynomial here, a law
-    other than the NF, a loop without a closed form: :func:`goal_A`)."""
-    limit = step_limit(resolved)
-    if limit.stable_step is None:
-        return None
-    return limit.fastest_mode, limit.stable_step
-
-
-def goal_A(resolved: ResolvedScenario) -> GoalModel | None:
+def goal_A(resolved: GoalInputs) -> GoalModel | None:
     """The NF loop's A at the goal where the package has it in closed form: the free rig
     in the hand (:func:`~geovs_drake.goal.linear_model.closed_form_A`, minimal coordinates),
     the dynamic arm (:func:`arm_goal_A`, on (q, v)); None for another law or loop, and
     for an arm that cannot reach the goal (the run says so itself)."""
     config = resolved.config
-    if not isinstance(resolved.law, Nf):
+    if not resolved.law.traits.navigation:
         return None
-    if isinstance(config.carrier, Arm):
+    if config.carrier.traits.joints:
         # Imported here: the batch engine's workers read the free rig's limit and never
         # load the arm's MultibodyPlant.
         from geovs_drake.goal.arm import Unreachable
@@ -289,10 +272,10 @@ def goal_A(resolved: ResolvedScenario) -> GoalModel | None:
             return None
     if closed_form_refusal(config, "the step limit") is not None:
         return None
-    return GoalModel(closed_form_A(config, damping=resolved.damping))
+    return GoalModel(closed_form_A(resolved))
 
 
-def arm_goal_A(resolved: ResolvedScenario) -> GoalModel:
+def arm_goal_A(resolved: GoalInputs) -> GoalModel:
     """The dynamic arm's A at the goal on (q, v) (:mod:`geovs_drake.analysis.linear.arm_study`
     writes the same and checks it against Drake's ``Linearize``):
     ``M(q*) ddq = -J_C^T K J_C dq - (J_C^T B J_C + D_joint) dq_dot``, K the NF's stiffness
@@ -303,9 +286,7 @@ def arm_goal_A(resolved: ResolvedScenario) -> GoalModel:
 
     config = resolved.config
     goal = arm_goal_model(config)
-    y = resolved.y_goal
-    H = navigation_hessian(NavigationFunction(resolved.domain, y, resolved.gains), y)
-    Cc = chart_jacobian(y, resolved.believed_radius)
+    H, Cc = resolved.hessian, chart_jacobian(resolved.y_goal, resolved.believed_radius)
     K = config.control.potential_gain * Cc.T @ H @ Cc
     J = goal.J
     A = second_order_A(goal.M, J.T @ K @ J, J.T @ np.diag(resolved.damping) @ J + goal.D_joint)

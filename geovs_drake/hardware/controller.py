@@ -75,8 +75,9 @@ from geovs_drake.hardware.station import (
     FRAME_Y,
     US_PER_S,
 )
+from geovs_drake.loop import ResolvedScenario
 from geovs_drake.loop.laws import add_nf_law
-from geovs_drake.scenario import Rendered, ResolvedScenario
+from geovs_drake.scenario import Rendered
 from geovs_drake.systems import (
     ArmCamera,
     NavigationController,

@@ -63,8 +63,8 @@ from geovs_drake.hardware.messages import (
     VectorSerializer,
     frame_vector_size,
 )
+from geovs_drake.loop import ResolvedScenario
 from geovs_drake.loop.sensors import add_scene_renderer, camera_config
-from geovs_drake.scenario import ResolvedScenario
 from geovs_drake.systems import SelfMask
 from geovs_drake.systems.arm_model import ArmModel, add_arm
 from geovs_drake.systems.feature_extractor import extract_features

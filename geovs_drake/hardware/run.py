@@ -29,8 +29,8 @@ from geovs_drake.hardware.controller import (
     build_controller,
 )
 from geovs_drake.hardware.station import Station, build_station
-from geovs_drake.loop.build import fit_gains
-from geovs_drake.scenario import ResolvedScenario, ScenarioConfig, load_scenario, resolve
+from geovs_drake.loop import ResolvedScenario, resolve
+from geovs_drake.scenario import ScenarioConfig, load_scenario
 from geovs_drake.simulation.result import convergence_tolerance, pose_error
 
 __all__ = [
@@ -119,7 +119,7 @@ def load_setup(
     if adjust is not None:
         adjust(config)
     hardware = load_hardware({**section, **(hardware_changes or {})}, f"{path}: hardware")
-    return Setup(resolve(fit_gains(config)), hardware)
+    return Setup(resolve(config), hardware)
 
 
 def _simulator(diagram, setup: Setup, root_setter=None) -> Simulator:
@@ -194,7 +194,7 @@ def run_station(station: Station, duration: float) -> dict:
     context = gate.GetMyContextFromRoot(root)
     config = station.resolved.config
     dp, dr = pose_error(station.X_BC(root), config.X_BC_goal)
-    tol_p, tol_r = convergence_tolerance(config)
+    tol_p, tol_r = convergence_tolerance(station.resolved)
     if gate.lost(context):
         status = "command_lost"
     else:

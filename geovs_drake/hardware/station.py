@@ -53,8 +53,9 @@ from geovs_drake.hardware.messages import (
     command_vector,
     subscribe_vector,
 )
+from geovs_drake.loop import ResolvedScenario
 from geovs_drake.loop.carriers import add_arm_scene
-from geovs_drake.scenario import Pinhole, Rendered, ResolvedScenario
+from geovs_drake.scenario import Pinhole, Rendered
 from geovs_drake.systems import ArmCamera, PinholeFeatureSensor
 from geovs_drake.systems.arm_camera import actuation_permutation
 from geovs_drake.systems.arm_model import CAMERA_FRAME, ArmModel, arm_plant
@@ -319,7 +320,7 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     builder = DiagramBuilder()
     interface = builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
     model, plant, scene_graph, link, X_LinkC = add_arm_scene(builder, resolved, True, True)
-    q0 = initial_joints(config)
+    q0 = initial_joints(config, resolved.domain)
     nq, nv = plant.num_positions(), plant.num_velocities()
     demux = builder.AddNamedSystem("arm_state_demux", Demultiplexer([nq, nv]))
     delay_steps = round(hardware.status_delay * hardware.status_rate)

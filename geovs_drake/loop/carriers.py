@@ -38,16 +38,9 @@ from geovs_drake.geometry._ops import MATH, NUMPY
 from geovs_drake.geometry.joint_barrier import joint_widths
 from geovs_drake.geometry.rigid import fixed_camera_relative_pose
 from geovs_drake.goal.arm import arm_model, initial_joints
+from geovs_drake.loop.resolved import ResolvedScenario
 from geovs_drake.loop.state import POSE, fixed_camera_pose, initial_rig_pose, initial_rig_state
-from geovs_drake.scenario import (
-    Arm,
-    Dynamic,
-    FixedCamera,
-    FreeRig,
-    Kinematic,
-    ResolvedScenario,
-    ScenarioConfig,
-)
+from geovs_drake.scenario import Arm, Dynamic, FixedCamera, FreeRig, Kinematic, ScenarioConfig
 from geovs_drake.systems import (
     ArmCamera,
     FixedCameraKinematicMount,
@@ -679,7 +672,7 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
     the camera frame's Jacobian, with gravity compensated (:class:`ArmCamera`)."""
     config = resolved.config
     model, plant, scene_graph, link, X_LinkC = add_arm_scene(builder, resolved, draws_marks, True)
-    q0 = initial_joints(config)
+    q0 = initial_joints(config, resolved.domain)
     v0 = np.asarray(config.carrier.initial_joint_velocity or np.zeros(plant.num_velocities()))
     if len(v0) != plant.num_velocities():
         raise ValueError(
@@ -739,7 +732,7 @@ def _arm_kinematic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_ma
     the renderer) at the positions the KinematicArm integrates."""
     config = resolved.config
     model, plant, scene_graph, link, X_LinkC = add_arm_scene(builder, resolved, draws_marks, False)
-    q0 = initial_joints(config)
+    q0 = initial_joints(config, resolved.domain)
     arm = builder.AddNamedSystem(
         "kinematic_arm",
         KinematicArm(

@@ -36,16 +36,10 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import TrajectorySource
 
 from geovs_drake.loop.carriers import CarrierParts
+from geovs_drake.loop.resolved import ResolvedScenario
 from geovs_drake.loop.targets import connect_law_feedforward
 from geovs_drake.planning import plan_for_scenario
-from geovs_drake.scenario import (
-    Ibvs,
-    Nf,
-    PathFollowing,
-    Pbvs,
-    ResolvedScenario,
-    Spherical,
-)
+from geovs_drake.scenario import Ibvs, Nf, PathFollowing, Pbvs, Spherical
 from geovs_drake.systems import (
     IbvsController,
     ImageJacobianForce,

@@ -31,7 +31,8 @@ from pydrake.systems.sensors import CameraConfig, CameraInfo, ImageRgba8U, RgbdS
 
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
 from geovs_drake.loop.carriers import CarrierParts
-from geovs_drake.scenario import Arm, Exact, Pinhole, Rendered, ResolvedScenario
+from geovs_drake.loop.resolved import ResolvedScenario
+from geovs_drake.scenario import Exact, Pinhole, Rendered
 from geovs_drake.systems import (
     FeatureExtractor,
     FramePredictor,
@@ -263,7 +264,7 @@ def camera_config(resolved: ResolvedScenario) -> CameraConfig:
         output_delay=cam.output_delay,
         rgb=True,
         depth=False,
-        label=isinstance(config.carrier, Arm),
+        label=config.carrier.traits.joints,  # the arm's own links are masked by label
     )
 
 

@@ -22,7 +22,7 @@ from geovs_drake.geometry.rigid import (
     rig_velocity,
     target_twist_from_camera,
 )
-from geovs_drake.scenario import FixedCamera, ScenarioConfig
+from geovs_drake.scenario import ScenarioConfig
 
 __all__ = [
     "POSE",
@@ -78,7 +78,7 @@ def initial_body_states(
         raise ValueError(
             "an initial twist applies to the dynamic loop only (first-order kinematic)"
         )
-    if isinstance(config.carrier, FixedCamera):
+    if not config.carrier.traits.camera_in_hand:
         return _initial_target_states(config, X_BC, twists)
     X_RC = config.X_RC if dynamic else RigidTransform()
     X_RC_inv = X_RC.inverse()
@@ -143,7 +143,7 @@ def camera_pose_in_target(config: ScenarioConfig, x: np.ndarray, dynamic: bool) 
     or, for the fixed camera, the target's X_WB (then X_BC = X_WB^-1 X_WC)."""
     q = np.asarray(x[QUATERNION], dtype=float)
     X_W = RigidTransform(RotationMatrix(Quaternion(q / np.linalg.norm(q))), x[POSITION])
-    if isinstance(config.carrier, FixedCamera):
+    if not config.carrier.traits.camera_in_hand:
         return X_W.inverse() @ fixed_camera_pose(config)
     X_RC = config.X_RC if dynamic else RigidTransform()
     return config.X_WB.inverse() @ X_W @ X_RC
@@ -168,7 +168,7 @@ def poses_in_target(config: ScenarioConfig, states: np.ndarray) -> np.ndarray:
     )
     X_W[:, :3, 3] = states[:, POSITION]
     X_W[:, 3, 3] = 1.0
-    if isinstance(config.carrier, FixedCamera):  # X_BC = X_WB^-1 X_WC with the target's state X_WB
+    if not config.carrier.traits.camera_in_hand:  # X_BC = X_WB^-1 X_WC with the target's state X_WB
         R_T = np.swapaxes(X_W[:, :3, :3], 1, 2)
         inverse = np.zeros_like(X_W)
         inverse[:, :3, :3] = R_T

@@ -55,14 +55,8 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, PassThrough
 
 from geovs_drake.loop.carriers import CarrierParts, world_view_meshcat
-from geovs_drake.scenario import (
-    ESTIMATOR_RATE_HZ,
-    FEEDFORWARD_MODES,
-    Arm,
-    CameraModel,
-    FreeRig,
-    ResolvedScenario,
-)
+from geovs_drake.loop.resolved import ResolvedScenario
+from geovs_drake.scenario import ESTIMATOR_RATE_HZ, FEEDFORWARD_MODES, Arm, FreeRig
 from geovs_drake.scenario.targets import target_motion_arguments
 from geovs_drake.systems.target_frame import TargetFrame
 from geovs_drake.systems.target_motion import TargetMotion
@@ -231,7 +225,7 @@ def estimator_timing(resolved: ResolvedScenario) -> tuple[float, int]:
     the estimator's are simultaneous, so it reads the one before); the exact sensor's y is
     read as it is taken, at :data:`~geovs_drake.scenario.ESTIMATOR_RATE_HZ`."""
     sensor = resolved.config.sensor
-    if isinstance(sensor, CameraModel):
+    if sensor.traits.camera:
         return 1.0 / sensor.rate, int(sensor.latency_frames) + 1
     return 1.0 / ESTIMATOR_RATE_HZ, 0
 

@@ -1,6 +1,9 @@
-"""Scenario configuration: what a loop is, as typed configs, loaded once and resolved once.
+"""Scenario configuration: what a loop is, as typed configs: the schema, its loader and
+its checks (the shape of Drake's hardware_sim ``Scenario``). What a run derives from a
+scenario is resolved once, a layer up, by :func:`geovs_drake.loop.resolver`.
 
 One file per job, each importing only the ones above it in this list:
+* :mod:`~geovs_drake.scenario.traits`: what each variant can do (its ``traits``);
 
 * :mod:`~geovs_drake.scenario.pose`: :class:`PoseConfig`, a pose in a file;
 * the four axes of a loop, one variant each, in YAML tagged with the class name:
@@ -12,8 +15,6 @@ One file per job, each importing only the ones above it in this list:
   {twist: [0, 0, 0.2, 0.05, 0, 0]}``);
 * :mod:`~geovs_drake.scenario.schema`: :class:`ScenarioConfig` and its other parts,
   the checks of what no union can say, and the quantities derived from them;
-* :mod:`~geovs_drake.scenario.resolution`: :class:`ResolvedScenario`, the validated
-  scenario with what follows from it (:func:`resolve`);
 * :mod:`~geovs_drake.scenario.load`: YAML files and fragments in layers
   (:func:`load_scenario`, the pattern of Drake's hardware_sim loader);
 * :mod:`~geovs_drake.scenario.suite`: the comparison suite (:func:`load_suite`).
@@ -48,7 +49,6 @@ from geovs_drake.scenario.laws import (
 from geovs_drake.scenario.load import load_scenario, variant_layer
 from geovs_drake.scenario.plants import PLANT_VARIANTS, Dynamic, Kinematic, PlantConfig
 from geovs_drake.scenario.pose import PoseConfig
-from geovs_drake.scenario.resolution import ResolvedScenario, exact_twin, free_twin, resolve
 from geovs_drake.scenario.schema import (
     AXES,
     DEFAULT_MAX_STEP,
@@ -121,7 +121,6 @@ __all__ = [
     "PlantConfig",
     "PoseConfig",
     "Rendered",
-    "ResolvedScenario",
     "RigidBodyConfig",
     "ScenarioConfig",
     "SensorConfig",
@@ -135,14 +134,11 @@ __all__ = [
     "Twist",
     "damping_of",
     "default_suite_path",
-    "exact_twin",
-    "free_twin",
     "load_scenario",
     "load_suite",
     "target_motion_arguments",
     "target_trajectory",
     "trajectory_of",
-    "resolve",
     "camera_like",
     "radius_error_of",
     "variant_layer",

@@ -8,9 +8,11 @@ with its defaults. The loop takes each carrier's systems from
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 from geovs_drake.scenario.plants import Dynamic, Kinematic
 from geovs_drake.scenario.pose import PoseConfig, check_at_least, finite_numbers
+from geovs_drake.scenario.traits import CarrierTraits
 
 __all__ = [
     "AUTO",
@@ -47,12 +49,36 @@ class FreeRig(RigidBodyConfig):
 
     camera_offset: PoseConfig = field(default_factory=PoseConfig)
 
+    traits: ClassVar[CarrierTraits] = CarrierTraits(
+        camera_in_hand=True,
+        joints=False,
+        rigid_body_goal=True,
+        goal_model=True,
+        moving_target=True,
+        batch_kernel=True,
+        gain_scale=False,
+        effort_limits=False,
+        takes=(("dynamic", "wrench"), ("kinematic", "twist")),
+    )
+
 
 @dataclass
 class FixedCamera(RigidBodyConfig):
     """Eye-to-hand: the camera is fixed in the world where the eye-in-hand camera's goal
     is (``X_WB X_BC*``), and the target sphere is the driven body, of ``mass`` and
     ``inertia_diagonal`` about its centre; the laws see G = H^-1 (Eq. 16)."""
+
+    traits: ClassVar[CarrierTraits] = CarrierTraits(
+        camera_in_hand=False,
+        joints=False,
+        rigid_body_goal=False,
+        goal_model=False,
+        moving_target=False,
+        batch_kernel=False,
+        gain_scale=False,
+        effort_limits=False,
+        takes=(("dynamic", "wrench"), ("kinematic", "twist")),
+    )
 
 
 @dataclass
@@ -116,6 +142,18 @@ class Arm:
     #: torques over its energy level set can pass a limit; ``respect``, ``gain_scale:
     #: auto`` also stays at or below the largest scale that keeps them inside.
     torque_limits: str = "warn"
+
+    traits: ClassVar[CarrierTraits] = CarrierTraits(
+        camera_in_hand=True,
+        joints=True,
+        rigid_body_goal=False,
+        goal_model=True,
+        moving_target=True,
+        batch_kernel=False,
+        gain_scale=True,
+        effort_limits=True,
+        takes=(("dynamic", "joint torques"), ("kinematic", "joint velocities")),
+    )
 
 
 #: What the dynamic arm's effort limits do to its gains (``Arm.torque_limits``). Why

@@ -10,8 +10,10 @@ and the code asks ``isinstance``: the loop takes each law's systems from
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 from geovs_drake.geometry.baselines import IBVS_DEPTHS
+from geovs_drake.scenario.traits import LawTraits
 
 __all__ = [
     "CONTROLLERS",
@@ -38,6 +40,10 @@ class Nf:
     twist ``-Tc^-1 grad phi`` (Eqs. 18-19) on a twist-driven one. Its gains are
     ``control.potential_gain``, the damping and ``control.kinematic_gain``."""
 
+    traits: ClassVar[LawTraits] = LawTraits(
+        navigation=True, commands="wrench", plans=False, batch_kernel=True
+    )
+
 
 @dataclass
 class Ibvs:
@@ -51,6 +57,15 @@ class Ibvs:
 
     depth: str = "true"
 
+    traits: ClassVar[LawTraits] = LawTraits(
+        navigation=False,
+        commands="twist",
+        plans=False,
+        batch_kernel=False,
+        feature_points=True,
+        depth_label="depth",
+    )
+
 
 @dataclass
 class Pbvs:
@@ -58,10 +73,18 @@ class Pbvs:
     target it adds the believed twist carried to C (the loop's feed-forward,
     :mod:`geovs_drake.loop.targets`)."""
 
+    traits: ClassVar[LawTraits] = LawTraits(
+        navigation=False, commands="twist", plans=False, batch_kernel=False
+    )
+
 
 @dataclass
 class Spherical:
     """The sphere features ``(s / lambda, theta u)`` and their interaction matrix."""
+
+    traits: ClassVar[LawTraits] = LawTraits(
+        navigation=False, commands="twist", plans=False, batch_kernel=False
+    )
 
 
 @dataclass
@@ -80,6 +103,10 @@ class PathFollowing:
     feedback_gain: float = 2.0
     fallback: bool = True
     radius_scale: float = 1.0
+
+    traits: ClassVar[LawTraits] = LawTraits(
+        navigation=False, commands="twist", plans=True, batch_kernel=False
+    )
 
 
 #: A law's configuration: one of the variants above.

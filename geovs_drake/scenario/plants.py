@@ -1,13 +1,15 @@
 """The plant, one variant each (``ScenarioConfig.plant``): how the carrier is driven.
 
 In YAML a plant is tagged with its class name, ``plant: !Kinematic {}``; a scenario
-file's bare name (``plant: kinematic``) reads as that variant. The code asks
-``isinstance`` (or :attr:`ScenarioConfig.dynamic <geovs_drake.scenario.ScenarioConfig>`),
-never a name.
+file's bare name (``plant: kinematic``) reads as that variant. The code asks its
+``traits`` (or :attr:`ScenarioConfig.dynamic <geovs_drake.scenario.ScenarioConfig>`),
+never a name or a type.
 """
 
 from dataclasses import dataclass
 from typing import ClassVar
+
+from geovs_drake.scenario.traits import PlantTraits
 
 __all__ = ["PLANT_VARIANTS", "Dynamic", "Kinematic", "PlantConfig"]
 
@@ -22,6 +24,7 @@ class Dynamic:
     #: The ``control`` field that scales the NF's loop on this plant, and its symbol.
     gain_field: ClassVar[str] = "potential_gain"
     gain_symbol: ClassVar[str] = "k_p"
+    traits: ClassVar[PlantTraits] = PlantTraits(dynamic=True)
 
 
 @dataclass
@@ -31,6 +34,7 @@ class Kinematic:
 
     gain_field: ClassVar[str] = "kinematic_gain"
     gain_symbol: ClassVar[str] = "k"
+    traits: ClassVar[PlantTraits] = PlantTraits(dynamic=False)
 
 
 #: A plant's configuration: one of the variants above.

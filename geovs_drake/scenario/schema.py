@@ -245,12 +245,14 @@ class ScenarioConfig:
     log_rate: float = 50.0
     simulator: SimulatorSettings = field(default_factory=SimulatorSettings)
 
-    def validate(self) -> None:
-        """Raise ValueError naming the first bad field and its value.
+    def validate(self) -> tuple[SafeDomain, NavigationGains]:
+        """Raise ValueError naming the first bad field and its value; return the safe
+        domain D and the NF's gains it built to check them, which
+        :func:`~geovs_drake.loop.resolver` keeps (so D is made once).
 
-        Called once at each edge (:func:`load_scenario`, the command line,
-        :func:`resolve` and so the public ``simulate`` and ``build_loop``); what
-        is built from a :class:`ResolvedScenario` trusts it.
+        Called once at each edge (:func:`load_scenario` and
+        :func:`~geovs_drake.loop.resolver`, and so the command line, ``simulate`` and
+        ``build_loop``); what is built from a resolved scenario trusts it.
         """
         for axis in AXES:
             _check_variant(axis, getattr(self, axis))
@@ -290,9 +292,9 @@ class ScenarioConfig:
                 "initial_velocity must be 6 finite numbers (Omega, V) in C [rad/s, m/s], "
                 f"got {self.initial_velocity!r}"
             )
-        self.domain.to_domain()
-        self.navigation.to_gains()
+        domain, gains = self.domain.to_domain(), self.navigation.to_gains()
         self._check_combination(twist)
+        return domain, gains
 
     def _check_combination(self, twist: list[float]) -> None:
         """What no union can say: the combinations of the variants that make no loop."""
@@ -429,6 +431,14 @@ def _check_variant(axis: str, value: object) -> None:
     if not dataclasses.is_dataclass(value) or isinstance(value, type):
         spelled = ", ".join(f"{kind.__name__}()" for kind in AXES[axis].values())
         raise ValueError(f"{axis} must be a variant ({spelled}), got {value!r}")
+    kind = type(AXES[axis][next(iter(AXES[axis]))].traits).__name__
+    if getattr(type(value), "traits", None) is None:
+        # What a part can do is declared on it, and the package asks that, never its type.
+        raise ValueError(
+            f"{axis} {type(value).__name__} declares no traits: give its class "
+            f"traits: ClassVar[{kind}] = {kind}(...) (geovs_drake.scenario.traits, "
+            "docs/adding-a-part)"
+        )
 
 
 def variant_by_name(axis: str, name: str) -> str:

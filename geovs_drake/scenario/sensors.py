@@ -10,10 +10,11 @@ import copy
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 from geovs_drake.geometry.pinhole import PinholeIntrinsics
 from geovs_drake.scenario.pose import finite_numbers
+from geovs_drake.scenario.traits import SensorTraits
 
 __all__ = [
     "PREDICTIONS",
@@ -39,6 +40,8 @@ class Exact:
     y* = c(X_CB*) (it moves the equilibrium's distance, not its image)."""
 
     radius_error: float = 0.0
+
+    traits: ClassVar[SensorTraits] = SensorTraits(camera=False, renders=False, batch_kernel=True)
 
 
 @dataclass
@@ -121,11 +124,15 @@ class Pinhole(CameraModel):
     """The camera's measurement on the exact image points of the sphere's marks, without
     rendering (:class:`~geovs_drake.systems.PinholeFeatureSensor`, for fast sweeps)."""
 
+    traits: ClassVar[SensorTraits] = SensorTraits(camera=True, renders=False, batch_kernel=False)
+
 
 @dataclass
 class Rendered(CameraModel):
     """The scene drawn by Drake's RgbdSensor (RenderEngineVtk) every frame and y
     extracted from the colour image (:class:`~geovs_drake.systems.FeatureExtractor`)."""
+
+    traits: ClassVar[SensorTraits] = SensorTraits(camera=True, renders=True, batch_kernel=False)
 
 
 class Prediction(NamedTuple):

@@ -20,6 +20,7 @@ displacement X_B0B(t) from its start: X_WB(t) = X_WB(0) X_B0B(t), the same conve
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
@@ -27,6 +28,7 @@ from pydrake.math import RigidTransform
 from pydrake.trajectories import PiecewisePose
 
 from geovs_drake.scenario.pose import finite_numbers
+from geovs_drake.scenario.traits import TargetTraits
 
 __all__ = [
     "ESTIMATOR_RATE_HZ",
@@ -61,6 +63,8 @@ ESTIMATOR_RATE_HZ = 50.0
 class Still:
     """The target stands still at ``target`` (X_WB): the loop of the paper, unchanged."""
 
+    traits: ClassVar[TargetTraits] = TargetTraits(moving=False, constant_twist=False)
+
 
 @dataclass
 class Twist:
@@ -78,6 +82,8 @@ class Twist:
     feedforward: str = "estimated"
     pose_noise: float = 1e-3
     twist_noise: float = 1e-3
+
+    traits: ClassVar[TargetTraits] = TargetTraits(moving=True, constant_twist=True)
 
 
 #: A pose row's columns: the time [s], X_B0B's unit quaternion, its position [m].
@@ -110,6 +116,8 @@ class Trajectory:
     feedforward: str = "estimated"
     pose_noise: float = 1e-3
     twist_noise: float = 1e-3
+
+    traits: ClassVar[TargetTraits] = TargetTraits(moving=True, constant_twist=False)
 
 
 #: A target motion: one of the variants above.

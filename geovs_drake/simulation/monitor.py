@@ -27,8 +27,7 @@ from geovs_drake.geometry.kernels import (
     navigation,
 )
 from geovs_drake.geometry.rigid import quaternion_to_rotation
-from geovs_drake.goal.step_limit import step_limit
-from geovs_drake.loop.build import Loop
+from geovs_drake.loop.assembly import Loop
 from geovs_drake.simulation.result import MARGIN_NAMES
 from geovs_drake.systems._held_frames import waiting
 
@@ -326,8 +325,8 @@ def make_simulator(
     config = loop.resolved.config
     simulator = Simulator(loop.diagram)
     ApplySimulatorConfig(config.simulator.to_drake(), simulator)
-    if max_step_size is None:  # decided in one place (simulation.step_limit)
-        max_step_size = step_limit(loop.resolved).max_step_size
+    if max_step_size is None:  # decided in one place, by the resolver (goal.step_limit)
+        max_step_size = loop.resolved.step_limit.max_step_size
     simulator.get_mutable_integrator().set_maximum_step_size(max_step_size)
     loop.carrier.set_initial_state(simulator.get_mutable_context())
     monitor = SafeDomainMonitor(

@@ -5,21 +5,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydrake.math import RigidTransform
 
+from geovs_drake._json import json_ready
 from geovs_drake.geometry.domain import DomainMargins
-from geovs_drake.scenario import (
-    CameraModel,
-    FixedCamera,
-    FreeRig,
-    Ibvs,
-    ScenarioConfig,
-    Twist,
-    radius_error_of,
-    variant_name,
-)
+from geovs_drake.scenario import ScenarioConfig, radius_error_of, variant_name
+
+if TYPE_CHECKING:  # named in annotations only: the batch engine's workers read the
+    # tolerances here without the goal's models (an arm's MultibodyPlant) or the loop.
+    from geovs_drake.goal.camera_fit import CameraFit
+    from geovs_drake.goal.effort_fit import EffortFit
+    from geovs_drake.goal.step_limit import StepLimit
+    from geovs_drake.loop.resolved import ResolvedScenario
 
 __all__ = [
     "CONVERGENCE_POSITION_M",
@@ -29,8 +29,11 @@ __all__ = [
     "SimulationResult",
     "TargetTrace",
     "convergence_tolerance",
+    "energy_applies",
+    "energy_guarantee",
     "energy_note",
     "pose_error",
+    "run_warnings",
     "saddle_note",
 ]
 
@@ -74,7 +77,30 @@ def energy_note(initial_energy: float, bound: float) -> str:
     )
 
 
-def convergence_tolerance(config: ScenarioConfig) -> tuple[float, float]:
+def energy_applies(config: ScenarioConfig) -> bool:
+    """Whether Appendix C's energy argument covers ``config``'s loop: a still target, or
+    the free rig behind a moving one with its known motion fed forward (the relative
+    dynamics are then a still target's, docs/moving-target.md). Behind an estimated
+    or ignored motion, or on an arm simulated in the world, nothing bounds the energy
+    the target's motion brings in."""
+    if not config.moving_target:
+        return True
+    # The relative dynamics are a still target's for the rigid body of Appendix C.
+    rigid_body = config.carrier.traits.rigid_body_goal
+    return rigid_body and config.target_motion.feedforward == "known"
+
+
+def energy_guarantee(config: ScenarioConfig, energy: np.ndarray | None) -> bool | None:
+    """E0 < k_p: Appendix C's guarantee that phi < 1 throughout, for a run whose energy
+    along it is ``energy`` (dynamic, under the NF); None where the run has no energy (a
+    kinematic loop, another law) or the argument does not cover it
+    (:func:`energy_applies`)."""
+    if energy is None or not energy_applies(config):
+        return None
+    return bool(energy[0] < config.control.potential_gain)
+
+
+def convergence_tolerance(resolved: ResolvedScenario) -> tuple[float, float]:
     """``(position [m], rotation [rad])`` within which a run counts as converged.
 
     The exact sensor: 1 mm and 1 mrad. A camera cannot do better than it resolves:
@@ -86,9 +112,10 @@ def convergence_tolerance(config: ScenarioConfig) -> tuple[float, float]:
     8.5 px apart at 320x240 at the goal, so a tenth of a pixel on their
     centroids is 2 pixel angles of roll.
     """
-    if not isinstance(config.sensor, CameraModel):
+    config = resolved.config
+    if not config.sensor.traits.camera:
         return CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
-    f = config.sensor.intrinsics(config.domain.to_domain().fov_half_angle).fx
+    f = config.sensor.intrinsics(resolved.domain.fov_half_angle).fx
     distance = float(np.linalg.norm(config.X_BC_goal.translation()))
     return (
         max(CONVERGENCE_POSITION_M, CAMERA_TOLERANCE_PX * distance / f),
@@ -105,7 +132,7 @@ def pose_error(X_BC: RigidTransform, X_BC_goal: RigidTransform) -> tuple[float, 
     return dp, 2 * math.asin(min(1.0, d))
 
 
-@dataclass
+@dataclass(frozen=True)
 class ArmTrace:
     """The arm along a run (carrier "arm"), at the logged times.
 
@@ -137,10 +164,10 @@ class ArmTrace:
             out["max_joint_barrier"] = float(np.max(self.joint_barrier))
         if self.self_motion_speed is not None:
             out["final_self_motion_speed"] = float(self.self_motion_speed[-1])
-        return out
+        return json_ready(out)
 
 
-@dataclass
+@dataclass(frozen=True)
 class TargetTrace:
     """A moving target's estimator along a run (``target_motion`` with the ``estimated``
     feed-forward), at its own updates: ``times`` [s], ``twist_estimate`` (N, 6) and the
@@ -159,22 +186,40 @@ class TargetTrace:
 
     def summary(self) -> dict:
         """The JSON entries of the estimator's run."""
-        return {
-            "final_twist_estimate": [float(v) for v in self.twist_estimate[-1]],
-            "final_twist_estimation_error": float(self.estimation_error[-1]),
-            "final_twist_std": [float(v) for v in np.sqrt(self.covariance_diagonal[-1, 6:])],
-        }
+        return json_ready(
+            {
+                "final_twist_estimate": self.twist_estimate[-1],
+                "final_twist_estimation_error": self.estimation_error[-1],
+                "final_twist_std": np.sqrt(self.covariance_diagonal[-1, 6:]),
+            }
+        )
 
 
 #: The share of a run, from its end, over which the steady tracking error is read.
 STEADY_SHARE = 0.25
 
 
-@dataclass
-class SimulationResult:
-    """A run's logs and summary. Arrays are sampled at ``config.log_rate``."""
+def run_warnings(resolved: ResolvedScenario) -> tuple[str, ...]:
+    """The lines a run's user reads before it starts, from what the resolver found: the
+    step limit's (a stiff loop, a step beyond the bound), the camera fit's (gains too
+    close to instability) and the effort check's (torques past a limit); none where
+    each has nothing to say."""
+    config = resolved.config
+    lines = (
+        resolved.step_limit.warning(config.simulator.integration_scheme),
+        None if resolved.camera_fit is None else resolved.camera_fit.warning(),
+        None if resolved.effort is None else resolved.effort.warning(),
+    )
+    return tuple(line for line in lines if line is not None)
 
-    config: ScenarioConfig
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """A run's logs and summary, made once at the run's end. Arrays are sampled at
+    ``config.log_rate``; what the resolver derived (the step limit, the camera fit, the
+    effort check) is read from ``resolved``."""
+
+    resolved: ResolvedScenario
     status: str
     message: str
     sim_time_s: float
@@ -190,29 +235,53 @@ class SimulationResult:
     final_X_BC: RigidTransform = field(default_factory=RigidTransform)
     saddle_note: str | None = None  # set when the start (or an unconverged end) is near the saddle
     arm: ArmTrace | None = None  # carrier "arm": its joints along the run
-    #: The goal's fastest mode and the step limit run with (simulation.step_limit), if any.
-    step_limit: object | None = None
-    #: One line when a user's step limit put the goal's fastest mode beyond the bound.
-    step_warning: str | None = None
-    #: The run's gains against its camera (loop.camera_fit), for a camera loop the
-    #: closed form models; and one line where they keep less than the gain margin.
-    camera_fit: object | None = None
-    camera_warning: str | None = None
-    #: The dynamic arm's torques over its energy level set against its effort limits
-    #: (loop.effort_fit; None where not checked: see simulate's ``on_warning``), and the
-    #: warning line where they pass one (else None).
-    effort_fit: object | None = None
-    effort_warning: str | None = None
     #: Drake's continuous states at ``times`` (for the linearisation along the run).
     states: np.ndarray | None = None
     #: A moving target: the lag the linearised loop predicts without feed-forward
-    #: [m] (:func:`geovs_drake.goal.linear_model.tracking_lag`; None where it does not model
-    #: the loop), and the estimator's trace (the ``estimated`` feed-forward), else None.
+    #: [m] (the resolver's for the NF, :func:`geovs_drake.goal.linear_model.tracking_lag`;
+    #: None where no model covers the loop), and the estimator's trace (the ``estimated``
+    #: feed-forward), else None.
     predicted_steady_error: float | None = None
     target: TargetTrace | None = None
     #: A moving target's end [s], where it stops (its trajectory's last knot; inf for a
     #: constant twist), as the run's TargetMotion had it; else None.
     target_end_time: float | None = None
+
+    @property
+    def config(self) -> ScenarioConfig:
+        """The scenario run, as resolved (the arm's gains scaled)."""
+        return self.resolved.config
+
+    @property
+    def step_limit(self) -> StepLimit:
+        """The goal's fastest mode and the step limit run with (the resolver's)."""
+        return self.resolved.step_limit
+
+    @property
+    def camera_fit(self) -> CameraFit | None:
+        """The run's gains against its camera, for a camera loop a model covers."""
+        return self.resolved.camera_fit
+
+    @property
+    def effort_fit(self) -> EffortFit | None:
+        """The dynamic arm's torques over its energy level set against its effort limits
+        (None where not checked: see :func:`~geovs_drake.loop.resolver`'s ``effort``)."""
+        return self.resolved.effort
+
+    @property
+    def step_warning(self) -> str | None:
+        """One line where the step limit puts the goal's fastest mode beyond the bound."""
+        return self.step_limit.warning(self.config.simulator.integration_scheme)
+
+    @property
+    def camera_warning(self) -> str | None:
+        """One line where the gains keep less than the camera's gain margin."""
+        return None if self.camera_fit is None else self.camera_fit.warning()
+
+    @property
+    def effort_warning(self) -> str | None:
+        """One line where the torques pass an effort limit."""
+        return None if self.effort_fit is None else self.effort_fit.warning()
 
     @property
     def position_errors(self) -> np.ndarray:
@@ -257,23 +326,15 @@ class SimulationResult:
 
     @property
     def energy_applies(self) -> bool:
-        """Whether Appendix C's energy argument covers this run's loop: a still target, or
-        the free rig behind a moving one with its known motion fed forward (the relative
-        dynamics are then a still target's, docs/moving-target.md). Behind an estimated
-        or ignored motion, or on an arm simulated in the world, nothing bounds the energy
-        the target's motion brings in."""
-        config = self.config
-        if not config.moving_target:
-            return True
-        return isinstance(config.carrier, FreeRig) and config.target_motion.feedforward == "known"
+        """Whether Appendix C's energy argument covers this run's loop
+        (:func:`energy_applies`)."""
+        return energy_applies(self.config)
 
     @property
     def energy_guarantee(self) -> bool | None:
         """E0 < k_p: Appendix C's guarantee that phi < 1 throughout (dynamic), else None
-        (a kinematic loop, or a loop the argument does not cover: :attr:`energy_applies`)."""
-        if self.energy is None or not self.energy_applies:
-            return None
-        return bool(self.initial_energy < self.energy_bound)
+        (:func:`energy_guarantee`)."""
+        return energy_guarantee(self.config, self.energy)
 
     @property
     def final_errors(self) -> tuple[float, float]:
@@ -305,7 +366,7 @@ class SimulationResult:
         :data:`CONVERGENCE_ROTATION_RAD` of the goal.
         """
         dp, dr = self.final_errors
-        tol_p, tol_r = convergence_tolerance(self.config)
+        tol_p, tol_r = convergence_tolerance(self.resolved)
         return (
             not self.left_domain and self.status != "feature_lost" and dp <= tol_p and dr <= tol_r
         )
@@ -315,7 +376,7 @@ class SimulationResult:
         s = self.summary()
         cam = self.config.sensor
         sensor = ""
-        if isinstance(cam, CameraModel):
+        if cam.traits.camera:
             width, height = (int(v) for v in cam.resolution)
             sensor = f", {s['sensor']} camera {width}x{height} at {cam.rate:g} Hz"
         energy = ""
@@ -349,14 +410,15 @@ class SimulationResult:
         the NF, whose energy is not k_p phi. ``ibvs_depth`` is the IBVS depth
         estimate for the law ``ibvs``, else None."""
         dp, dr = self.final_errors
-        tol_p, tol_r = convergence_tolerance(self.config)
+        tol_p, tol_r = convergence_tolerance(self.resolved)
         law = self.config.controller
+        depth = law.traits.depth_label
         out = {
             "plant": variant_name(self.config.plant),
             "carrier": variant_name(self.config.carrier),
             "controller": variant_name(law),
-            "mount": "fixed" if isinstance(self.config.carrier, FixedCamera) else "hand",
-            "ibvs_depth": law.depth if isinstance(law, Ibvs) else None,
+            "mount": "hand" if self.config.carrier.traits.camera_in_hand else "fixed",
+            "ibvs_depth": getattr(law, depth) if depth else None,
             "sensor": variant_name(self.config.sensor),
             "converged": self.converged,
             "status": self.status,
@@ -391,14 +453,14 @@ class SimulationResult:
                 "kind": type(motion).__name__,
                 "feedforward": motion.feedforward,
             }
-            if isinstance(motion, Twist):
+            if motion.traits.constant_twist:
                 out["target_motion"]["twist"] = [float(v) for v in motion.twist]
             else:  # a trajectory's knots: its end, where the target stops
                 out["target_motion"]["end_time_s"] = self.target_end_time
             if self.target is not None:
                 out["target_motion"].update(self.target.summary())
         cam = self.config.sensor
-        if isinstance(cam, CameraModel):
+        if cam.traits.camera:
             out["camera"] = {
                 "rate_hz": cam.rate,
                 "resolution": [int(v) for v in cam.resolution],
@@ -438,4 +500,4 @@ class SimulationResult:
             out["max_step_size"] = limit.max_step_size
             out["max_step_automatic"] = limit.automatic
             out["fastest_mode"] = None if lam is None else [lam.real, lam.imag]
-        return out
+        return json_ready(out)

@@ -32,17 +32,8 @@ from pydrake.systems.primitives import Linearize
 from geovs_drake._json import json_ready
 from geovs_drake.goal.arm import arm_goal_model, arm_model, solve_joints
 from geovs_drake.goal.step_limit import arm_goal_A
-from geovs_drake.loop import build_loop
-from geovs_drake.loop.build import fit_gains
-from geovs_drake.scenario import (
-    Arm,
-    Dynamic,
-    Rendered,
-    ScenarioConfig,
-    camera_like,
-    exact_twin,
-    resolve,
-)
+from geovs_drake.loop import build_loop, exact_twin, resolve
+from geovs_drake.scenario import Dynamic, Rendered, ScenarioConfig, camera_like
 from geovs_drake.spectrum import EigenvalueFacts, canonical_eigenvalues
 
 __all__ = [
@@ -91,7 +82,7 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
     """Drake's ``Linearize`` of the dynamic arm loop at rest at the goal (the joints by
     IK of the goal pose), and the closed form (module docstring)."""
     config = exact_twin(config)  # a sampled camera has discrete state: no A
-    if not (isinstance(config.carrier, Arm) and config.dynamic):
+    if not (config.carrier.traits.joints and config.dynamic):
         raise ValueError(
             f"linearize_arm_at_goal needs carrier Arm and plant Dynamic, got "
             f"{type(config.carrier).__name__} and {type(config.plant).__name__}"
@@ -101,7 +92,7 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
     config.initial = copy.deepcopy(config.goal)
     config.carrier.initial_joints = q_goal.tolist()
     config.carrier.initial_joint_velocity = []
-    resolved = resolve(fit_gains(config))
+    resolved = resolve(config)
     loop = build_loop(resolved, log=False)
     context = loop.diagram.CreateDefaultContext()
     A_drake = Linearize(
@@ -179,7 +170,7 @@ def arm_pixels(config: ScenarioConfig, joint_positions: np.ndarray) -> np.ndarra
     config = copy.deepcopy(config)
     config.sensor = camera_like(config.sensor, Rendered)
     config.plant = Dynamic()  # the rendered camera's loop; the drawing is the same arm
-    loop = build_loop(resolve(fit_gains(config)), log=False)
+    loop = build_loop(config, log=False)
     rgbd = loop.diagram.GetSubsystemByName("rgbd_sensor")
     plant = loop.carrier.plant
     labels = [int(index) for index in plant.GetBodyIndices(loop.carrier.body.model_instance())]

@@ -45,8 +45,8 @@ from geovs_drake.goal.linear_model import (
     rig_spatial_inertia,
     second_order_A,
 )
-from geovs_drake.loop import build_loop
-from geovs_drake.scenario import Kinematic, PlantConfig, ScenarioConfig, exact_twin, variant_name
+from geovs_drake.loop import build_loop, exact_twin, resolve
+from geovs_drake.scenario import PlantConfig, ScenarioConfig, variant_name
 from geovs_drake.simulation import simulate
 from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
 from geovs_drake.spectrum import canonical_eigenvalues
@@ -78,7 +78,7 @@ def settling_rate(settling_time: float) -> float:
 def _check_request(plant: PlantConfig, settling_time: float, damping_ratio: float | None) -> None:
     if not (math.isfinite(settling_time) and settling_time > 0):
         raise ValueError(f"settling_time must be finite and > 0: settling_time = {settling_time}")
-    if isinstance(plant, Kinematic):
+    if not plant.traits.dynamic:
         if damping_ratio is not None:
             raise ValueError(
                 f"the kinematic loop's modes are all real (damping ratio 1): leave "
@@ -231,8 +231,8 @@ def design_gains(
     sigma = settling_rate(settling_time)
     designed = copy.deepcopy(config)
     M = rig_spatial_inertia(config)
-    K1, KC = goal_stiffness(config)
-    if isinstance(plant, Kinematic):
+    K1, KC = goal_stiffness(resolve(config))
+    if not plant.traits.dynamic:
         lam_min = float(np.min(np.linalg.eigvals(KC).real))
         designed.control.kinematic_gain = sigma / lam_min
         stiffness = designed.control.kinematic_gain * KC
@@ -250,7 +250,8 @@ def design_gains(
         config=designed,
         settling_time=settling_time,
         damping_ratio=damping_ratio,
-        eigenvalues=canonical_eigenvalues(closed_form_A(designed, plant)),
+        # The design is the continuous loop's (the exact sensor, whose B is control.damping).
+        eigenvalues=canonical_eigenvalues(closed_form_A(resolve(exact_twin(designed)), plant)),
         stiffness=stiffness,
     )
     if run_start:
@@ -324,7 +325,7 @@ def root_locus(
         raise ValueError(f"gain must be one of {', '.join(names)}: gain = {gain!r}")
     # The goal's stiffness once (one AutoDiffXd pass), then each gain's A.
     M = rig_spatial_inertia(config)
-    K1, KC = goal_stiffness(config)
+    K1, KC = goal_stiffness(resolve(config))
     control = config.control
     d0 = np.asarray(control.damping, dtype=float)
     rows = []

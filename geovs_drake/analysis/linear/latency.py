@@ -64,7 +64,7 @@ def camera_of(config: ScenarioConfig) -> CameraModel:
     where it is a camera, else the default :class:`~geovs_drake.scenario.Pinhole` (with
     the sensor's ``radius_error``), the camera an exact loop would get."""
     sensor = config.sensor
-    return sensor if isinstance(sensor, CameraModel) else camera_like(sensor, Pinhole)
+    return sensor if sensor.traits.camera else camera_like(sensor, Pinhole)
 
 
 def _camera_gains(config: ScenarioConfig) -> ScenarioConfig:
@@ -73,7 +73,7 @@ def _camera_gains(config: ScenarioConfig) -> ScenarioConfig:
     damping as its own."""
     c = copy.deepcopy(config)
     c.control.damping = list(camera_of(config).damping)
-    if isinstance(c.sensor, CameraModel):
+    if c.sensor.traits.camera:
         c.sensor.latency_frames = 0  # the model adds it (and the exact y has none)
     return c
 
@@ -232,9 +232,9 @@ def camera_map(
     from ``start`` (no noise, no calibration error). ``config``'s carrier must be an
     :class:`~geovs_drake.scenario.Arm` (the scale is its ``gain_scale``)."""
     from geovs_drake.goal.camera_fit import goal_sampled_model
-    from geovs_drake.scenario import Arm, resolve
+    from geovs_drake.loop import resolve
 
-    if not isinstance(config.carrier, Arm):
+    if not config.carrier.traits.gain_scale:
         raise ValueError(f"camera_map scales an arm's gain_scale: carrier = {config.carrier!r}")
     cases = []
     for scale in gain_scales:

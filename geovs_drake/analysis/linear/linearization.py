@@ -58,17 +58,10 @@ from geovs_drake.goal.linear_model import (
     rig_spatial_inertia,
     velocity_adjoint,
 )
-from geovs_drake.loop import build_loop
-from geovs_drake.loop.build import FEATURE_SIZE
+from geovs_drake.loop import build_loop, exact_twin, resolve
+from geovs_drake.loop.assembly import FEATURE_SIZE
 from geovs_drake.loop.state import initial_body_states
-from geovs_drake.scenario import (
-    Dynamic,
-    PlantConfig,
-    PoseConfig,
-    ScenarioConfig,
-    exact_twin,
-    variant_name,
-)
+from geovs_drake.scenario import PlantConfig, PoseConfig, ScenarioConfig, variant_name
 from geovs_drake.spectrum import EigenvalueFacts, canonical_eigenvalues
 
 __all__ = [
@@ -159,7 +152,7 @@ def linearize_at_goal(
         A_drake=A_drake,
         T=T,
         A=A,
-        A_closed=closed_form_A(config, plant),
+        A_closed=closed_form_A(resolve(config), plant),
         eigenvalues=canonical_eigenvalues(A),
         quaternion_eigenvalue=complex(e_q @ A_drake @ e_q),
         invariance_residual=float(
@@ -275,7 +268,7 @@ def tangent_map(
     x = np.asarray(state, dtype=float)
     q = x[0:4] / np.linalg.norm(x[0:4])
     R_W = RotationMatrix(Quaternion(q)).matrix()
-    if not isinstance(plant, Dynamic):
+    if not plant.traits.dynamic:
         T = np.zeros((7, 6))
         T[0:4, 0:3] = _quaternion_tangent(q)
         T[4:7, 3:6] = R_W

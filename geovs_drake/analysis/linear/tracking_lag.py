@@ -17,19 +17,9 @@ import dataclasses
 import numpy as np
 
 from geovs_drake.analysis.linear.linearization import INPUTS, OUTPUTS, linearize
-from geovs_drake.goal.linear_model import velocity_adjoint
-from geovs_drake.scenario import (
-    FreeRig,
-    Kinematic,
-    Nf,
-    PathFollowing,
-    ResolvedScenario,
-    ScenarioConfig,
-    Still,
-    Twist,
-    resolve,
-)
-from geovs_drake.simulation.run import predicted_lag
+from geovs_drake.goal.linear_model import closed_form_refusal, velocity_adjoint
+from geovs_drake.loop import ResolvedScenario, resolve
+from geovs_drake.scenario import Kinematic, ScenarioConfig, Still
 
 __all__ = ["kinematic_tracking_lag", "predicted_tracking_lag"]
 
@@ -56,15 +46,15 @@ def predicted_tracking_lag(config: ScenarioConfig | ResolvedScenario) -> float |
     plant), a baseline's by :func:`kinematic_tracking_lag` (kinematic); None where no
     model covers the loop (a still target or a trajectory, a carrier other than the free
     rig, a baseline on the dynamic rig, the path follower)."""
-    resolved = config if isinstance(config, ResolvedScenario) else resolve(config)
-    if isinstance(resolved.law, Nf):  # the closed form, simulate()'s own
-        return predicted_lag(resolved)
+    resolved = resolve(config)
+    if resolved.law.traits.navigation:  # the closed form, the resolver's (simulate()'s own)
+        return resolved.predicted_lag
     config = resolved.config
     motion = config.target_motion
-    if not isinstance(motion, Twist) or not isinstance(config.carrier, FreeRig):
+    if not motion.traits.constant_twist or closed_form_refusal(config, "lag") is not None:
         return None
     # The path follower's law follows its plan in time: no constant-twist steady state.
-    if not isinstance(config.plant, Kinematic) or isinstance(resolved.law, PathFollowing):
+    if config.dynamic or resolved.law.traits.plans:
         return None
     eps = kinematic_tracking_lag(config, np.asarray(motion.twist))
     return float(np.linalg.norm(eps[3:]))

@@ -49,10 +49,9 @@ from geovs_drake.geometry.baselines import (
     target_points,
 )
 from geovs_drake.scenario import (
+    PLANT_VARIANTS,
     Dynamic,
-    FreeRig,
     Ibvs,
-    Kinematic,
     LawConfig,
     Nf,
     Pbvs,
@@ -131,7 +130,8 @@ def row_fields(rows: Sequence[dict]) -> tuple[str, ...]:
 def law_label(law: LawConfig) -> str:
     """``nf``, ``ibvs-true``, ``ibvs-desired``, ``ibvs-mean``, ``pbvs``, ``spherical``."""
     name = variant_name(law)
-    return f"{name}-{law.depth}" if isinstance(law, Ibvs) else name
+    depth = law.traits.depth_label
+    return f"{name}-{getattr(law, depth)}" if depth else name
 
 
 @dataclass
@@ -172,7 +172,7 @@ def suite_cases(
 ) -> list[tuple[str, str, ScenarioConfig]]:
     """``(scenario, law, config)`` for every scenario and law, in table order, on
     ``plant`` (default: ``base``'s)."""
-    if plant is not None and not isinstance(plant, Dynamic | Kinematic):
+    if plant is not None and type(plant) not in PLANT_VARIANTS.values():
         raise ValueError(f"plant must be Dynamic() or Kinematic(), got {plant!r}")
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be finite and > 0 [s]: duration = {duration}")
@@ -212,7 +212,7 @@ def run_case(scenario: str, law: str, config: ScenarioConfig) -> Run:
     points = np.stack([points_in_camera(R, p, P_B) for R, p in zip(R_CB, p_CB, strict=True)])
     point_margin = float(np.min([point_fov_margins(P, cos_theta) for P in points]))
     b = points[:, 0, :]  # the first IBVS point is the marked point b
-    if isinstance(config.controller, Ibvs):
+    if config.controller.traits.feature_points:
         in_view = point_margin >= 0
     else:
         in_view = summary["min_fov_margin"] >= 0 and summary["min_visibility"] > 0
@@ -256,7 +256,7 @@ def still_entries_for(suite: SuiteConfig, base: ScenarioConfig | None) -> SuiteC
     (an arm tracks the slow circle of docs/moving-target.md), so that the shipped suite's
     moving entry does not refuse or spoil the whole comparison there."""
     carrier = base.carrier if base is not None else ScenarioConfig().carrier
-    if isinstance(carrier, FreeRig):
+    if carrier.traits.moving_target and not carrier.traits.joints:  # no workspace to leave
         return suite
     kept = [entry for entry in suite.scenarios if not entry.moving_target]
     conundrum = suite.conundrum if suite.conundrum in {e.name for e in kept} else ""

@@ -79,7 +79,7 @@ class TrackingRun:
 def follow_path(config: ScenarioConfig, label: str = "") -> TrackingRun:
     """Simulate ``config`` (``controller: !PathFollowing``) and compare the image with its
     plan."""
-    if not isinstance(config.controller, PathFollowing):
+    if not config.controller.traits.plans:
         raise ValueError(
             f"follow_path needs controller PathFollowing, got {variant_name(config.controller)}"
         )
@@ -106,7 +106,7 @@ def model_error_study(
       does not model.
     """
     base = copy.deepcopy(config or ScenarioConfig())
-    if not isinstance(base.controller, PathFollowing):
+    if not base.controller.traits.plans:
         base.controller = PathFollowing()
     runs: dict[str, TrackingRun] = {}
     cases = [

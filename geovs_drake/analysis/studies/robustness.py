@@ -97,7 +97,7 @@ SOFT_GAINS = (1.0, [1.0, 1.0, 1.0, 2.0, 2.0, 2.0])
 def soft_gains(config: ScenarioConfig) -> ScenarioConfig:
     """``config`` with :data:`SOFT_GAINS`."""
     c = copy.deepcopy(config)
-    kind = type(c.sensor) if isinstance(c.sensor, CameraModel) else Pinhole
+    kind = type(c.sensor) if c.sensor.traits.camera else Pinhole
     c.control.potential_gain = SOFT_GAINS[0]
     c.sensor = camera_like(c.sensor, kind, damping=list(SOFT_GAINS[1]))
     return c
@@ -127,7 +127,7 @@ def _measured(config: ScenarioConfig, X_BC: RigidTransform) -> np.ndarray:
     exact sensor)."""
     X_CB = X_BC.inverse().GetAsMatrix4()
     camera = config.sensor
-    if not isinstance(camera, CameraModel):
+    if not camera.traits.camera:
         return camera_map(X_CB, config.radius).to_vector()
     theta = config.domain.to_domain().fov_half_angle
     y, code = pinhole_measurement(
@@ -280,7 +280,7 @@ def _run_one(
     except StartOutsideDomain as e:  # a start is in D by construction: say so if not
         raise RuntimeError(f"start {start}: {e}") from e
     moved = _final_motion(result)
-    tol = convergence_tolerance(config)
+    tol = convergence_tolerance(result.resolved)
     stayed = result.status in ("converged", "not_converged")
     settled = stayed and result.sim_time_s >= config.duration - 1e-9
     settled = settled and moved[0] <= tol[0] and moved[1] <= tol[1]

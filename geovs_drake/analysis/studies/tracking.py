@@ -35,14 +35,13 @@ from geovs_drake.geometry._ops import OutOfDomainError
 from geovs_drake.geometry.camera import camera_map
 from geovs_drake.geometry.target_motion import se3_exp
 from geovs_drake.goal.linear_model import closed_form_refusal, tracking_lag
+from geovs_drake.loop import resolve
 from geovs_drake.scenario import (
     FEEDFORWARD_MODES,
-    Nf,
     PlantConfig,
     PoseConfig,
     ScenarioConfig,
     Twist,
-    resolve,
     variant_name,
 )
 from geovs_drake.simulation import simulate
@@ -129,11 +128,10 @@ def _twist(direction: Sequence[float], speed: float) -> np.ndarray:
 
 def _lag(config: ScenarioConfig, twist: np.ndarray) -> np.ndarray | None:
     """tracking_lag's eps_ss at the loop's own damping, or None where it does not model
-    the loop (as :func:`~geovs_drake.simulation.run.predicted_lag`: the NF on the free
-    rig)."""
-    if not isinstance(config.controller, Nf) or closed_form_refusal(config, "lag") is not None:
+    the loop (as the resolver's ``predicted_lag``: the NF on the free rig)."""
+    if not config.controller.traits.navigation or closed_form_refusal(config, "lag") is not None:
         return None
-    return tracking_lag(config, twist, resolve(config).damping)
+    return tracking_lag(resolve(config), twist)
 
 
 def lagged_goal_in_domain(config: ScenarioConfig, twist: np.ndarray) -> bool | None:

@@ -32,15 +32,10 @@ from geovs_drake._optional import require
 from geovs_drake.analysis.sweep.starts import sample_starts
 from geovs_drake.analysis.sweep.summary import SweepSummary, run_ends
 from geovs_drake.batch import STATUS_NAMES, LoopParameters, loop_parameters, run_batch
+from geovs_drake.geometry.domain import SafeDomain
+from geovs_drake.loop.resolved import free_twin
 from geovs_drake.loop.state import poses_in_target
-from geovs_drake.scenario import (
-    Arm,
-    PoseConfig,
-    ScenarioConfig,
-    free_twin,
-    load_scenario,
-    resolve,
-)
+from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
 
 if TYPE_CHECKING:  # the Drake loop stays out of the batch engine's workers
     from geovs_drake.systems.arm_model import ArmModel
@@ -229,7 +224,7 @@ def _drake_columns(
     twist times the ratio of the loops' k_p, so that E0 / k_p keeps the sampler's
     distribution (``velocity bounded``: E0 < k_p on the arm too)."""
     dynamic = config.dynamic
-    arm = _ArmStarts.of(config, p) if isinstance(config.carrier, Arm) else None  # once per part
+    arm = _ArmStarts.of(config, p) if config.carrier.traits.joints else None  # once per part
     rows = []
     for X, twist in zip(X_BC, twists, strict=True):
         c = copy.deepcopy(config)
@@ -260,13 +255,17 @@ class _ArmStarts:
     free: ScenarioConfig
     parameters: LoopParameters
     gain_ratio: float
+    domain: SafeDomain
 
     @classmethod
     def of(cls, config: ScenarioConfig, p: LoopParameters) -> _ArmStarts:
         from geovs_drake.goal.arm import arm_model
+        from geovs_drake.loop.resolver import resolve
 
-        k_p_arm = resolve(config).config.control.potential_gain
-        return cls(arm_model(config), free_twin(config), p, k_p_arm / p.potential_gain)
+        resolved = resolve(config)  # once per part, in its worker
+        k_p_arm = resolved.config.control.potential_gain
+        ratio = k_p_arm / p.potential_gain
+        return cls(arm_model(config), free_twin(config), p, ratio, resolved.domain)
 
     def row(self, config: ScenarioConfig, X: np.ndarray, twist) -> dict:
         """:func:`_drake_row` on the arm: IK for the joints, the twist to joint velocities."""
@@ -285,7 +284,7 @@ class _ArmStarts:
         except Unreachable:
             return _stopped_row("unreachable")
         # The start's whole turns from the joints carried along the NF's way to the goal.
-        path = chart_path(config, RigidTransform(X))
+        path = chart_path(config, self.domain, RigidTransform(X))
         q = start_branch(self.model, q, X_WC, config.X_WB @ config.X_BC_goal, path)
         config.initial_velocity = [0.0] * 6
         if config.dynamic and np.any(np.asarray(twist) != 0):

@@ -40,7 +40,8 @@ from geovs_drake.analysis.sweep.parts import (
 from geovs_drake.analysis.sweep.starts import SampledStarts, SweepError
 from geovs_drake.analysis.sweep.summary import SweepSummary, plot_summary
 from geovs_drake.batch import loop_parameters
-from geovs_drake.scenario import ScenarioConfig, exact_twin, free_twin, resolve, variant_name
+from geovs_drake.loop.resolved import exact_twin, free_twin
+from geovs_drake.scenario import ScenarioConfig, variant_name
 
 __all__ = [
     "CSV_LIMIT",
@@ -381,11 +382,12 @@ def run_sweep(
     :class:`~geovs_drake._optional.MissingExtra` when pyarrow or Dask is needed but
     not installed (the ``sweep`` extra), before anything runs.
     """
-    config.validate()
     # Here, not at the top: a sweep's workers import this module without the loop's.
-    from geovs_drake.loop.build import fit_gains
+    from geovs_drake.loop.resolver import resolve
 
-    config = fit_gains(config)  # the arm's gain_scale: auto, chosen once for every start
+    # The arm's gain_scale: auto, chosen once for every start (resolve validates).
+    resolved = resolve(config)
+    config = resolved.fitted_config
     n, source = _check_settings(starts, duration, engine, workers, chunk)
     dynamic = config.dynamic
     if isinstance(source, SampledStarts):
@@ -484,7 +486,7 @@ def run_sweep(
         scheduler=scheduler,
         out=out,
         # The loop's own k_p (resolve() scales the arm's), 1 for the kinematic loop's phi.
-        potential_gain=float(resolve(config).config.control.potential_gain) if dynamic else 1.0,
+        potential_gain=float(resolved.config.control.potential_gain) if dynamic else 1.0,
         resumed_parts=len(done),
     )
     if out is None:

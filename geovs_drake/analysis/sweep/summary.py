@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from geovs_drake.batch import STATUS_NAMES
-from geovs_drake.scenario import Arm, ScenarioConfig
+from geovs_drake.scenario import ScenarioConfig
 
 __all__ = [
     "ARM_STATUSES",
@@ -153,7 +153,7 @@ class SweepSummary:
         n = len(status)
         s.finished = n
         # The arm's statuses on the arm (joint_limit, unreachable), and any other present.
-        arm = isinstance(config.carrier, Arm)
+        arm = config.carrier.traits.joints
         names = [*STATUS_NAMES, *(ARM_STATUSES if arm else ())]
         for name in (*names, *sorted(set(status) - set(names))):
             s.counts[name] = int(np.sum(status == name))
