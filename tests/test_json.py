@@ -41,3 +41,24 @@ def test_values_become_what_json_holds_and_read_back_the_same():
 def test_a_value_with_no_json_form_is_named():
     with pytest.raises(TypeError, match="no JSON form for object"):
         json_ready({"x": object()})
+
+
+def test_every_summary_in_the_package_returns_json_ready():
+    """Every ``summary()`` method's every return goes through ``json_ready`` (one place
+    decides what JSON takes: NaN to null, numpy to Python), read from the source."""
+    import ast
+    from pathlib import Path
+
+    import geovs_drake
+
+    bypass = []
+    for path in Path(geovs_drake.__file__).parent.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef) and node.name == "summary":
+                for ret in (n for n in ast.walk(node) if isinstance(n, ast.Return)):
+                    call = ret.value
+                    if not (
+                        isinstance(call, ast.Call) and getattr(call.func, "id", "") == "json_ready"
+                    ):
+                        bypass.append(f"{path.name}:{ret.lineno}")
+    assert not bypass, bypass

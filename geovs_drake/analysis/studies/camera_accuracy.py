@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from geovs_drake._json import json_ready
 from geovs_drake.geometry.camera import camera_map_inverse
 from geovs_drake.geometry.features import FEATURE_FAILURES, TargetMarks
 from geovs_drake.loop.build import build_loop
@@ -66,7 +67,7 @@ class AccuracyResult:
         for name, e in self.errors.items():
             e = e[ok]
             out[name] = {"median": float(np.median(e)), "worst": float(np.max(e))}
-        return out
+        return json_ready(out)
 
 
 def render_frames(
