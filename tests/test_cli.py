@@ -287,15 +287,15 @@ def test_progress_off_a_terminal_prints_sparse_integer_lines(capsys):
     every min_interval_s, and always the last."""
     from geovs_drake.progress import Progress
 
-    p = Progress(30, "%", "dynamic servo", min_interval_s=3600.0)
+    p = Progress(30, "starts", "geovs-drake sweep", min_interval_s=3600.0)
     for done in (5, 7, 12, 12, 29, 30):
         p.update_to(done)
     p.close()
     err = capsys.readouterr().err
     assert "\r" not in err
     lines = err.strip().splitlines()
-    assert lines[0].startswith("dynamic servo: 5/30 %") and lines[-1].startswith(
-        "dynamic servo: 30/30 %"
+    assert lines[0].startswith("geovs-drake sweep: 5/30 starts") and lines[-1].startswith(
+        "geovs-drake sweep: 30/30 starts"
     )
     assert len(lines) == 2  # the first, then nothing for an hour but the last
 
@@ -313,7 +313,7 @@ def test_demo_progress_is_sparse_in_a_log(tmp_path, run_cli, monkeypatch):
     run = run_cli("demo", "--out", str(out), "--duration", "0.5", "--no-meshcat", "--no-rendered")
     assert run.code == cli.EXIT_NOT_CONVERGED, run.err  # 0.5 s is too short
     assert "\r" not in run.err
-    assert "dynamic servo: 100/100 %" in run.err
+    assert "dynamic servo: 100 % of 0.5 s simulated" in run.err
 
 
 def test_progress_waits_for_its_delay_and_stays_quiet_on_short_work(monkeypatch, capsys):
@@ -325,7 +325,7 @@ def test_progress_waits_for_its_delay_and_stays_quiet_on_short_work(monkeypatch,
 
     def run(steps: list[tuple[float, int]]) -> list[str]:
         clock["now"] = 100.0
-        p = progress_module.Progress(100, "%", "geovs-drake simulate", delay_s=3.0)
+        p = progress_module.Progress(100, "starts", "geovs-drake sweep", delay_s=3.0)
         for t, done in steps:
             clock["now"] = 100.0 + t
             p.update_to(done)
@@ -335,9 +335,30 @@ def test_progress_waits_for_its_delay_and_stays_quiet_on_short_work(monkeypatch,
     assert run([(0.1, 10), (1.0, 60), (2.9, 100)]) == []  # done within the delay: quiet
     lines = run([(1.0, 10), (2.9, 50), (3.1, 60), (4.0, 70), (5.2, 80), (5.3, 100)])
     assert lines == [
-        "geovs-drake simulate: 60/100 % after 3.1 s",  # the first after the delay
-        "geovs-drake simulate: 80/100 % after 5.2 s",  # min_interval_s = 2 later
-        "geovs-drake simulate: 100/100 % after 5.3 s",  # and always the end
+        "geovs-drake sweep: 60/100 starts after 3.1 s",  # the first after the delay
+        "geovs-drake sweep: 80/100 starts after 5.2 s",  # min_interval_s = 2 later
+        "geovs-drake sweep: 100/100 starts after 5.3 s",  # and always the end
+    ]
+
+
+def test_a_horizon_s_progress_is_a_percentage_of_the_simulated_time(monkeypatch, capsys):
+    """The simulated horizon's progress is the share of it simulated, a percentage (the
+    line read ``66/100 %``, a count of a percent): at t = 19.8 s of 30 s, 66 %."""
+    from geovs_drake import progress as progress_module
+
+    clock = {"now": 0.0}
+    monkeypatch.setattr(progress_module.time, "perf_counter", lambda: clock["now"])
+    p = progress_module.HorizonProgress(30.0, "geovs-drake simulate", delay_s=3.0)
+    horizon_s, wall = 30.0, {19.8: 3.0, 25.5: 5.0, 30.0: 5.5}  # simulated t -> wall [s]
+    for t, now in wall.items():
+        clock["now"] = now
+        p(t)
+    p.close()
+    lines = capsys.readouterr().err.splitlines()
+    shares = [round(100 * t / horizon_s) for t in wall]  # 66, 85, 100: the truth
+    assert lines == [
+        f"geovs-drake simulate: {share} % of 30 s simulated after {now:.1f} s"
+        for share, now in zip(shares, wall.values(), strict=True)
     ]
 
 
@@ -355,8 +376,9 @@ def test_simulate_progress_goes_to_stderr_and_changes_nothing_else(monkeypatch, 
     assert code_shown == code
     lines = err.splitlines()
     assert 2 <= len(lines) <= 3 and "\r" not in err, err  # first, (maybe one more), last
-    assert all(re.fullmatch(r"geovs-drake simulate: \d+/100 % after \d+\.\d s", x) for x in lines)
-    assert lines[-1].startswith("geovs-drake simulate: 100/100 %")
+    line = r"geovs-drake simulate: \d+ % of 5 s simulated after \d+\.\d s"
+    assert all(re.fullmatch(line, x) for x in lines), lines
+    assert lines[-1].startswith("geovs-drake simulate: 100 % of 5 s simulated")
     assert len(out.splitlines()) == 1
     quiet, shown = json.loads(out_quiet), json.loads(out)
     quiet.pop("wall_time_s"), shown.pop("wall_time_s")
