@@ -30,6 +30,9 @@ class Progress:
             prints nothing at all.
     """
 
+    #: tqdm's ``bar_format`` on a terminal; None: tqdm's own, which shows the count.
+    bar_format: str | None = None
+
     def __init__(
         self,
         total: int,
@@ -56,6 +59,7 @@ class Progress:
                 file=sys.stderr,
                 leave=False,
                 delay=delay_s,
+                bar_format=self.bar_format,
             )
 
     def update_to(self, done: int) -> None:
@@ -77,11 +81,14 @@ class Progress:
             ):
                 self._last_line, self._printed = now, True
                 print(
-                    f"{self.description}: {done}/{self.total} {self.unit} "
-                    f"after {now - self._start:.1f} s",
+                    f"{self.description}: {self.amount(done)} after {now - self._start:.1f} s",
                     file=sys.stderr,
                     flush=True,
                 )
+
+    def amount(self, done: int) -> str:
+        """``done`` units as a line shows them: a count of the total, ``5/30 starts``."""
+        return f"{done}/{self.total} {self.unit}"
 
     def update(self, units: int) -> None:
         """Report ``units`` more finished units."""
@@ -94,10 +101,14 @@ class Progress:
 
 
 class HorizonProgress(Progress):
-    """Percent of a simulated horizon, as whole counts; call it with the simulated time.
+    """Percent of a simulated horizon, in whole percents (a line reads ``66 % of 30 s
+    simulated after 3.0 s``); call it with the simulated time.
 
     It is the ``progress`` callback of :func:`geovs_drake.simulation.simulate`.
     """
+
+    #: On a terminal, the percentage and the bar, without tqdm's count ``66/100``.
+    bar_format = "{l_bar}{bar}| [{elapsed}<{remaining}]"
 
     def __init__(
         self,
@@ -108,6 +119,11 @@ class HorizonProgress(Progress):
     ) -> None:
         super().__init__(100, "%", description, min_interval_s=min_interval_s, delay_s=delay_s)
         self.horizon_s = horizon_s
+
+    def amount(self, done: int) -> str:
+        """``done`` percent as a share of the horizon, ``66 % of 30 s simulated``: a
+        percentage is no count of 100 (the line read ``66/100 %``)."""
+        return f"{done} % of {self.horizon_s:g} s simulated"
 
     def __call__(self, t: float) -> None:
         # Whole percents: a float total shows rounding drift such as 6.599999999999998/30.0.

@@ -16,7 +16,16 @@ from geovs_drake import cli
 from geovs_drake.cli import EXIT_CODES, main
 from geovs_drake.geometry.navigation import NavigationFunction
 from geovs_drake.loop import resolve
-from geovs_drake.scenario import AXES, CarrierConfig, Ibvs, Kinematic, PoseConfig, ScenarioConfig
+from geovs_drake.scenario import (
+    AXES,
+    CarrierConfig,
+    Ibvs,
+    Kinematic,
+    Pinhole,
+    PoseConfig,
+    ScenarioConfig,
+    load_scenario,
+)
 from geovs_drake.simulation import SimulationResult, simulate
 
 
@@ -280,15 +289,15 @@ def test_progress_off_a_terminal_prints_sparse_integer_lines(capsys):
     every min_interval_s, and always the last."""
     from geovs_drake.progress import Progress
 
-    p = Progress(30, "%", "dynamic servo", min_interval_s=3600.0)
+    p = Progress(30, "starts", "geovs-drake sweep", min_interval_s=3600.0)
     for done in (5, 7, 12, 12, 29, 30):
         p.update_to(done)
     p.close()
     err = capsys.readouterr().err
     assert "\r" not in err
     lines = err.strip().splitlines()
-    assert lines[0].startswith("dynamic servo: 5/30 %") and lines[-1].startswith(
-        "dynamic servo: 30/30 %"
+    assert lines[0].startswith("geovs-drake sweep: 5/30 starts") and lines[-1].startswith(
+        "geovs-drake sweep: 30/30 starts"
     )
     assert len(lines) == 2  # the first, then nothing for an hour but the last
 
@@ -306,7 +315,7 @@ def test_demo_progress_is_sparse_in_a_log(tmp_path, run_cli, monkeypatch):
     run = run_cli("demo", "--out", str(out), "--duration", "0.5", "--no-meshcat", "--no-rendered")
     assert run.code == cli.EXIT_NOT_CONVERGED, run.err  # 0.5 s is too short
     assert "\r" not in run.err
-    assert "dynamic servo: 100/100 %" in run.err
+    assert "dynamic servo: 100 % of 0.5 s simulated" in run.err
 
 
 def test_progress_waits_for_its_delay_and_stays_quiet_on_short_work(monkeypatch, capsys):
@@ -318,7 +327,7 @@ def test_progress_waits_for_its_delay_and_stays_quiet_on_short_work(monkeypatch,
 
     def run(steps: list[tuple[float, int]]) -> list[str]:
         clock["now"] = 100.0
-        p = progress_module.Progress(100, "%", "geovs-drake simulate", delay_s=3.0)
+        p = progress_module.Progress(100, "starts", "geovs-drake sweep", delay_s=3.0)
         for t, done in steps:
             clock["now"] = 100.0 + t
             p.update_to(done)
@@ -328,9 +337,30 @@ def test_progress_waits_for_its_delay_and_stays_quiet_on_short_work(monkeypatch,
     assert run([(0.1, 10), (1.0, 60), (2.9, 100)]) == []  # done within the delay: quiet
     lines = run([(1.0, 10), (2.9, 50), (3.1, 60), (4.0, 70), (5.2, 80), (5.3, 100)])
     assert lines == [
-        "geovs-drake simulate: 60/100 % after 3.1 s",  # the first after the delay
-        "geovs-drake simulate: 80/100 % after 5.2 s",  # min_interval_s = 2 later
-        "geovs-drake simulate: 100/100 % after 5.3 s",  # and always the end
+        "geovs-drake sweep: 60/100 starts after 3.1 s",  # the first after the delay
+        "geovs-drake sweep: 80/100 starts after 5.2 s",  # min_interval_s = 2 later
+        "geovs-drake sweep: 100/100 starts after 5.3 s",  # and always the end
+    ]
+
+
+def test_a_horizon_s_progress_is_a_percentage_of_the_simulated_time(monkeypatch, capsys):
+    """The simulated horizon's progress is the share of it simulated, a percentage (the
+    line read ``66/100 %``, a count of a percent): at t = 19.8 s of 30 s, 66 %."""
+    from geovs_drake import progress as progress_module
+
+    clock = {"now": 0.0}
+    monkeypatch.setattr(progress_module.time, "perf_counter", lambda: clock["now"])
+    p = progress_module.HorizonProgress(30.0, "geovs-drake simulate", delay_s=3.0)
+    horizon_s, wall = 30.0, {19.8: 3.0, 25.5: 5.0, 30.0: 5.5}  # simulated t -> wall [s]
+    for t, now in wall.items():
+        clock["now"] = now
+        p(t)
+    p.close()
+    lines = capsys.readouterr().err.splitlines()
+    shares = [round(100 * t / horizon_s) for t in wall]  # 66, 85, 100: the truth
+    assert lines == [
+        f"geovs-drake simulate: {share} % of 30 s simulated after {now:.1f} s"
+        for share, now in zip(shares, wall.values(), strict=True)
     ]
 
 
@@ -348,8 +378,9 @@ def test_simulate_progress_goes_to_stderr_and_changes_nothing_else(monkeypatch, 
     assert code_shown == code
     lines = err.splitlines()
     assert 2 <= len(lines) <= 3 and "\r" not in err, err  # first, (maybe one more), last
-    assert all(re.fullmatch(r"geovs-drake simulate: \d+/100 % after \d+\.\d s", x) for x in lines)
-    assert lines[-1].startswith("geovs-drake simulate: 100/100 %")
+    line = r"geovs-drake simulate: \d+ % of 5 s simulated after \d+\.\d s"
+    assert all(re.fullmatch(line, x) for x in lines), lines
+    assert lines[-1].startswith("geovs-drake simulate: 100 % of 5 s simulated")
     assert len(out.splitlines()) == 1
     quiet, shown = json.loads(out_quiet), json.loads(out)
     quiet.pop("wall_time_s"), shown.pop("wall_time_s")
@@ -373,28 +404,76 @@ def test_help_never_breaks_a_word_at_its_hyphen(command, columns, monkeypatch, c
         assert text.split("\n\n")[1].strip() and not text.split("\n\n")[1].startswith("options")
 
 
-def test_readme_synopsis_names_real_options_and_their_choices(capsys):
-    """Each `[--option a|b|c]` of the README's command-line synopsis is an option of that
-    command with exactly those choices (e.g. sweep's --velocity lists `above` too).
-    --plant and --controller are left to the plant/controller work, which extends them."""
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    synopsis = readme.split("## Command line")[1].split("```")[1]
-    commands = re.split(r"^geovs-drake ", synopsis, flags=re.M)[1:]
-    checked = 0
-    for block in commands:
-        command = block.split()[0]
-        if command.startswith("--"):
-            continue
-        with pytest.raises(SystemExit):
-            main([command, "--help"])
-        usage = capsys.readouterr().out.split("\n\n")[0]
-        for option, arg in re.findall(r"\[(--[\w-]+)(?: ([^\]]+))?\]", block):
-            assert re.search(rf"\[{option}[ \]]", usage), (command, option)
-            if "|" in arg and option not in ("--plant", "--controller"):
-                choices = re.search(rf"\[{option} \{{([^}}]+)\}}\]", usage).group(1).split(",")
-                assert sorted(arg.split("|")) == sorted(choices), (command, option)
-                checked += 1
-    assert checked >= 2  # sweep's --velocity and --engine at least
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _synopsis(text: str, heading: str) -> dict[str, str]:
+    """Command -> its entry in the first code block after ``heading``: the synopsis."""
+    block = text.split(heading)[1].split("```")[1]
+    entries = re.split(r"^geovs-drake ", block, flags=re.M)[1:]
+    return {e.split()[0]: e for e in entries if not e.startswith("--")}
+
+
+def _visible_options(parser) -> dict[str, tuple | None]:
+    """A parser's options its --help shows (not -h, not a deprecated hidden one): the
+    long spelling -> its choices (None: a value or a switch)."""
+    import argparse
+
+    return {
+        a.option_strings[-1]: tuple(a.choices) if a.choices else None
+        for a in parser._actions
+        if a.option_strings and a.help != argparse.SUPPRESS and a.dest != "help"
+    }
+
+
+def _check_synopsis(command: str, entry: str, options: dict, complete: bool) -> None:
+    """Each ``[--option a|b]`` of ``entry`` is an option of ``command``, with exactly its
+    choices where it has choices; ``complete``: every option is there."""
+    named = dict(re.findall(r"\[(--[\w-]+)(?: ([^\]]+))?\]", entry))
+    for option, arg in named.items():
+        assert option in options, (command, option)
+        if options[option] is not None:
+            assert sorted(arg.split("|")) == sorted(options[option]), (command, option)
+    if complete:
+        assert set(options) <= set(named), (command, set(options) - set(named))
+
+
+def test_every_command_and_option_is_in_the_docs_synopsis():
+    """docs/command-line.md promises each command's synopsis: every command, and each of
+    its --help's options with its choices (the moving target's, station and controller
+    were missing)."""
+    synopsis = _synopsis((ROOT / "docs" / "command-line.md").read_text(), "# The command line")
+    commands = cli.subcommands()
+    assert set(synopsis) == set(commands)
+    for command, parser in commands.items():
+        _check_synopsis(command, synopsis[command], _visible_options(parser), complete=True)
+
+
+def test_the_readme_gives_each_command_a_line_of_real_options():
+    """The README: a line per command, every command; what it names is real, with its
+    choices (the whole synopsis is the docs')."""
+    synopsis = _synopsis((ROOT / "README.md").read_text(), "## Command line")
+    commands = cli.subcommands()
+    assert set(synopsis) == set(commands)
+    for command, entry in synopsis.items():
+        assert entry.strip().count("\n") == 0, entry
+        _check_synopsis(command, entry, _visible_options(commands[command]), complete=False)
+
+
+def test_the_generated_reference_has_every_command_and_option():
+    """docs/cli.rst (the source the reference is built from) has a ``cli-help`` of each
+    command, and the text that directive shows (cli.help_text, what docs/_ext calls)
+    names each option its parser has."""
+    rst = (ROOT / "docs" / "cli.rst").read_text()
+    documented = re.findall(r"^\.\. cli-help::[ \t]*(\S*)$", rst, flags=re.M)
+    commands = cli.subcommands()
+    assert sorted(documented) == sorted(["", *commands])
+    extension = (ROOT / "docs" / "_ext" / "geovs_docs.py").read_text()
+    assert "help_text(" in extension  # the directive shows cli.help_text, tested here
+    for command, parser in commands.items():
+        text = cli.help_text(command)
+        for option in _visible_options(parser):
+            assert re.search(rf"\[{option}[ \]]", text), (command, option)
 
 
 @pytest.mark.parametrize(
@@ -694,3 +773,114 @@ def test_the_command_line_starts_without_the_loop():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]", done.stdout
+
+
+# ------------------------------------- one option per axis, generated from AXES (issue 41)
+def test_each_axis_has_one_option_whose_choices_are_its_variants(monkeypatch):
+    """`simulate`'s --carrier, --plant, --sensor, --controller are made from AXES: every
+    variant is a choice (--carrier offered free|arm, the fixed camera only as --mount
+    fixed), and a variant added to an axis is a choice with no edit of the command line."""
+    import dataclasses
+
+    from geovs_drake.cli._options import VALUE_AXES
+
+    options = _visible_options(cli.subcommands()["simulate"])
+    for axis, variants in AXES.items():
+        flags = VALUE_AXES.get(axis, (f"--{axis}",))
+        assert all(flag in options for flag in flags), axis
+        if axis not in VALUE_AXES:
+            assert options[f"--{axis}"] == tuple(variants), axis
+
+    @dataclasses.dataclass
+    class Gantry:
+        """A gantry. It carries the camera on rails."""
+
+    monkeypatch.setitem(AXES, "carrier", {**AXES["carrier"], "gantry": Gantry})
+    help_text = cli.help_text("simulate")
+    assert "--carrier {free,fixed_camera,arm,gantry}" in help_text
+    assert "gantry: A gantry" in " ".join(help_text.split())  # its docstring's first sentence
+
+
+def test_carrier_fixed_camera_is_the_file_s_spelling_and_mount_points_to_it(
+    tmp_path, run_cli, loaded
+):
+    """--carrier fixed_camera is `carrier: fixed_camera` of a file; --mount fixed, the
+    earlier spelling, runs the same scenario with one line pointing to it."""
+    path = tmp_path / "fixed.yaml"
+    path.write_text("carrier: fixed_camera\n")
+    runs = {
+        "file": run_cli("simulate", "--config", str(path)),
+        "flag": run_cli("simulate", "--carrier", "fixed_camera"),
+        "mount": run_cli("simulate", "--mount", "fixed"),
+    }
+    assert all(run.code == cli.EXIT_INTERRUPTED for run in runs.values()), runs
+    assert [type(c.carrier).__name__ for c in loaded] == ["FixedCamera"] * 3
+    assert yaml_dump_typed(loaded[0]) == yaml_dump_typed(loaded[1]) == yaml_dump_typed(loaded[2])
+    assert runs["flag"].err.splitlines() == ["geovs-drake: interrupted"]
+    assert runs["mount"].err.splitlines()[0] == (
+        "geovs-drake: warning: --mount fixed is deprecated: write --carrier fixed_camera"
+    )
+    assert "--mount" not in cli.help_text("simulate")  # deprecated: out of --help
+
+
+# -------------------------------------------------- --latency-frames (issue 42)
+@pytest.mark.parametrize("command", ["simulate", "sweep", "station", "controller"])
+def test_latency_frames_sets_the_camera_s_latency(command):
+    """--latency-frames N is the camera sensor's latency_frames, as the scenario's
+    `sensor: !Pinhole {latency_frames: N}` says it; every other field as without it."""
+    from geovs_drake.cli._options import load_layers
+    from geovs_drake.cli.station import setup_of
+
+    def config_of(*argv: str) -> ScenarioConfig:
+        args = cli.build_parser().parse_args([command, *argv])
+        if command in ("station", "controller"):  # the station file, the panda's
+            return setup_of(args).resolved.config
+        return load_layers(args)
+
+    given = config_of("--sensor", "pinhole", "--latency-frames", "2")
+    written = config_of("--scenario-text", "sensor: !Pinhole {latency_frames: 2}")
+    assert given.sensor.latency_frames == 2
+    assert yaml_dump_typed(given) == yaml_dump_typed(written)
+
+
+@pytest.mark.parametrize(
+    ("argv", "needles"),
+    [
+        (["--latency-frames", "1"], ["--latency-frames", "exact", "add --sensor pinhole"]),
+        (["--sensor", "pinhole", "--latency-frames=-1"], ["frames >= 0", "'-1'"]),
+        (["--sensor", "pinhole", "--latency-frames", "0.5"], ["frames >= 0", "'0.5'"]),
+        (["--carrier", "fixed"], ["--carrier", "'fixed'", "fixed_camera"]),
+    ],
+    ids=["exact-sensor", "negative", "fraction", "carrier"],
+)
+def test_the_new_options_refuse_bad_input_in_one_line(argv, needles, run_cli, loaded):
+    for command in ("simulate", "sweep") if argv[0] != "--carrier" else ("simulate",):
+        run = run_cli(command, *argv)
+        assert run.code == 2 and run.out == "", (command, run.err)
+        _assert_one_line_error(run.err, *needles)
+    assert loaded == []
+
+
+def test_an_untagged_sensor_with_a_camera_s_field_names_the_tag_to_write(run_cli):
+    """`sensor: {latency_frames: 1}` reads as !Exact, which has no latency: the one line
+    writes the variant that has it, and that spelling loads."""
+    run = run_cli("simulate", "--scenario-text", "sensor: {latency_frames: 1}")
+    assert run.code == 2
+    _assert_one_line_error(run.err, "tagged variant", "write sensor: !Pinhole {latency_frames: 1}")
+    written = run.err.split("write sensor: ")[1].strip()
+    assert load_scenario(data=f"sensor: {written}").sensor == Pinhole(latency_frames=1)
+
+
+def test_no_command_line_function_is_over_100_lines():
+    """A command's options in groups (simulate's add_parser was 240 lines): each
+    function of geovs_drake/cli, as written, at most 100 lines."""
+    import ast
+
+    long = []
+    for path in sorted((ROOT / "geovs_drake" / "cli").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                lines = node.end_lineno - node.lineno + 1
+                if lines > 100:
+                    long.append(f"{path.name}:{node.name} {lines}")
+    assert long == []

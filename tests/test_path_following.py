@@ -322,5 +322,6 @@ def test_path_config_and_cli(capsys):
     code = main(["simulate", "--controller", "pbvs", "--path-duration", "4"])
     _, err = capsys.readouterr()
     assert code == 2 and err.strip().splitlines() == [
-        "geovs-drake: --path-duration applies to --controller path, the controller here is pbvs"
+        "geovs-drake: --path-duration applies to --controller path, the controller here is "
+        "pbvs: add --controller path (or controller: !PathFollowing {...} in the scenario)"
     ]

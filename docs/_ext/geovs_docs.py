@@ -25,12 +25,9 @@ import ast
 import dataclasses
 import importlib
 import inspect
-import io
-import os
 import pkgutil
 import re
 import textwrap
-from contextlib import redirect_stdout
 from pathlib import Path
 
 from docutils import nodes
@@ -85,17 +82,9 @@ class CliHelp(SphinxDirective):
     optional_arguments = 1
 
     def run(self) -> list[nodes.Node]:
-        from geovs_drake.cli import build_parser
+        from geovs_drake.cli import help_text
 
-        os.environ["COLUMNS"] = "88"  # argparse wraps to the terminal's width
-        parser = build_parser()
-        if self.arguments:
-            sub = next(a for a in parser._actions if a.dest == "command")
-            parser = sub.choices[self.arguments[0]]
-        out = io.StringIO()
-        with redirect_stdout(out):
-            parser.print_help()
-        text = out.getvalue().rstrip()
+        text = help_text(self.arguments[0] if self.arguments else None, columns=88)
         return [nodes.literal_block(text, text, language="text")]
 
 

@@ -72,7 +72,9 @@ __all__ = [
     "SIMULATE_PROGRESS_DELAY_S",
     "build_parser",
     "exit_code_of",
+    "help_text",
     "main",
+    "subcommands",
 ]
 
 #: ``simulate`` shows progress on stderr only once a run has taken this long [s wall]
@@ -101,6 +103,30 @@ def build_parser() -> argparse.ArgumentParser:
     station.add_parser(sub)
     controller.add_parser(sub)
     return parser
+
+
+def subcommands(
+    parser: argparse.ArgumentParser | None = None,
+) -> dict[str, argparse.ArgumentParser]:
+    """Each command's name and parser, in the order ``geovs-drake --help`` lists them."""
+    parser = parser or build_parser()
+    return next(a for a in parser._actions if a.dest == "command").choices
+
+
+def help_text(command: str | None = None, columns: int = 88) -> str:
+    """The ``--help`` of ``geovs-drake`` or of ``command``, wrapped at ``columns``: the
+    text the manual's reference shows (``.. cli-help::`` in docs/cli.rst)."""
+    # argparse wraps to $COLUMNS, read when the formatter is made: set for this call only.
+    saved = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = str(columns)
+    try:
+        parser = build_parser()
+        return (subcommands(parser)[command] if command else parser).format_help().rstrip()
+    finally:
+        if saved is None:
+            del os.environ["COLUMNS"]
+        else:
+            os.environ["COLUMNS"] = saved
 
 
 def main(argv: list[str] | None = None) -> int:

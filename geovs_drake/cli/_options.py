@@ -264,10 +264,11 @@ def _set_variant_field(axis: str, names: tuple[str, ...], field: str):
 
     def apply(config: ScenarioConfig, flag: str, value: Any) -> None:
         variant = getattr(config, axis)
-        if not isinstance(variant, kinds):
+        if not isinstance(variant, kinds):  # the axis's variants by name, not a capability
             raise ValueError(
                 f"{flag} applies to --{axis} {'|'.join(names)}, the {axis} here is "
-                f"{variant_name(variant)}"
+                f"{variant_name(variant)}: add --{axis} {names[0]} (or {axis}: "
+                f"!{kinds[0].__name__} {{...}} in the scenario)"
             )
         setattr(config, axis, dataclasses.replace(variant, **{field: value}))
 
@@ -369,15 +370,95 @@ def load_config(args: argparse.Namespace) -> ScenarioConfig:
     return load_resolved(args).config
 
 
-def add_plant(p: argparse.ArgumentParser, dynamic_detail: str = "") -> None:
-    """``--plant dynamic|kinematic``, a layer."""
+#: The axes of :data:`~geovs_drake.scenario.AXES` whose variant is no bare name: a flag
+#: gives its values (the target's twist, its trajectory file), so the command adds those
+#: flags itself; every other axis gets ``--AXIS NAME`` from :func:`add_axes`.
+VALUE_AXES: dict[str, tuple[str, ...]] = {
+    "target_motion": ("--target-twist", "--target-trajectory"),
+}
+
+
+def _first_sentence(kind: type) -> str:
+    """A variant's docstring's first sentence, as plain text: what a variant that a
+    command describes in no words of its own shows in the help."""
+    text = " ".join((kind.__doc__ or kind.__name__).split()).replace("``", "")
+    return text.split(". ")[0].rstrip(".")
+
+
+def add_axis(
+    p: argparse.ArgumentParser,
+    axis: str,
+    what: str,
+    described: dict[str, str] | None = None,
+    *,
+    names: Sequence[str] | None = None,
+    after: str = "",
+) -> None:
+    """``--AXIS NAME``, a layer choosing the variant of ``axis`` by its name in
+    :data:`~geovs_drake.scenario.AXES` (``--carrier arm`` is ``{carrier: !Arm {}}``).
+    Its choices are ``names``, default every variant of the axis: a variant added to the
+    axis is a choice with no edit here. Its help is ``what``, then each name with its
+    text in ``described``, else its class's first sentence, then ``after``."""
+    names = tuple(AXES[axis]) if names is None else tuple(names)
+    described = described or {}
+    each = "; ".join(
+        f"{name}: {described.get(name) or _first_sentence(AXES[axis][name])}" for name in names
+    )
     add_field(
         p,
-        "--plant",
-        ("plant",),
-        f"dynamic: the MultibodyPlant free body driven by a wrench{dynamic_detail}; "
-        "kinematic: the camera's twist is commanded",
-        choices=tuple(AXES["plant"]),
+        f"--{axis.replace('_', '-')}",
+        (axis,),
+        f"{what}: {each}{after}",
+        choices=names,
+    )
+
+
+def add_axes(p: argparse.ArgumentParser, helps: dict[str, tuple[str, dict[str, str]]]) -> None:
+    """``--AXIS NAME`` (:func:`add_axis`) for every axis of
+    :data:`~geovs_drake.scenario.AXES` but :data:`VALUE_AXES`, in AXES' order; ``helps``:
+    axis -> (what it is, a text per variant), where a command has words of its own."""
+    for axis in AXES:
+        if axis not in VALUE_AXES:
+            what, described = helps.get(axis, (f"the {axis.replace('_', ' ')}", {}))
+            add_axis(p, axis, what, described)
+
+
+#: What ``--plant``'s names say, in every command that takes it.
+PLANT_HELP: dict[str, str] = {
+    "dynamic": "the MultibodyPlant free body driven by a wrench",
+    "kinematic": "the camera's twist is commanded",
+}
+
+
+def add_plant(p: argparse.ArgumentParser, dynamic_detail: str = "") -> None:
+    """``--plant dynamic|kinematic``, a layer (:func:`add_axis`)."""
+    described = dict(PLANT_HELP, dynamic=PLANT_HELP["dynamic"] + dynamic_detail)
+    add_axis(p, "plant", "how the carrier is driven", described)
+
+
+def frames_arg(text: str) -> int:
+    """A whole number of frames >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number of frames >= 0, got {text!r}")
+    return value
+
+
+def add_latency_frames(p: argparse.ArgumentParser) -> None:
+    """``--latency-frames N``: the camera sensor's ``latency_frames`` (Pinhole or
+    Rendered); under the exact sensor, one line naming ``--sensor pinhole``."""
+    add_variant_field(
+        p,
+        "--latency-frames",
+        "sensor",
+        ("pinhole", "rendered"),
+        "latency_frames",
+        "the camera's latency: the law acts on the frame taken N periods ago",
+        type=frames_arg,
+        metavar="N",
     )
 
 

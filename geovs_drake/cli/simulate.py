@@ -9,11 +9,14 @@ import sys
 
 from geovs_drake.cli._options import (
     EXIT_BAD_INPUT,
+    PLANT_HELP,
+    VALUE_AXES,
+    add_axes,
     add_command,
     add_config,
     add_field,
     add_json,
-    add_plant,
+    add_latency_frames,
     add_variant_field,
     add_variant_flag,
     exit_code_of,
@@ -29,21 +32,55 @@ from geovs_drake.cli._options import (
 from geovs_drake.progress import HorizonProgress
 from geovs_drake.scenario import (
     AXES,
-    CONTROLLERS,
     FEEDFORWARD_MODES,
     IBVS_DEPTHS,
     PREDICTIONS,
-    FixedCamera,
-    FreeRig,
     ScenarioConfig,
     Still,
     Trajectory,
     Twist,
     variant_layer,
+    variant_name,
 )
 
 #: The flags that choose the target's motion (the field target_motion): one at most.
-_TARGET_MOTION_FLAGS = ("--target-twist", "--target-trajectory")
+_TARGET_MOTION_FLAGS = VALUE_AXES["target_motion"]
+
+#: ``--carrier``, ``--plant``, ``--sensor``, ``--controller`` (:func:`add_axes`): what
+#: each axis is and what each of its variants does here; a variant not named here shows
+#: its class's first sentence.
+_AXIS_HELP: dict[str, tuple[str, dict[str, str]]] = {
+    "carrier": (
+        "what carries the camera",
+        {
+            "free": "the rigid body of Appendix C, eye-in-hand",
+            "fixed_camera": "the camera fixed in the world and the target sphere driven "
+            "(eye-to-hand, G = H^-1 of Eq. 16)",
+            "arm": "a robot arm, eye-in-hand: joint torques with --plant dynamic, joint "
+            "velocities with kinematic",
+        },
+    ),
+    "plant": ("how the carrier is driven", PLANT_HELP),
+    "sensor": (
+        "what the controller reads",
+        {
+            "exact": "y = c(H)",
+            "pinhole": "a camera's measurement on exact image points, without rendering",
+            "rendered": "Drake renders the target (RgbdSensor, VTK) and y is extracted "
+            "from each frame",
+        },
+    ),
+    "controller": (
+        "the control law",
+        {
+            "nf": "the navigation function",
+            "ibvs": "a baseline commanding the camera's twist, four image points",
+            "pbvs": "a baseline commanding the camera's twist, the pose from c^-1(y)",
+            "spherical": "a baseline commanding the camera's twist, sphere features",
+            "path": "a planned image path followed (Eq. 18)",
+        },
+    ),
+}
 
 
 def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None:
@@ -58,26 +95,18 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         "shows its progress on stderr.",
     )
     add_config(p)
-    add_plant(p)
-    add_field(
-        p,
-        "--controller",
-        ("controller",),
-        "the control law: nf (the navigation function), or a baseline commanding the "
-        "camera's twist: ibvs (four points), pbvs (pose from c^-1(y)), spherical (sphere "
-        "features)",
-        choices=CONTROLLERS,
-    )
-    add_variant_field(
-        p,
-        "--ibvs-depth",
-        "controller",
-        ("ibvs",),
-        "depth",
-        "the depth estimate: true (the current interaction matrix with the true depths, "
-        "from c^-1(y)), desired (the matrix at the goal) or mean (their mean)",
-        choices=IBVS_DEPTHS,
-    )
+    add_axes(p, _AXIS_HELP)
+    _add_pose_flags(p)
+    _add_target_flags(p)
+    _add_law_flags(p)
+    _add_arm_flags(p)
+    _add_camera_flags(p)
+    add_json(p)
+    p.set_defaults(func=run, progress_delay_s=progress_delay_s)
+
+
+def _add_pose_flags(p: argparse.ArgumentParser) -> None:
+    """The start, the goal and the duration."""
     add_field(
         p,
         "--initial",
@@ -107,7 +136,11 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         metavar="x,y,z,roll,pitch,yaw",
     )
     add_field(p, "--duration", ("duration",), "simulated time [s]", type=float, metavar="T")
-    # The moving target (issue 32).
+
+
+def _add_target_flags(p: argparse.ArgumentParser) -> None:
+    """The moving target (issue 32): the axis target_motion, whose variants carry values
+    (:data:`VALUE_AXES`), and what the loop feeds forward."""
     add_field(
         p,
         "--target-twist",
@@ -141,15 +174,45 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         + f" (default: the config's, else {Twist().feedforward})",
         choices=tuple(FEEDFORWARD_MODES),
     )
-    # The arm (issue 20).
-    add_field(
+
+
+def _add_law_flags(p: argparse.ArgumentParser) -> None:
+    """The law's own fields: IBVS's depth, the path's duration and feedback (issue 12)."""
+    add_variant_field(
         p,
-        "--carrier",
-        ("carrier",),
-        "what carries the camera: free (the rigid body of Appendix C) or arm (a robot arm, "
-        "eye-in-hand: joint torques with --plant dynamic, joint velocities with kinematic)",
-        choices=("free", "arm"),
+        "--ibvs-depth",
+        "controller",
+        ("ibvs",),
+        "depth",
+        "the depth estimate: true (the current interaction matrix with the true depths, "
+        "from c^-1(y)), desired (the matrix at the goal) or mean (their mean)",
+        choices=IBVS_DEPTHS,
     )
+    add_variant_field(
+        p,
+        "--path-duration",
+        "controller",
+        ("path",),
+        "duration",
+        "the planned image path's duration [s]",
+        type=float,
+        metavar="T",
+    )
+    add_variant_field(
+        p,
+        "--path-feedback",
+        "controller",
+        ("path",),
+        "feedback_gain",
+        "the gain k [1/s] of the log-map feedback added to the feed-forward of Eq. (18); "
+        "0 is Eq. (18) as written, open loop",
+        type=float,
+        metavar="GAIN",
+    )
+
+
+def _add_arm_flags(p: argparse.ArgumentParser) -> None:
+    """The arm's own fields (issue 20), and ``--mount``, the carrier's earlier spelling."""
     add_variant_field(
         p,
         "--arm",
@@ -210,48 +273,12 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         type=gain_scale_arg,
         metavar="SCALE",
     )
-    # Path following (--controller path) and the fixed camera (--mount): issue 12.
-    add_variant_flag(
-        p,
-        "--mount",
-        _mount,
-        "hand: the camera rides on the driven body (eye-in-hand, carrier !FreeRig or "
-        "!Arm); fixed: the camera is fixed in the world and the target sphere is driven "
-        "(eye-to-hand, G = H^-1 of Eq. 16: carrier !FixedCamera) (default: the config's, "
-        "else hand)",
-        choices=("hand", "fixed"),
-    )
-    add_variant_field(
-        p,
-        "--path-duration",
-        "controller",
-        ("path",),
-        "duration",
-        "the planned image path's duration [s]",
-        type=float,
-        metavar="T",
-    )
-    add_variant_field(
-        p,
-        "--path-feedback",
-        "controller",
-        ("path",),
-        "feedback_gain",
-        "the gain k [1/s] of the log-map feedback added to the feed-forward of Eq. (18); "
-        "0 is Eq. (18) as written, open loop",
-        type=float,
-        metavar="GAIN",
-    )
-    # The camera (issue 13).
-    add_field(
-        p,
-        "--sensor",
-        ("sensor",),
-        "exact: the controller reads y = c(H); rendered: Drake renders the target "
-        "(RgbdSensor, VTK) and y is extracted from each frame; pinhole: that measurement "
-        "on exact image points, without rendering (eye-in-hand, either plant, for the last two)",
-        choices=tuple(AXES["sensor"]),
-    )
+    # Deprecated, so out of --help: --carrier fixed_camera|free says it as a file does.
+    add_variant_flag(p, "--mount", _mount, argparse.SUPPRESS, choices=tuple(_MOUNT_SPELLING))
+
+
+def _add_camera_flags(p: argparse.ArgumentParser) -> None:
+    """The camera sensor's own fields (issue 13)."""
     add_variant_field(
         p,
         "--camera-rate",
@@ -284,8 +311,7 @@ def add_parser(sub: argparse._SubParsersAction, progress_delay_s: float) -> None
         type=resolution_arg,
         metavar="WxH",
     )
-    add_json(p)
-    p.set_defaults(func=run, progress_delay_s=progress_delay_s)
+    add_latency_frames(p)
 
 
 def _target_twist(text: str) -> dict:
@@ -326,7 +352,7 @@ def _feedforward(config: ScenarioConfig, flag: str, mode: str) -> None:
     """``--feedforward`` on the moving target the layers chose. On a still target there is
     nothing to feed forward: the default mode leaves it as it is (as any flag given its
     default does), another is one line."""
-    if not isinstance(config.target_motion, Twist | Trajectory):
+    if not config.moving_target:  # ScenarioConfig's own test, not the variant's type
         if mode == Twist().feedforward:
             return
         raise ValueError(
@@ -336,20 +362,29 @@ def _feedforward(config: ScenarioConfig, flag: str, mode: str) -> None:
     config.target_motion = dataclasses.replace(config.target_motion, feedforward=mode)
 
 
+#: ``--mount``'s values, and the carrier each is spelled as now.
+_MOUNT_SPELLING = {"hand": "free (or arm)", "fixed": "fixed_camera"}
+
+
 def _mount(config: ScenarioConfig, flag: str, mount: str) -> None:
-    """``--mount`` on the carrier the layers chose: ``fixed`` makes a free rig the fixed
-    camera (the same mass model, now the target's), ``hand`` the other way round; the
-    arm carries its camera in its hand."""
-    carrier = config.carrier
-    if mount == "fixed" and isinstance(carrier, FreeRig):
-        config.carrier = FixedCamera(carrier.mass, list(carrier.inertia_diagonal))
-    elif mount == "hand" and isinstance(carrier, FixedCamera):
-        config.carrier = FreeRig(carrier.mass, list(carrier.inertia_diagonal))
-    elif mount == "fixed" and not isinstance(carrier, FixedCamera):
+    """``--mount``, deprecated, on the carrier the layers chose: ``fixed`` makes a free rig
+    the fixed camera (the same mass model, now the target's), ``hand`` the other way
+    round; the arm carries its camera in its hand. It runs as it did, with a line on
+    stderr pointing to ``--carrier``. The carriers by their names in AXES (not their
+    types): the two rigid bodies share their fields."""
+    carrier, name = config.carrier, variant_name(config.carrier)
+    pointer = f"write --carrier {_MOUNT_SPELLING[mount]}"
+    rigid = {"free": "fixed_camera", "fixed_camera": "free"}
+    if mount == "fixed" and name not in rigid:
         raise ValueError(
             f"{flag} fixed needs the free body (--carrier free): the carrier here is "
-            f"{type(carrier).__name__}, which carries the camera in its hand"
+            f"{type(carrier).__name__}, which carries the camera in its hand ({flag} is "
+            f"deprecated: {pointer})"
         )
+    wanted = "fixed_camera" if mount == "fixed" else "free"
+    if name in rigid and name != wanted:
+        config.carrier = AXES["carrier"][wanted](carrier.mass, list(carrier.inertia_diagonal))
+    print(f"geovs-drake: warning: {flag} {mount} is deprecated: {pointer}", file=sys.stderr)
 
 
 def simulate(resolved, progress=None):

@@ -14,6 +14,7 @@ from geovs_drake.cli._options import (
     add_config,
     add_field,
     add_json,
+    add_latency_frames,
     add_variant_field,
     pose_arg,
 )
@@ -40,6 +41,7 @@ def add_hardware_options(p: argparse.ArgumentParser) -> None:
         f"(default: the config's hardware.lcm_url, else {DEFAULT_LCM_URL})",
     )
     add_field(p, "--duration", ("duration",), "run time [s]", type=float, metavar="T")
+    add_latency_frames(p)
 
 
 def hardware_changes(args: argparse.Namespace, **extra) -> dict:

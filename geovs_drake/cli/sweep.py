@@ -9,11 +9,12 @@ from pathlib import Path
 
 from geovs_drake.cli._options import (
     EXIT_INTERRUPTED,
+    add_axis,
     add_command,
     add_config,
     add_duration,
-    add_field,
     add_json,
+    add_latency_frames,
     add_out,
     add_plant,
     add_workers,
@@ -41,24 +42,30 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     add_config(p)
     add_plant(p)
-    add_field(
+    add_axis(
         p,
-        "--carrier",
-        ("carrier",),
-        "free: the paper's free rig; arm: the camera on the arm shipped in the package "
-        "(with --engine drake: each start's joints by IK, its twist carried to the joints "
-        "at the same E0 / k_p)",
-        choices=("free", "arm"),
+        "carrier",
+        "what carries the camera",
+        {
+            "free": "the paper's free rig",
+            "arm": "the camera on the arm shipped in the package (with --engine drake: each "
+            "start's joints by IK, its twist carried to the joints at the same E0 / k_p)",
+        },
+        names=("free", "arm"),
     )
-    add_field(
+    add_axis(
         p,
-        "--sensor",
-        ("sensor",),
-        "exact: y = c(H); pinhole or rendered: the camera at its rate (a scenario's "
-        "sensor: !Pinhole {...} sets its rate, latency and errors), with --engine drake "
-        "(the batch engine reads the exact y)",
-        choices=("exact", "pinhole", "rendered"),
+        "sensor",
+        "what the controller reads",
+        {
+            "exact": "y = c(H)",
+            "pinhole": "the camera at its rate, on exact image points",
+            "rendered": "the camera at its rate, its frames rendered",
+        },
+        after=" (a camera with --engine drake: the batch engine reads the exact y; a "
+        "scenario's sensor: !Pinhole {...} sets its rate, latency and errors)",
     )
+    add_latency_frames(p)
     p.add_argument(
         "--starts", type=int, default=1000, metavar="N", help="number of starts (default: 1000)"
     )

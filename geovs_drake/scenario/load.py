@@ -129,6 +129,27 @@ def _check_fields(value: Any, default: Any, where: str) -> None:
         _check_node(item, fields[key], f"{where}.{key}" if where else str(key))
 
 
+def _check_untagged(fields: dict, axis: str) -> None:
+    """An untagged mapping of ``axis`` is its first variant: where that variant lacks one
+    of ``fields`` and another has them all, ValueError in one line naming that variant's
+    tag, e.g. ``sensor: {latency_frames: 1}`` (read as ``!Exact``): write
+    ``sensor: !Pinhole {latency_frames: 1}``."""
+    tags = _TAGS[axis]
+    first = _FIRST_TAG[axis]
+    known = _schema_fields(tags[first]())
+    if all(key in known for key in fields):
+        return
+    fitting = [
+        tag for tag, kind in tags.items() if all(key in _schema_fields(kind()) for key in fields)
+    ]
+    if fitting:  # else _check_fields names the unknown field
+        raise ValueError(
+            f"{axis}: the {axis} is a tagged variant and an untagged mapping is {first} "
+            f"({', '.join(known) or 'no fields'}): write {axis}: "
+            f"{_tagged(fitting[0][1:], fields)}"
+        )
+
+
 def _check_node(value: Any, default: Any, where: str) -> None:
     """Raise ValueError ``where: expected ..., got ...`` if ``value`` cannot fill a field
     whose default is ``default`` (the defaults have the shapes the fields need)."""
@@ -143,7 +164,10 @@ def _check_node(value: Any, default: Any, where: str) -> None:
                 f"{where}: expected a name ({', '.join(AXES[where])}) or a tagged "
                 f"variant ({', '.join(tags)}), got {_describe(value)}"
             )
-        _check_fields({k: v for k, v in value.items() if k != _TAG}, tags[tag](), where)
+        fields = {k: v for k, v in value.items() if k != _TAG}
+        if _TAG not in value:
+            _check_untagged(fields, where)
+        _check_fields(fields, tags[tag](), where)
         return
     if _schema_fields(default) is not None:
         _check_fields(value, default, where)
