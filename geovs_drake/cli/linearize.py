@@ -258,14 +258,16 @@ def _studies_table(out: dict) -> list[str]:
         )
     if "camera" in out:
         c = out["camera"]
-        slowest, margin = c["slowest_stable_rate_hz"], c["latency_margin_frames"]
-        latency = (
-            f"stable up to {margin} frames late"
-            if margin >= 0
-            else "not stable at this rate even without latency"
-        )
+        margin = c["latency_margin_frames"]
+        if margin is None:  # the search's end, or a loop stable at any latency: its reason
+            latency = c["latency_margin_reason"]
+        elif margin >= 0:
+            latency = f"stable up to {margin} frames late"
+        else:
+            latency = "not stable at this rate even without latency"
+        slowest = c["slowest_stable_rate_hz"]
         needs = (
-            "no rate up to 10 kHz is stable"
+            c["slowest_stable_rate_reason"]
             if slowest is None
             else f"slowest stable rate {slowest:.3g} Hz"
         )
@@ -388,7 +390,7 @@ def run(args: argparse.Namespace) -> int:
             f"{camera['rate']:g} Hz camera {camera['latency_frames']} frames late (spectral "
             f"radius {camera['spectral_radius']:.3g}): "
             + (
-                "no camera rate up to 10 kHz carries them"
+                camera["slowest_stable_rate_reason"]
                 if slowest is None
                 else f"they need at least {slowest:.3g} Hz, or a longer --settling-time"
             ),
