@@ -315,14 +315,29 @@ def _locus(config, lin, path: Path) -> None:
 
 def _table(lin, where: str) -> str:
     verdict = "stable" if lin.max_real_part < 0 else "not stable"
+    continuum = set(lin.continuum)
+    # A mode on a known continuum of equilibria (a redundant arm's self-motion) is 0 to
+    # rounding: named, and left out of the verdict (spectrum.EigenvalueFacts).
+    aside = (
+        f"; {len(continuum)} mode{'s' if len(continuum) > 1 else ''} at 0 to rounding, not "
+        f"counted: {lin.continuum_name}"
+        if continuum
+        else ""
+    )
     lines = [
         f"{lin.plant} loop linearised at {where}: {verdict} "
-        f"(largest real part {lin.max_real_part:.4g} 1/s)"
+        f"(largest real part {lin.max_real_part:.4g} 1/s{aside})"
         + ("" if lin.at_equilibrium else "; not an equilibrium: the frozen-time model"),
         f"  {'eigenvalue [1/s]':>26}  {'damping ratio':>13}  {'time constant [s]':>17}",
     ]
-    for lam, zeta, tau in zip(lin.eigenvalues, lin.damping_ratios, lin.time_constants, strict=True):
-        lines.append(f"  {lam.real:>12.5g} {lam.imag:+12.5g}j  {zeta:>13.4g}  {tau:>17.4g}")
+    rows = zip(lin.eigenvalues, lin.damping_ratios, lin.time_constants, strict=True)
+    for k, (lam, zeta, tau) in enumerate(rows):
+        facts = (
+            f"  {'a continuum of equilibria':>32}"
+            if k in continuum
+            else f"  {zeta:>13.4g}  {tau:>17.4g}"
+        )
+        lines.append(f"  {lam.real:>12.5g} {lam.imag:+12.5g}j{facts}")
     return "\n".join(lines)
 
 
