@@ -11,6 +11,7 @@ from pydrake.math import RigidTransform
 
 from geovs_drake.geometry.domain import DomainMargins
 from geovs_drake.scenario import (
+    PREDICTIONS,
     CameraModel,
     FixedCamera,
     FreeRig,
@@ -256,16 +257,47 @@ class SimulationResult:
         return None if self.energy is None else float(self.config.control.potential_gain)
 
     @property
-    def energy_applies(self) -> bool:
-        """Whether Appendix C's energy argument covers this run's loop: a still target, or
-        the free rig behind a moving one with its known motion fed forward (the relative
-        dynamics are then a still target's, docs/moving-target.md). Behind an estimated
-        or ignored motion, or on an arm simulated in the world, nothing bounds the energy
-        the target's motion brings in."""
+    def energy_exclusions(self) -> list[str]:
+        """Why Appendix C's energy argument does not cover this run's loop, one phrase
+        each (empty where it does): behind a moving target, anything but the free rig with
+        its known motion fed forward (the relative dynamics are then a still target's,
+        docs/moving-target.md; behind an estimated or ignored motion, or on an arm
+        simulated in the world, nothing bounds the energy the target's motion brings in);
+        a law that reads a held frame (the argument needs continuous feedback; the
+        sampled-data model at the goal, ``camera_fit``, is what is left); an arm whose
+        torques over the energy level set pass its effort limits (``effort_fit``, where it
+        was checked: MultibodyPlant clamps them, and the clamped torque does not do the
+        work the argument counts on). The warning lines and :meth:`one_line` say the same."""
         config = self.config
-        if not config.moving_target:
-            return True
-        return isinstance(config.carrier, FreeRig) and config.target_motion.feedforward == "known"
+        out = []
+        if config.moving_target:
+            motion = config.target_motion
+            if motion.feedforward != "known":
+                out.append("behind a moving target it needs the known twist")
+            elif not isinstance(config.carrier, FreeRig):
+                out.append("behind a moving target it covers the free rig only")
+        # A camera's capability, not its variant: a sensor without a prediction (the exact
+        # one) feeds the law continuously.
+        prediction = getattr(config.sensor, "prediction", None)
+        if prediction is not None and not PREDICTIONS[prediction].continuous:
+            out.append(
+                "the law reads a held frame (prediction: none), and the argument needs "
+                "continuous feedback"
+            )
+        effort = self.effort_fit
+        if effort is not None and not effort.within:
+            out.append(
+                f"the arm's torques reach {effort.worst_ratio:.2g} times {effort.joint}'s "
+                f"effort limit over E <= {effort.level:.3g} k_p, where MultibodyPlant "
+                "clamps them"
+            )
+        return out
+
+    @property
+    def energy_applies(self) -> bool:
+        """Whether Appendix C's energy argument covers this run's loop: no
+        :attr:`energy_exclusions`."""
+        return not self.energy_exclusions
 
     @property
     def energy_guarantee(self) -> bool | None:
@@ -274,6 +306,20 @@ class SimulationResult:
         if self.energy is None or not self.energy_applies:
             return None
         return bool(self.initial_energy < self.energy_bound)
+
+    @property
+    def energy_guarantee_reason(self) -> str:
+        """:attr:`energy_guarantee`'s reason, in the words the run's line uses: E0 against
+        k_p where the argument covers the run, else why not."""
+        if self.energy is None:
+            return (
+                "no energy guarantee: the kinematic loop has no energy"
+                if not self.config.dynamic
+                else "no energy guarantee: the law's energy is not the NF's, k_p phi"
+            )
+        if self.energy_applies:
+            return energy_note(self.initial_energy, self.energy_bound)
+        return f"no energy guarantee: {'; '.join(self.energy_exclusions)}"
 
     @property
     def final_errors(self) -> tuple[float, float]:
@@ -318,12 +364,8 @@ class SimulationResult:
         if isinstance(cam, CameraModel):
             width, height = (int(v) for v in cam.resolution)
             sensor = f", {s['sensor']} camera {width}x{height} at {cam.rate:g} Hz"
-        energy = ""
-        if self.energy is not None and self.energy_applies:
-            energy = f" | {energy_note(self.initial_energy, self.energy_bound)}"
-        elif self.energy is not None:
-            # Appendix C covers the free rig with the known twist only (energy_applies).
-            energy = " | no energy guarantee: behind a moving target it needs the known twist"
+        # The same verdict and reason as the JSON's (energy_guarantee_reason).
+        energy = "" if self.energy is None else f" | {self.energy_guarantee_reason}"
         if self.saddle_note:
             energy += f" | {self.saddle_note}"
         law = s["controller"]
@@ -346,8 +388,10 @@ class SimulationResult:
         """The run as JSON-ready values. The energy fields (``initial_energy``,
         ``energy_bound`` = k_p, ``energy_guarantee`` = E0 < k_p, ``max_energy``) are
         None for the kinematic loop, which has no energy, and for laws other than
-        the NF, whose energy is not k_p phi. ``ibvs_depth`` is the IBVS depth
-        estimate for the law ``ibvs``, else None."""
+        the NF, whose energy is not k_p phi; ``energy_guarantee`` is None too where the
+        argument does not cover the run (:attr:`energy_exclusions`), and
+        ``energy_guarantee_reason`` says why, as the run's line does. ``ibvs_depth`` is
+        the IBVS depth estimate for the law ``ibvs``, else None."""
         dp, dr = self.final_errors
         tol_p, tol_r = convergence_tolerance(self.config)
         law = self.config.controller
@@ -380,6 +424,7 @@ class SimulationResult:
             "initial_energy": self.initial_energy,
             "energy_bound": self.energy_bound,
             "energy_guarantee": self.energy_guarantee,
+            "energy_guarantee_reason": self.energy_guarantee_reason,
             "max_energy": None if self.energy is None else float(np.max(self.energy)),
             "steady_tracking_error_m": self.steady_tracking_error,
             "max_tracking_error_m": float(np.max(self.position_errors)),
