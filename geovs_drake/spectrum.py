@@ -28,6 +28,14 @@ critically damped mode) and far below what a study distinguishes.
 
 ``spectrum[k]`` is therefore the same mode on every machine, within ``rtol * r``, as
 long as no two modes are closer than that (then they are interchangeable anyway).
+
+**A continuum of equilibria.** Where the equilibria are not isolated (a redundant arm's
+goal is a curve of joint configurations: its self-motion), the linear model has an
+eigenvalue 0 per direction along them, which rounding puts a hair either side of 0.
+Its sign is noise, not a verdict: :func:`continuum_modes` names those modes by their
+eigenvectors (in the continuum's directions, which the caller knows from the geometry),
+and :class:`EigenvalueFacts` leaves them out of the verdict, the damping ratios and the
+time constants.
 """
 
 from __future__ import annotations
@@ -41,6 +49,7 @@ __all__ = [
     "canonical_eigenvalues",
     "canonical_order",
     "canonical_spectrum",
+    "continuum_modes",
     "damping_ratios",
     "match_spectra",
     "spectra_close",
@@ -207,34 +216,83 @@ def time_constants(eigenvalues: np.ndarray) -> np.ndarray:
         return -1.0 / np.asarray(eigenvalues).real
 
 
+def continuum_modes(
+    A: np.ndarray, directions: np.ndarray, rtol: float = SPECTRUM_RTOL
+) -> tuple[np.ndarray, tuple[int, ...]]:
+    """The eigenvalues of ``A`` in the canonical order, and the indices among them of the
+    modes on a known continuum of equilibria: those within ``rtol`` times the spectral
+    radius of 0 whose eigenvector lies, to ``rtol``, in the span of ``directions`` (n x m,
+    orthonormal columns: the states along which the equilibrium continues, which the
+    caller knows from the geometry).
+
+    None where ``A`` does not vanish on ``directions`` (to ``rtol |A|``: they are then no
+    equilibria), nor where more than m modes qualify: the 0 is then defective, a drift
+    along the continuum rather than a rest on it, and its modes count."""
+    A = np.asarray(A, dtype=float)
+    directions = np.asarray(directions, dtype=float).reshape(len(A), -1)
+    values, vectors = np.linalg.eig(A)
+    order = canonical_order(values, rtol)
+    values, vectors = values[order], vectors[:, order]
+    m = directions.shape[1]
+    scale = float(np.linalg.norm(A, 2))
+    if m == 0 or np.linalg.norm(A @ directions, 2) > rtol * scale:
+        return values, ()
+    tol = rtol * float(np.max(np.abs(values)))
+    unit = vectors / np.linalg.norm(vectors, axis=0)
+    outside = np.linalg.norm(unit - directions @ (directions.T @ unit), axis=0)
+    found = tuple(int(k) for k in np.flatnonzero((np.abs(values) <= tol) & (outside <= rtol)))
+    return values, (found if len(found) <= m else ())
+
+
 class EigenvalueFacts:
     """What a linear model's ``eigenvalues`` say, for the result classes that hold them
-    (the linearisations at the goal, along a run, of the arm): written once here."""
+    (the linearisations at the goal, along a run, of the arm): written once here.
+
+    ``continuum``: the indices of the modes on a known continuum of equilibria
+    (:func:`continuum_modes`), and ``continuum_name`` what it is, in words; none by
+    default. Those modes are named, and left out of :attr:`max_real_part` (so of
+    ``stable``), the damping ratios and the time constants (NaN there): their eigenvalue
+    is 0 to rounding, and its sign says nothing about the loop."""
 
     eigenvalues: np.ndarray
+    continuum: tuple[int, ...] = ()
+    continuum_name: str | None = None
+
+    @property
+    def _on_continuum(self) -> np.ndarray:
+        """Per eigenvalue: it is one of :attr:`continuum`'s modes."""
+        mask = np.zeros(len(np.asarray(self.eigenvalues)), dtype=bool)
+        mask[list(self.continuum)] = True
+        return mask
 
     @property
     def max_real_part(self) -> float:
-        """The largest real part of the eigenvalues: < 0 for a stable model."""
-        return float(np.max(np.asarray(self.eigenvalues).real))
+        """The largest real part of the eigenvalues off the continuum: < 0 for a stable
+        model (-inf where every mode is on it)."""
+        lam = np.asarray(self.eigenvalues)[~self._on_continuum]
+        return float(np.max(lam.real, initial=-np.inf))
 
     @property
     def damping_ratios(self) -> np.ndarray:
-        """:func:`damping_ratios` of the eigenvalues."""
-        return damping_ratios(self.eigenvalues)
+        """:func:`damping_ratios` of the eigenvalues (NaN on the continuum)."""
+        return np.where(self._on_continuum, np.nan, damping_ratios(self.eigenvalues))
 
     @property
     def time_constants(self) -> np.ndarray:
-        """:func:`time_constants` of the eigenvalues [s]."""
-        return time_constants(self.eigenvalues)
+        """:func:`time_constants` of the eigenvalues [s] (NaN on the continuum)."""
+        return np.where(self._on_continuum, np.nan, time_constants(self.eigenvalues))
 
     def eigenvalue_summary(self) -> dict:
         """``eigenvalues``, ``max_real_part``, ``damping_ratios``, ``time_constants`` and
-        ``stable`` (every real part < 0), as a result's summary reports them."""
+        ``stable`` (every real part off the continuum < 0), as a result's summary reports
+        them, with ``continuum_modes`` (the continuum's indices into ``eigenvalues``,
+        empty where none) and ``continuum`` (what it is, or None)."""
         return {
             "eigenvalues": self.eigenvalues,
             "max_real_part": self.max_real_part,
             "damping_ratios": self.damping_ratios,
             "time_constants": self.time_constants,
             "stable": self.max_real_part < 0,
+            "continuum_modes": list(self.continuum),
+            "continuum": self.continuum_name,
         }

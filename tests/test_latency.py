@@ -77,7 +77,7 @@ def test_with_prediction_the_model_is_the_continuous_loops_at_any_latency():
         c.sensor.latency_frames = latency
         assert spectral_radius(c) == pytest.approx(np.exp(slowest / 30.0), rel=1e-9)
         assert spectral_radius(c) == pytest.approx(sampled_spectral_radius(c), rel=1e-8)
-    assert latency_margin(config, max_frames=10) == 10
+    assert latency_margin(config, max_frames=10) is None  # stable at any latency
 
 
 def test_bad_camera_settings_are_one_line():

@@ -136,9 +136,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _on_arm(config) -> bool:
-    from geovs_drake.scenario import Arm
-
-    return isinstance(config.carrier, Arm)
+    return config.carrier.traits.joints
 
 
 def _arm_linearization(config, args):
@@ -189,7 +187,7 @@ def _camera(config, args, design) -> dict:
     chosen for this camera)."""
     from geovs_drake.analysis.linear.latency import camera_of, sampled_model
     from geovs_drake.goal.linear_model import check_camera
-    from geovs_drake.scenario import PREDICTIONS, Arm, camera_like
+    from geovs_drake.scenario import PREDICTIONS, camera_like
 
     camera = camera_of(config)
     # With a predictor between frames the law reads the continuous loop's y at the goal.
@@ -197,7 +195,7 @@ def _camera(config, args, design) -> dict:
     rate = camera.rate if args.camera_rate is None else args.camera_rate
     check_camera(rate, args.latency)
     studied = config
-    if isinstance(config.carrier, Arm):
+    if config.carrier.traits.joints:
         from geovs_drake.goal.camera_fit import goal_sampled_model
         from geovs_drake.loop import resolve
 
@@ -257,14 +255,16 @@ def _studies_table(out: dict) -> list[str]:
         )
     if "camera" in out:
         c = out["camera"]
-        slowest, margin = c["slowest_stable_rate_hz"], c["latency_margin_frames"]
-        latency = (
-            f"stable up to {margin} frames late"
-            if margin >= 0
-            else "not stable at this rate even without latency"
-        )
+        margin = c["latency_margin_frames"]
+        if margin is None:  # the search's end, or a loop stable at any latency: its reason
+            latency = c["latency_margin_reason"]
+        elif margin >= 0:
+            latency = f"stable up to {margin} frames late"
+        else:
+            latency = "not stable at this rate even without latency"
+        slowest = c["slowest_stable_rate_hz"]
         needs = (
-            "no rate up to 10 kHz is stable"
+            c["slowest_stable_rate_reason"]
             if slowest is None
             else f"slowest stable rate {slowest:.3g} Hz"
         )
@@ -312,14 +312,29 @@ def _locus(config, lin, path: Path) -> None:
 
 def _table(lin, where: str) -> str:
     verdict = "stable" if lin.max_real_part < 0 else "not stable"
+    continuum = set(lin.continuum)
+    # A mode on a known continuum of equilibria (a redundant arm's self-motion) is 0 to
+    # rounding: named, and left out of the verdict (spectrum.EigenvalueFacts).
+    aside = (
+        f"; {len(continuum)} mode{'s' if len(continuum) > 1 else ''} at 0 to rounding, not "
+        f"counted: {lin.continuum_name}"
+        if continuum
+        else ""
+    )
     lines = [
         f"{lin.plant} loop linearised at {where}: {verdict} "
-        f"(largest real part {lin.max_real_part:.4g} 1/s)"
+        f"(largest real part {lin.max_real_part:.4g} 1/s{aside})"
         + ("" if lin.at_equilibrium else "; not an equilibrium: the frozen-time model"),
         f"  {'eigenvalue [1/s]':>26}  {'damping ratio':>13}  {'time constant [s]':>17}",
     ]
-    for lam, zeta, tau in zip(lin.eigenvalues, lin.damping_ratios, lin.time_constants, strict=True):
-        lines.append(f"  {lam.real:>12.5g} {lam.imag:+12.5g}j  {zeta:>13.4g}  {tau:>17.4g}")
+    rows = zip(lin.eigenvalues, lin.damping_ratios, lin.time_constants, strict=True)
+    for k, (lam, zeta, tau) in enumerate(rows):
+        facts = (
+            f"  {'a continuum of equilibria':>32}"
+            if k in continuum
+            else f"  {zeta:>13.4g}  {tau:>17.4g}"
+        )
+        lines.append(f"  {lam.real:>12.5g} {lam.imag:+12.5g}j{facts}")
     return "\n".join(lines)
 
 
@@ -387,7 +402,7 @@ def run(args: argparse.Namespace) -> int:
             f"{camera['rate']:g} Hz camera {camera['latency_frames']} frames late (spectral "
             f"radius {camera['spectral_radius']:.3g}): "
             + (
-                "no camera rate up to 10 kHz carries them"
+                camera["slowest_stable_rate_reason"]
                 if slowest is None
                 else f"they need at least {slowest:.3g} Hz, or a longer --settling-time"
             ),

@@ -41,8 +41,10 @@ from geovs_drake.scenario import PlantConfig, ScenarioConfig
 
 __all__ = [
     "MAX_RATE_HZ",
+    "LATENCY_SEARCH_FRAMES",
     "MIN_RATE_HZ",
     "SampledModel",
+    "SearchedBound",
     "check_camera",
     "log_bisection",
     "chart_jacobian",
@@ -223,12 +225,35 @@ def tracking_transfer(resolved: GoalInputs, frequencies_hz: np.ndarray) -> np.nd
 
 # --- The goal's model split at the camera: what a sampled, delayed image does to it.
 
-#: The slowest camera rate searched [Hz] (below it the answer is "none stable").
+#: The slowest camera rate searched [Hz] (a loop stable there has its boundary below the
+#: search: it is reported as such, not as this rate).
 MIN_RATE_HZ = 0.1
 #: The fastest camera rate searched [Hz] for a loop that the given rate cannot carry.
 MAX_RATE_HZ = 10_000.0
 #: Bisection steps on log(rate).
 _RATE_BISECTIONS = 60
+#: The latencies [frames] the margin's search tries, 0 to this (or to the latency asked
+#: about, where that is longer): a loop stable at all of them has its margin beyond.
+LATENCY_SEARCH_FRAMES = 30
+
+
+@dataclass(frozen=True)
+class SearchedBound:
+    """What a finite search found: ``value`` (a number), or None with ``reason``, a phrase
+    saying why there is none (the search's end reached, the loop stable at any latency or
+    rate, or at none). A report prints the value, else the reason."""
+
+    value: float | int | None
+    reason: str | None = None
+
+
+#: Why the continuous model (:meth:`SampledModel.continuous`) has no latency or rate bound:
+#: the predictor between frames gives the law the image now, exactly at the goal.
+_CONTINUOUS = "the prediction removes the hold and the latency at the goal"
+_CONTINUOUS_UNSTABLE = (
+    "not stable at any rate: with the prediction the model is the continuous loop's, "
+    "and that is not stable"
+)
 
 
 @dataclass
@@ -250,6 +275,13 @@ class SampledModel:
             C_xi=np.zeros_like(self.C_xi),
         )
 
+    @property
+    def holds_nothing(self) -> bool:
+        """Nothing is held (``C_xi = 0``, :meth:`continuous`): the delayed frames feed
+        nothing back, so the latency drops out, and the radius ``exp(max Re(lambda(A_c))
+        / rate)`` is below 1 at every rate or at none."""
+        return not np.any(self.C_xi)
+
     def spectral_radius(self, rate: float, latency_frames: int) -> float:
         """The sampled, delayed loop's spectral radius (below 1: locally stable)."""
         check_camera(rate, latency_frames)
@@ -266,39 +298,72 @@ class SampledModel:
             Z[k * n : (k + 1) * n, (k - 1) * n : k * n] = np.eye(n)
         return float(np.max(np.abs(np.linalg.eigvals(Z))))
 
-    def latency_margin(self, rate: float, max_frames: int = 30) -> int:
-        """The largest latency [frames] at ``rate`` with a spectral radius below 1 (-1
-        when none is, ``max_frames`` when all up to it are)."""
-        best = -1
-        for L in range(max_frames + 1):
+    def latency_margin(self, rate: float, max_frames: int = LATENCY_SEARCH_FRAMES) -> int | None:
+        """The largest latency [frames] at ``rate`` up to which every latency has a
+        spectral radius below 1 (-1 when none has); None where the search found no
+        unstable latency (:meth:`latency_bound` says why)."""
+        return self.latency_bound(rate, max_frames).value
+
+    def latency_bound(self, rate: float, max_frames: int = LATENCY_SEARCH_FRAMES) -> SearchedBound:
+        """:meth:`latency_margin` with its reason where it has no value: the loop
+        stable at every latency from 0 to ``max_frames`` (the search's end: the margin
+        lies beyond it, not at it), or, where nothing is held (:attr:`holds_nothing`),
+        stable at any latency."""
+        if self.holds_nothing:  # the latency does not enter: one radius decides
+            if self.spectral_radius(rate, 0) >= 1:
+                return SearchedBound(-1)
+            return SearchedBound(None, f"stable at any latency ({_CONTINUOUS})")
+        for L in range(int(max_frames) + 1):
             if self.spectral_radius(rate, L) >= 1:
-                break
-            best = L
-        return best
+                return SearchedBound(L - 1)
+        return SearchedBound(None, f"stable beyond {int(max_frames)} frames (the search's end)")
 
     def summary(self, rate: float, latency_frames: int) -> dict:
         """The camera at ``rate`` [Hz], ``latency_frames`` late, as JSON values
         (``linearize --latency --json``'s ``camera``): the spectral radius, whether it is
-        stable, the latency margin at that rate (-1: not stable even without latency) and
-        the slowest stable rate at this latency (:meth:`stable_rate_boundary`; None where
-        none up to :data:`MAX_RATE_HZ` is)."""
+        stable, the latency margin at that rate (:meth:`latency_bound`, searched to
+        :data:`LATENCY_SEARCH_FRAMES` or ``latency_frames`` if longer; -1: not stable
+        even without latency) and the slowest stable rate at this latency
+        (:meth:`rate_bound`). Each bound is None where the search found none, and its
+        ``..._reason`` says why (else None)."""
         rho = self.spectral_radius(rate, latency_frames)
+        margin = self.latency_bound(rate, max(LATENCY_SEARCH_FRAMES, int(latency_frames)))
+        slowest = self.rate_bound(latency_frames, rate)
         return json_ready(
             {
                 "rate": rate,
                 "latency_frames": latency_frames,
                 "spectral_radius": rho,
                 "stable": rho < 1,
-                "latency_margin_frames": self.latency_margin(rate),
-                "slowest_stable_rate_hz": self.stable_rate_boundary(latency_frames, rate),
+                "latency_margin_frames": margin.value,
+                "latency_margin_reason": margin.reason,
+                "slowest_stable_rate_hz": slowest.value,
+                "slowest_stable_rate_reason": slowest.reason,
             }
         )
 
-    def stable_rate_boundary(self, latency_frames: int, rate: float) -> float:
+    def rate_bound(self, latency_frames: int, rate: float) -> SearchedBound:
+        """:meth:`stable_rate_boundary` with its reason where it has no value: stable
+        down to :data:`MIN_RATE_HZ` (the search's end), no rate up to
+        :data:`MAX_RATE_HZ` stable, or, where nothing is held (:attr:`holds_nothing`),
+        stable at any rate or at none."""
+        if self.holds_nothing:
+            if self.spectral_radius(rate, latency_frames) >= 1:
+                return SearchedBound(None, _CONTINUOUS_UNSTABLE)
+            return SearchedBound(None, f"stable at any rate ({_CONTINUOUS})")
+        boundary = self.stable_rate_boundary(latency_frames, rate)
+        if boundary is None:
+            return SearchedBound(None, f"stable down to {MIN_RATE_HZ:g} Hz (the search's end)")
+        if math.isnan(boundary):
+            return SearchedBound(None, f"no rate up to {MAX_RATE_HZ:g} Hz is stable")
+        return SearchedBound(boundary)
+
+    def stable_rate_boundary(self, latency_frames: int, rate: float) -> float | None:
         """The slowest stable camera rate [Hz] at ``latency_frames``, searched from
         ``rate``: down from it where it is stable (:meth:`slowest_stable_rate`), else up,
         doubling to the first stable rate, then down from there (the rate the loop needs).
-        NaN where no rate up to :data:`MAX_RATE_HZ` is stable."""
+        NaN where no rate up to :data:`MAX_RATE_HZ` is stable; None where the loop is
+        stable down to :data:`MIN_RATE_HZ` (the boundary lies below the search)."""
         top = float(rate)
         while self.spectral_radius(top, latency_frames) >= 1:
             if top >= MAX_RATE_HZ:
@@ -310,18 +375,18 @@ class SampledModel:
             lambda r: self.spectral_radius(r, latency_frames) < 1, top, top / 2, _RATE_BISECTIONS
         )
 
-    def slowest_stable_rate(self, latency_frames: int, rate: float) -> float:
+    def slowest_stable_rate(self, latency_frames: int, rate: float) -> float | None:
         """The slowest camera rate [Hz] with a spectral radius below 1 at
         ``latency_frames``: bisection on log(rate) between :data:`MIN_RATE_HZ` and
         ``rate``, which must be stable (the radius need not be monotone in the rate, so
         this is the boundary nearest ``rate`` from below). NaN when ``rate`` itself is
-        unstable; MIN_RATE_HZ when even that is stable."""
+        unstable; None when MIN_RATE_HZ is stable too: the search's end, not a boundary."""
         hi = float(rate)
         if self.spectral_radius(hi, latency_frames) >= 1:
             return math.nan
         lo = MIN_RATE_HZ
         if self.spectral_radius(lo, latency_frames) < 1:
-            return lo
+            return None
         return log_bisection(
             lambda r: self.spectral_radius(r, latency_frames) < 1, hi, lo, _RATE_BISECTIONS
         )

@@ -135,7 +135,7 @@ class Arm:
     #: plant's :data:`NOMINAL_GAIN_SCALES` (10 on the dynamic arm, whose inertia at the
     #: camera is about ten times the default rig's, which keeps the free rig's time
     #: constants; 1 on the kinematic one), at most the largest that the camera's rate and
-    #: latency carry with a gain margin of 2 (:func:`geovs_drake.loop.fit_gains`).
+    #: latency carry with a gain margin of 2 (:func:`geovs_drake.loop.resolve`).
     gain_scale: float | str = AUTO
     #: What the dynamic arm's effort limits do to the gains (:data:`TORQUE_LIMITS`,
     #: :mod:`geovs_drake.goal.effort_fit`): ``warn``, one warning line where the run's

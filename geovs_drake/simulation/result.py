@@ -12,7 +12,7 @@ from pydrake.math import RigidTransform
 
 from geovs_drake._json import json_ready
 from geovs_drake.geometry.domain import DomainMargins
-from geovs_drake.scenario import ScenarioConfig, radius_error_of, variant_name
+from geovs_drake.scenario import PREDICTIONS, ScenarioConfig, radius_error_of, variant_name
 
 if TYPE_CHECKING:  # named in annotations only: the batch engine's workers read the
     # tolerances here without the goal's models (an arm's MultibodyPlant) or the loop.
@@ -29,7 +29,7 @@ __all__ = [
     "SimulationResult",
     "TargetTrace",
     "convergence_tolerance",
-    "energy_applies",
+    "energy_exclusions",
     "energy_guarantee",
     "energy_note",
     "pose_error",
@@ -77,27 +77,51 @@ def energy_note(initial_energy: float, bound: float) -> str:
     )
 
 
-def energy_applies(config: ScenarioConfig) -> bool:
-    """Whether Appendix C's energy argument covers ``config``'s loop: a still target, or
-    the free rig behind a moving one with its known motion fed forward (the relative
-    dynamics are then a still target's, docs/moving-target.md). Behind an estimated
-    or ignored motion, or on an arm simulated in the world, nothing bounds the energy
-    the target's motion brings in."""
-    if not config.moving_target:
-        return True
-    # The relative dynamics are a still target's for the rigid body of Appendix C.
-    rigid_body = config.carrier.traits.rigid_body_goal
-    return rigid_body and config.target_motion.feedforward == "known"
+def energy_exclusions(resolved: ResolvedScenario) -> list[str]:
+    """Why Appendix C's energy argument does not cover ``resolved``'s loop, one phrase
+    each (empty where it does): behind a moving target, anything but the free rig with
+    its known motion fed forward (the relative dynamics are then a still target's,
+    docs/moving-target.md; behind an estimated or ignored motion, or on an arm
+    simulated in the world, nothing bounds the energy the target's motion brings in);
+    a law that reads a held frame (the argument needs continuous feedback; the
+    sampled-data model at the goal, ``camera_fit``, is what is left); an arm whose
+    torques over the energy level set pass its effort limits (the resolver's effort
+    check, where it ran: MultibodyPlant clamps them, and the clamped torque does not do
+    the work the argument counts on). The warning lines and the run's line say the same."""
+    config = resolved.config
+    out = []
+    if config.moving_target:
+        if config.target_motion.feedforward != "known":
+            out.append("behind a moving target it needs the known twist")
+        elif not config.carrier.traits.rigid_body_goal:
+            # The relative dynamics are a still target's for the rigid body of Appendix C.
+            out.append("behind a moving target it covers the free rig only")
+    # A camera's capability, not its variant: a sensor without a prediction (the exact
+    # one) feeds the law continuously.
+    prediction = getattr(config.sensor, "prediction", None)
+    if prediction is not None and not PREDICTIONS[prediction].continuous:
+        out.append(
+            "the law reads a held frame (prediction: none), and the argument needs "
+            "continuous feedback"
+        )
+    effort = resolved.effort
+    if effort is not None and not effort.within:
+        out.append(
+            f"the arm's torques reach {effort.worst_ratio:.2g} times {effort.joint}'s "
+            f"effort limit over E <= {effort.level:.3g} k_p, where MultibodyPlant "
+            "clamps them"
+        )
+    return out
 
 
-def energy_guarantee(config: ScenarioConfig, energy: np.ndarray | None) -> bool | None:
+def energy_guarantee(resolved: ResolvedScenario, energy: np.ndarray | None) -> bool | None:
     """E0 < k_p: Appendix C's guarantee that phi < 1 throughout, for a run whose energy
     along it is ``energy`` (dynamic, under the NF); None where the run has no energy (a
     kinematic loop, another law) or the argument does not cover it
-    (:func:`energy_applies`)."""
-    if energy is None or not energy_applies(config):
+    (:func:`energy_exclusions`)."""
+    if energy is None or energy_exclusions(resolved):
         return None
-    return bool(energy[0] < config.control.potential_gain)
+    return bool(energy[0] < resolved.config.control.potential_gain)
 
 
 def convergence_tolerance(resolved: ResolvedScenario) -> tuple[float, float]:
@@ -325,16 +349,36 @@ class SimulationResult:
         return None if self.energy is None else float(self.config.control.potential_gain)
 
     @property
+    def energy_exclusions(self) -> list[str]:
+        """Why Appendix C's energy argument does not cover this run's loop
+        (:func:`energy_exclusions`)."""
+        return energy_exclusions(self.resolved)
+
+    @property
     def energy_applies(self) -> bool:
-        """Whether Appendix C's energy argument covers this run's loop
-        (:func:`energy_applies`)."""
-        return energy_applies(self.config)
+        """Whether Appendix C's energy argument covers this run's loop: no
+        :attr:`energy_exclusions`."""
+        return not self.energy_exclusions
 
     @property
     def energy_guarantee(self) -> bool | None:
         """E0 < k_p: Appendix C's guarantee that phi < 1 throughout (dynamic), else None
         (:func:`energy_guarantee`)."""
-        return energy_guarantee(self.config, self.energy)
+        return energy_guarantee(self.resolved, self.energy)
+
+    @property
+    def energy_guarantee_reason(self) -> str:
+        """:attr:`energy_guarantee`'s reason, in the words the run's line uses: E0 against
+        k_p where the argument covers the run, else why not."""
+        if self.energy is None:
+            return (
+                "no energy guarantee: the kinematic loop has no energy"
+                if not self.config.dynamic
+                else "no energy guarantee: the law's energy is not the NF's, k_p phi"
+            )
+        if self.energy_applies:
+            return energy_note(self.initial_energy, self.energy_bound)
+        return f"no energy guarantee: {'; '.join(self.energy_exclusions)}"
 
     @property
     def final_errors(self) -> tuple[float, float]:
@@ -379,12 +423,8 @@ class SimulationResult:
         if cam.traits.camera:
             width, height = (int(v) for v in cam.resolution)
             sensor = f", {s['sensor']} camera {width}x{height} at {cam.rate:g} Hz"
-        energy = ""
-        if self.energy is not None and self.energy_applies:
-            energy = f" | {energy_note(self.initial_energy, self.energy_bound)}"
-        elif self.energy is not None:
-            # Appendix C covers the free rig with the known twist only (energy_applies).
-            energy = " | no energy guarantee: behind a moving target it needs the known twist"
+        # The same verdict and reason as the JSON's (energy_guarantee_reason).
+        energy = "" if self.energy is None else f" | {self.energy_guarantee_reason}"
         if self.saddle_note:
             energy += f" | {self.saddle_note}"
         law = s["controller"]
@@ -407,8 +447,10 @@ class SimulationResult:
         """The run as JSON-ready values. The energy fields (``initial_energy``,
         ``energy_bound`` = k_p, ``energy_guarantee`` = E0 < k_p, ``max_energy``) are
         None for the kinematic loop, which has no energy, and for laws other than
-        the NF, whose energy is not k_p phi. ``ibvs_depth`` is the IBVS depth
-        estimate for the law ``ibvs``, else None."""
+        the NF, whose energy is not k_p phi; ``energy_guarantee`` is None too where the
+        argument does not cover the run (:attr:`energy_exclusions`), and
+        ``energy_guarantee_reason`` says why, as the run's line does. ``ibvs_depth`` is
+        the IBVS depth estimate for the law ``ibvs``, else None."""
         dp, dr = self.final_errors
         tol_p, tol_r = convergence_tolerance(self.resolved)
         law = self.config.controller
@@ -442,6 +484,7 @@ class SimulationResult:
             "initial_energy": self.initial_energy,
             "energy_bound": self.energy_bound,
             "energy_guarantee": self.energy_guarantee,
+            "energy_guarantee_reason": self.energy_guarantee_reason,
             "max_energy": None if self.energy is None else float(np.max(self.energy)),
             "steady_tracking_error_m": self.steady_tracking_error,
             "max_tracking_error_m": float(np.max(self.position_errors)),

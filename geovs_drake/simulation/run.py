@@ -263,7 +263,7 @@ def _report(loop: Loop, simulator, monitor, wall: float, failure: str | None) ->
     )
     # The notes the message carries: the energy's where it does not cover the start
     # (the result's energy_guarantee), the planner's, the saddle's.
-    if energy_guarantee(config, energy) is False:
+    if energy_guarantee(resolved, energy) is False:
         message += f" ({energy_note(float(energy[0]), config.control.potential_gain)})"
     if resolved.law.traits.plans:  # what the planner found (cached)
         message += f" (plan: {plan_for_scenario(config, resolved.law).message})"

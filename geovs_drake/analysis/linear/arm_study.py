@@ -34,9 +34,10 @@ from geovs_drake.goal.arm import arm_goal_model, arm_model, solve_joints
 from geovs_drake.goal.step_limit import arm_goal_A
 from geovs_drake.loop import build_loop, exact_twin, resolve
 from geovs_drake.scenario import Dynamic, Rendered, ScenarioConfig, camera_like
-from geovs_drake.spectrum import EigenvalueFacts, canonical_eigenvalues
+from geovs_drake.spectrum import SPECTRUM_RTOL, EigenvalueFacts, continuum_modes
 
 __all__ = [
+    "SELF_MOTION",
     "ArmLinearization",
     "ReachableGoals",
     "arm_pixels",
@@ -45,11 +46,21 @@ __all__ = [
 ]
 
 
+#: What a redundant arm's eigenvalue 0 at the goal is (:func:`self_motion_directions`).
+SELF_MOTION = (
+    "the redundant arm's self-motion (J_C's null space, at rest): a continuum of "
+    "equilibria, the goal's joint configurations"
+)
+
+
 @dataclass
 class ArmLinearization(EigenvalueFacts):
     """The arm loop's linearisation at the goal: Drake's A on (q, v), the closed form,
     the goal's joints, sigma_min of J_C there, and the eigenvalues of A_drake in the
-    canonical order (:mod:`geovs_drake.spectrum`)."""
+    canonical order (:mod:`geovs_drake.spectrum`). On a redundant arm ``continuum``
+    holds the self-motion's modes (:data:`SELF_MOTION`, :func:`self_motion_directions`):
+    an eigenvalue 0 to rounding that the verdict, the damping ratios and the time
+    constants leave out."""
 
     q_goal: np.ndarray
     A_drake: np.ndarray
@@ -60,6 +71,8 @@ class ArmLinearization(EigenvalueFacts):
     #: ``linearize`` reports it.
     plant: str = "dynamic"
     at_equilibrium: bool = True
+    continuum: tuple[int, ...] = ()
+    continuum_name: str | None = None
 
     def summary(self) -> dict:
         """As :meth:`LoopLinearization.summary
@@ -104,13 +117,33 @@ def linearize_arm_at_goal(config: ScenarioConfig) -> ArmLinearization:
 
     # The closed form the step limit reads (the arm's gains, Arm.gain_scale applied).
     A_closed = arm_goal_A(resolved).A
+    directions = self_motion_directions(goal.J)
+    eigenvalues, continuum = continuum_modes(A_drake, directions)
     return ArmLinearization(
         q_goal=q_goal,
         A_drake=A_drake,
         A_closed=A_closed,
         jacobian_singular_value=float(np.linalg.svd(goal.J, compute_uv=False)[-1]),
-        eigenvalues=canonical_eigenvalues(A_drake),
+        eigenvalues=eigenvalues,
+        continuum=continuum,
+        continuum_name=SELF_MOTION if continuum else None,
     )
+
+
+def self_motion_directions(J: np.ndarray, rtol: float = SPECTRUM_RTOL) -> np.ndarray:
+    """The self-motion at rest in the arm's state (q, v): ``(n, 0)`` for n in the null
+    space of the camera's Jacobian J (6 x nv) at the goal, as orthonormal columns
+    (2 nv x (nv - 6)). Where J has full rank 6 the joint configurations that put the
+    camera at the goal form a manifold of dimension nv - 6 (the implicit function
+    theorem) whose tangent is that null space: a continuum of equilibria at rest. None
+    on a 6-joint arm, nor where J loses rank (sigma_min <= ``rtol`` sigma_max): its null
+    space is then a first-order fact only, not a known continuum."""
+    nv = J.shape[1]
+    _, sigma, Vt = np.linalg.svd(J)
+    if nv <= len(sigma) or sigma[-1] <= rtol * sigma[0]:
+        return np.zeros((2 * nv, 0))
+    null = Vt[len(sigma) :].T
+    return np.vstack([null, np.zeros_like(null)])
 
 
 @dataclass

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from geovs_drake.analysis.linear.linearization import INPUTS, OUTPUTS, linearize, noise_directions
-from geovs_drake.goal.linear_model import SampledModel
+from geovs_drake.goal.linear_model import LATENCY_SEARCH_FRAMES, SampledModel
 from geovs_drake.scenario import (
     PREDICTIONS,
     CameraModel,
@@ -103,16 +103,21 @@ def spectral_radius(config: ScenarioConfig, rate: float | None = None, latency_f
     return camera_model(config).spectral_radius(rate, L)
 
 
-def latency_margin(config: ScenarioConfig, rate: float | None = None, max_frames: int = 30) -> int:
+def latency_margin(
+    config: ScenarioConfig, rate: float | None = None, max_frames: int = LATENCY_SEARCH_FRAMES
+) -> int | None:
     """:meth:`SampledModel.latency_margin` of ``config``'s loop (:func:`camera_model`) at
-    ``rate`` (default: the scenario's camera rate)."""
+    ``rate`` (default: the scenario's camera rate): None where no latency up to
+    ``max_frames`` is unstable (:meth:`SampledModel.latency_bound` says why)."""
     rate = camera_of(config).rate if rate is None else rate
     return camera_model(config).latency_margin(rate, max_frames)
 
 
-def slowest_stable_rate(config: ScenarioConfig, latency_frames: int | None = None) -> float:
+def slowest_stable_rate(config: ScenarioConfig, latency_frames: int | None = None) -> float | None:
     """:meth:`SampledModel.slowest_stable_rate` of ``config``'s loop (:func:`camera_model`)
-    below the scenario's camera rate, at ``latency_frames`` (default: the scenario's)."""
+    below the scenario's camera rate, at ``latency_frames`` (default: the scenario's): NaN
+    where that rate is unstable, None where the loop is stable down to the search's end
+    (:meth:`SampledModel.rate_bound` says why)."""
     L = camera_of(config).model_latency_frames if latency_frames is None else latency_frames
     return camera_model(config).slowest_stable_rate(L, camera_of(config).rate)
 
