@@ -20,6 +20,7 @@ from geovs_drake.goal.arm import (
 from geovs_drake.goal.camera_fit import camera_fit
 from geovs_drake.goal.linear_model import closed_form_refusal, tracking_lag
 from geovs_drake.goal.step_limit import step_limit
+from geovs_drake.goal.target_reach import target_reach_warning
 from geovs_drake.loop.build import Loop, build_loop, effort_check, fit_gains
 from geovs_drake.loop.targets import ESTIMATE_LOG_NAMES
 from geovs_drake.planning import plan_for_scenario
@@ -161,7 +162,8 @@ def simulate(
     The logs are sampled at ``config.log_rate`` from the recorded steps (see
     :class:`SafeDomainMonitor`); ``wall_time_s`` times the integration alone.
     ``on_warning``, if given, is called with each warning line before the run starts
-    (the step limit's, the camera's, the effort limits'; the result keeps them too), so
+    (the step limit's, the camera's, the effort limits', a moving target's reach on an arm;
+    the result keeps the first three), so
     that a long run's user reads them while it runs. The dynamic arm's effort check
     (:func:`~geovs_drake.loop.build.effort_check`, ``result.effort_fit``) runs where it
     is read: with ``on_warning`` or ``torque_limits: respect``; else it is None.
@@ -191,6 +193,10 @@ def simulate(
     for line in warnings:
         if line is not None and on_warning is not None:
             on_warning(line)
+    # A moving target against the arm's reach and speed (issue 42): a line, not a field.
+    reach = target_reach_warning(config) if on_warning is not None else None
+    if reach is not None:
+        on_warning(reach)
     simulator, monitor = make_simulator(
         loop,
         record=True,
