@@ -10,6 +10,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from geovs_drake.geometry.domain import DomainMargins
+from geovs_drake.goal.linear_model import tracking_lag_range
 from geovs_drake.scenario import (
     CameraModel,
     FixedCamera,
@@ -351,6 +352,7 @@ class SimulationResult:
         dp, dr = self.final_errors
         tol_p, tol_r = convergence_tolerance(self.config)
         law = self.config.controller
+        moving = self.config.moving_target
         out = {
             "plant": variant_name(self.config.plant),
             "carrier": variant_name(self.config.carrier),
@@ -381,9 +383,20 @@ class SimulationResult:
             "energy_bound": self.energy_bound,
             "energy_guarantee": self.energy_guarantee,
             "max_energy": None if self.energy is None else float(np.max(self.energy)),
-            "steady_tracking_error_m": self.steady_tracking_error,
-            "max_tracking_error_m": float(np.max(self.position_errors)),
+            # A moving target's alone: behind a still one they would repeat the start's
+            # error (issue 42).
+            "steady_tracking_error_m": self.steady_tracking_error if moving else None,
+            "max_tracking_error_m": float(np.max(self.position_errors)) if moving else None,
             "predicted_steady_error_m": self.predicted_steady_error,
+            # How far that linear lag holds: measured for the NF's behind a constant twist
+            # (issue 42; the variants by their registry names).
+            "predicted_steady_error_range": (
+                tracking_lag_range(self.config, self.config.target_motion.twist)
+                if self.predicted_steady_error is not None
+                and variant_name(law) == "nf"
+                and variant_name(self.config.target_motion) == "twist"
+                else None
+            ),
         }
         motion = self.config.target_motion
         if self.config.moving_target:
