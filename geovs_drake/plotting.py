@@ -296,8 +296,19 @@ def plot_camera_frames(frames, features, intrinsics, times, path: str | Path | N
     return fig
 
 
-def write_block_diagram(diagram, path_stem: str | Path, max_depth: int = 1) -> list[Path]:
-    """Graphviz SVG and PNG of a Diagram via ``dot``; [] with a message if dot is missing."""
+def write_block_diagram(
+    diagram,
+    path_stem: str | Path,
+    max_depth: int = 1,
+    options: dict[str, str] | None = None,
+    rankdir: str = "LR",
+) -> list[Path]:
+    """Graphviz SVG and PNG of a Diagram via ``dot``; [] with a message if dot is missing.
+
+    ``options``: Drake's Graphviz options (e.g. ``{"plant/split": "I/O"}``, a subsystem's
+    inputs and outputs drawn as two nodes); ``rankdir``: ``LR`` (Drake's, left to right)
+    or ``TB``, top to bottom, for a loop of many systems, which left to right is several
+    times wider than tall and unreadable at a page's width (notebook 05's arm)."""
     import shutil
     import subprocess
 
@@ -309,7 +320,9 @@ def write_block_diagram(diagram, path_stem: str | Path, max_depth: int = 1) -> l
             file=sys.stderr,
         )
         return []
-    source = diagram.GetGraphvizString(max_depth=max_depth)
+    source = diagram.GetGraphvizString(max_depth=max_depth, options=options or {})
+    if rankdir != "LR":
+        source = source.replace("rankdir=LR", f"rankdir={rankdir}", 1)
     out = []
     for fmt in ("svg", "png"):
         target = Path(f"{path_stem}.{fmt}")

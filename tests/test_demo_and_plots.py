@@ -64,6 +64,24 @@ def test_block_diagram_svg_names_the_systems(tmp_path):
         assert name in svg
 
 
+@pytest.mark.skipif(shutil.which("dot") is None, reason="Graphviz's dot is not installed")
+def test_the_arm_s_block_diagram_top_to_bottom_fits_a_page_s_width(tmp_path):
+    # Notebook 05's: left to right the arm's loop is five times wider than tall (4232 x
+    # 805 px), unreadable at a page's width; top to bottom, its plant split, it is narrower
+    # than tall. dot's own PNG header gives the sizes.
+    from geovs_drake.scenario import Arm
+
+    arm = build_loop(ScenarioConfig(carrier=Arm()), log=False).diagram
+
+    def size(**kwargs) -> tuple[int, int]:
+        png = write_block_diagram(arm, tmp_path / str(len(kwargs)), **kwargs)[1].read_bytes()
+        return int.from_bytes(png[16:20], "big"), int.from_bytes(png[20:24], "big")
+
+    wide, tall = size(), size(options={"plant/split": "I/O"}, rankdir="TB")
+    assert wide[0] > 3 * wide[1]
+    assert tall[0] < tall[1] and tall[0] < wide[0] / 3
+
+
 def test_plots_label_what_they_show():
     """Distinct snapshot times in the image view's legend; labelled colour bars and an
     unclipped saddle star in the NF slices."""

@@ -1,6 +1,6 @@
 """Command line: ``geovs-drake simulate``, ``demo``, ``sweep``, ``compare``, ``robustness``,
-``camera-accuracy``, ``linearize``, ``station`` and ``controller`` (the Panda over LCM, issue
-34); one module per command, the shared options in ``_options``.
+``camera-accuracy``, ``linearize``, ``place-base``, ``station`` and ``controller`` (the Panda
+over LCM, issue 34); one module per command, the shared options in ``_options``.
 
 Examples::
 
@@ -18,6 +18,7 @@ Examples::
     geovs-drake camera-accuracy --poses 200 --resolution 320x240
     geovs-drake linearize --plant kinematic --json
     geovs-drake linearize --at=0.02,-0.01,-0.52,0.02,-0.01,0.1
+    geovs-drake place-base --arm panda
     geovs-drake station --json &  geovs-drake controller --json
 
 A scenario is read once, in layers: ``--config FILE``, then ``--scenario-text YAML``,
@@ -44,6 +45,7 @@ from geovs_drake.cli import (
     controller,
     demo,
     linearize,
+    place_base,
     robustness,
     simulate,
     station,
@@ -100,6 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     robustness.add_parser(sub)
     camera_accuracy.add_parser(sub)
     linearize.add_parser(sub)
+    place_base.add_parser(sub)
     station.add_parser(sub)
     controller.add_parser(sub)
     return parser

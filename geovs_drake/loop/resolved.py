@@ -29,6 +29,7 @@ if TYPE_CHECKING:  # the goal's records, named in annotations only: importing th
     from geovs_drake.goal.camera_fit import CameraFit
     from geovs_drake.goal.effort_fit import EffortFit
     from geovs_drake.goal.step_limit import GoalModel, StepLimit
+    from geovs_drake.goal.target_reach import TargetReach
 
 __all__ = ["ResolvedScenario", "exact_twin", "free_twin"]
 
@@ -50,9 +51,10 @@ class ResolvedScenario:
     (None where no model covers the loop), ``camera_fit`` the gains against the camera's
     rate and latency (None without a camera or a model), ``step_limit`` the integrator's
     step, ``effort`` the dynamic arm's torques against its effort limits (where the
-    resolver was asked for it, or fitted the gains to it; else None), and
+    resolver was asked for it, or fitted the gains to it; else None),
     ``predicted_lag`` the NF's position lag [m] behind a constant-twist target without
-    feed-forward (closed form; None where it does not model the loop).
+    feed-forward (closed form; None where it does not model the loop), and ``reach``
+    where a moving target leaves an arm's reach or speed (where asked).
     """
 
     config: ScenarioConfig
@@ -75,6 +77,10 @@ class ResolvedScenario:
     step_limit: StepLimit | None = None
     effort: EffortFit | None = None
     predicted_lag: float | None = None
+    #: An arm behind a moving target: where its motion leaves the arm's reach or speed
+    #: (:class:`~geovs_drake.goal.target_reach.TargetReach`), checked with the effort
+    #: check (where asked: a warning line's); else None.
+    reach: TargetReach | None = None
 
     @property
     def controller(self) -> str:

@@ -27,6 +27,7 @@ from geovs_drake.goal.camera_fit import GAIN_MARGIN, CameraFit, camera_fit
 from geovs_drake.goal.effort_fit import EffortFit, effort_fit
 from geovs_drake.goal.linear_model import closed_form_refusal, navigation_hessian, tracking_lag
 from geovs_drake.goal.step_limit import goal_A, step_limit
+from geovs_drake.goal.target_reach import target_reach
 from geovs_drake.loop.assembly import assemble_loop, refusal
 from geovs_drake.loop.resolved import ResolvedScenario, exact_twin
 from geovs_drake.scenario import AUTO, NOMINAL_GAIN_SCALES, ScenarioConfig, damping_of
@@ -47,8 +48,9 @@ def resolve(
     stable, and the run's warning says so) and, with ``torque_limits: respect`` on the
     dynamic arm, at most the largest scale whose torques over the start's energy level
     set stay inside the effort limits. ``effort``: also check the dynamic arm's torques
-    against its effort limits where the fit did not (``resolved.effort``; 0.3-0.5 s, so
-    only where someone reads it: the command line's warning line)."""
+    against its effort limits where the fit did not (``resolved.effort``; 0.3-0.5 s) and
+    an arm's reach behind a moving target (``resolved.reach``; 0.2 s), only where someone
+    reads them: the warning lines of the command line and of ``simulate(on_warning=)``."""
     if isinstance(config, ResolvedScenario):  # the record itself, not a variant's type
         return config
     config = ScenarioConfig() if config is None else config
@@ -75,6 +77,8 @@ def resolve(
     )
     resolved, fit, checked = _fit_gains(base, effort)
     goal = goal_A(resolved)
+    # A moving target against the arm's reach and speed: 0.2 s, so where a line reads it.
+    moving_arm = config.carrier.traits.joints and config.moving_target
     return dataclasses.replace(
         resolved,
         goal=goal,
@@ -82,6 +86,7 @@ def resolve(
         step_limit=step_limit(resolved.config, goal),
         effort=checked,
         predicted_lag=_predicted_lag(resolved),
+        reach=target_reach(resolved.config) if effort and moving_arm else None,
     )
 
 

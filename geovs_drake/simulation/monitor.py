@@ -8,6 +8,7 @@ the parameters of the kernel that checks it.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable
 
 import numpy as np
@@ -27,17 +28,35 @@ from geovs_drake.geometry.kernels import (
     navigation,
 )
 from geovs_drake.geometry.rigid import quaternion_to_rotation
+from geovs_drake.goal.arm import joint_limit_margins, joint_names
 from geovs_drake.loop.assembly import Loop
 from geovs_drake.simulation.result import MARGIN_NAMES
 from geovs_drake.systems._held_frames import waiting
+from geovs_drake.systems.arm_model import arm_plant
 
 __all__ = [
+    "PIN_MARGIN_RAD",
+    "PIN_SPAN_S",
+    "PIN_STEPS",
     "FeaturePointCheck",
     "SafeDomainMonitor",
     "camera_signals",
     "feature_point_check",
     "make_simulator",
 ]
+
+#: An arm's run pins on a joint limit where its last :data:`PIN_STEPS` accepted steps
+#: span less than :data:`PIN_SPAN_S` of simulated time (the error control's steps have
+#: collapsed) with a joint within :data:`PIN_MARGIN_RAD` of its limit: the monitor stops
+#: it with status ``joint_limit``. Why: the kinematic Panda behind a target it could not
+#: follow sat with its wrist (joint 6) 0.03-0.15 rad from its limit, where that wrist is
+#: singular, and took 25 us steps (40,000 a simulated second) for 4 s before it left D:
+#: 191 s of wall time for a 30 s run (issue 42). A run's steps are milliseconds; the
+#: stiff arm of docs/arm.md, whose steps are 0.1 ms on RK3, has every joint a radian or
+#: more from its limits.
+PIN_STEPS = 500
+PIN_SPAN_S = 0.025
+PIN_MARGIN_RAD = 0.2
 
 _camera_kernel = for_scalar_type(camera_image, float)
 _NU, _MARGINS = CAMERA_IMAGE.nu, CAMERA_IMAGE.margins
@@ -168,6 +187,10 @@ class SafeDomainMonitor:
         self._params_of: tuple = (None, None)
         self._pose_of_states = loop.carrier.loop_pose_of_states
         self._limit_check = loop.carrier.limit_check
+        # An arm's joints (the head of its state) and the times of its last steps, for
+        # the pinned check.
+        self._arm = loop.carrier.arm
+        self._recent: deque[float] = deque(maxlen=PIN_STEPS)
         self.times: list[float] = []
         self.states: list[np.ndarray] = []
 
@@ -202,6 +225,10 @@ class SafeDomainMonitor:
             broken = self._limit_check(x)
             if broken is not None:
                 return self._stop("joint_limit", f"{broken} at t = {root_context.get_time():.4g}")
+        if self._arm is not None:
+            pinned = self._pinned(x, root_context.get_time())
+            if pinned is not None:
+                return self._stop("joint_limit", pinned)
         # The pose the camera reads from this state (the carrier says which).
         pose = self._pose_of_states(x, MATH, root_context.get_time())
         out = _camera_kernel(pose, self._params_of[1])
@@ -230,6 +257,22 @@ class SafeDomainMonitor:
                 f"left D: {MARGIN_NAMES[i]} margin = {margins[i]:.4g} < 0 at t = {t:.4g}",
             )
         return self._check_sensor(root_context)  # on the boundary of D, still in it
+
+    def _pinned(self, x: np.ndarray, t: float) -> str | None:
+        """A line where the arm pins on a joint limit (:data:`PIN_STEPS`), else None; the
+        joints' margins are read only once the steps have collapsed."""
+        self._recent.append(t)
+        if len(self._recent) < PIN_STEPS or t - self._recent[0] >= PIN_SPAN_S:
+            return None
+        names = joint_names(arm_plant(self._arm))
+        margins = joint_limit_margins(self._arm, x[: len(names)])
+        i = int(np.argmin(margins))
+        if margins[i] >= PIN_MARGIN_RAD:
+            return None
+        return (
+            f"joint limit: pinned at {names[i]}'s limit ({margins[i]:.3g} rad from it) at "
+            f"t = {t:.4g}: the last {PIN_STEPS} steps advanced {1e3 * (t - self._recent[0]):.3g} ms"
+        )
 
     def _check_sensor(self, root_context) -> EventStatus:
         """``feature_lost`` if the held frame gave no y (a camera's loop), else go on."""

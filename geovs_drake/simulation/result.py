@@ -12,6 +12,7 @@ from pydrake.math import RigidTransform
 
 from geovs_drake._json import json_ready
 from geovs_drake.geometry.domain import DomainMargins
+from geovs_drake.goal.linear_model import tracking_lag_range
 from geovs_drake.scenario import PREDICTIONS, ScenarioConfig, radius_error_of, variant_name
 
 if TYPE_CHECKING:  # named in annotations only: the batch engine's workers read the
@@ -233,6 +234,7 @@ def run_warnings(resolved: ResolvedScenario) -> tuple[str, ...]:
         resolved.step_limit.warning(config.simulator.integration_scheme),
         None if resolved.camera_fit is None else resolved.camera_fit.warning(),
         None if resolved.effort is None else resolved.effort.warning(),
+        None if resolved.reach is None else resolved.reach.warning(),
     )
     return tuple(line for line in lines if line is not None)
 
@@ -455,6 +457,7 @@ class SimulationResult:
         tol_p, tol_r = convergence_tolerance(self.resolved)
         law = self.config.controller
         depth = law.traits.depth_label
+        moving = self.config.moving_target
         out = {
             "plant": variant_name(self.config.plant),
             "carrier": variant_name(self.config.carrier),
@@ -486,9 +489,20 @@ class SimulationResult:
             "energy_guarantee": self.energy_guarantee,
             "energy_guarantee_reason": self.energy_guarantee_reason,
             "max_energy": None if self.energy is None else float(np.max(self.energy)),
-            "steady_tracking_error_m": self.steady_tracking_error,
-            "max_tracking_error_m": float(np.max(self.position_errors)),
+            # A moving target's alone: behind a still one they would repeat the start's
+            # error (issue 42).
+            "steady_tracking_error_m": self.steady_tracking_error if moving else None,
+            "max_tracking_error_m": float(np.max(self.position_errors)) if moving else None,
             "predicted_steady_error_m": self.predicted_steady_error,
+            # How far that linear lag holds: measured for the NF's behind a constant twist
+            # (issue 42; the variants by their registry names).
+            "predicted_steady_error_range": (
+                tracking_lag_range(self.config, self.config.target_motion.twist)
+                if self.predicted_steady_error is not None
+                and variant_name(law) == "nf"
+                and variant_name(self.config.target_motion) == "twist"
+                else None
+            ),
         }
         motion = self.config.target_motion
         if self.config.moving_target:
