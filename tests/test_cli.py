@@ -797,20 +797,18 @@ def test_each_axis_has_one_option_whose_choices_are_its_variants(monkeypatch):
 
     monkeypatch.setitem(AXES, "carrier", {**AXES["carrier"], "gantry": Gantry})
     help_text = cli.help_text("simulate")
-    assert "--carrier {free,fixed_camera,arm,gantry}" in help_text
+    assert "--carrier {free,fixed,arm,gantry}" in help_text
     assert "gantry: A gantry" in " ".join(help_text.split())  # its docstring's first sentence
 
 
-def test_carrier_fixed_camera_is_the_file_s_spelling_and_mount_points_to_it(
-    tmp_path, run_cli, loaded
-):
-    """--carrier fixed_camera is `carrier: fixed_camera` of a file; --mount fixed, the
+def test_carrier_fixed_is_the_file_s_spelling_and_mount_points_to_it(tmp_path, run_cli, loaded):
+    """--carrier fixed is `carrier: fixed` of a file; --mount fixed, the
     earlier spelling, runs the same scenario with one line pointing to it."""
     path = tmp_path / "fixed.yaml"
-    path.write_text("carrier: fixed_camera\n")
+    path.write_text("carrier: fixed\n")
     runs = {
         "file": run_cli("simulate", "--config", str(path)),
-        "flag": run_cli("simulate", "--carrier", "fixed_camera"),
+        "flag": run_cli("simulate", "--carrier", "fixed"),
         "mount": run_cli("simulate", "--mount", "fixed"),
     }
     assert all(run.code == cli.EXIT_INTERRUPTED for run in runs.values()), runs
@@ -818,7 +816,7 @@ def test_carrier_fixed_camera_is_the_file_s_spelling_and_mount_points_to_it(
     assert yaml_dump_typed(loaded[0]) == yaml_dump_typed(loaded[1]) == yaml_dump_typed(loaded[2])
     assert runs["flag"].err.splitlines() == ["geovs-drake: interrupted"]
     assert runs["mount"].err.splitlines()[0] == (
-        "geovs-drake: warning: --mount fixed is deprecated: write --carrier fixed_camera"
+        "geovs-drake: warning: --mount fixed is deprecated: write --carrier fixed"
     )
     assert "--mount" not in cli.help_text("simulate")  # deprecated: out of --help
 
@@ -849,7 +847,7 @@ def test_latency_frames_sets_the_camera_s_latency(command):
         (["--latency-frames", "1"], ["--latency-frames", "exact", "add --sensor pinhole"]),
         (["--sensor", "pinhole", "--latency-frames=-1"], ["frames >= 0", "'-1'"]),
         (["--sensor", "pinhole", "--latency-frames", "0.5"], ["frames >= 0", "'0.5'"]),
-        (["--carrier", "fixed"], ["--carrier", "'fixed'", "fixed_camera"]),
+        (["--carrier", "fixed_camera"], ["--carrier", "'fixed_camera'", "fixed"]),
     ],
     ids=["exact-sensor", "negative", "fraction", "carrier"],
 )

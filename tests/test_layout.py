@@ -114,3 +114,49 @@ def test_every_module_imports_only_its_layer_and_the_layers_below():
         if dep != "geovs_drake" and _layer_of(dep) > _layer_of(name)
     ]
     assert not upward, "imports that go up a layer (module, import, layers): " + repr(upward)
+
+
+#: The largest module and hand-written function the package keeps (issue 41): past these a
+#: module holds several jobs and a function several steps, each of which wants a name.
+MAX_MODULE_LINES, MAX_FUNCTION_LINES = 650, 100
+
+
+def _template_factory(node: ast.FunctionDef) -> bool:
+    """A TemplateSystem factory (``@template_system(...)``): one system's whole class,
+    its ports and calculations, exempt from the function size like generated code."""
+    return any("template_system" in ast.unparse(d) for d in node.decorator_list)
+
+
+def test_no_module_over_650_lines_and_no_function_over_100():
+    too_long = []
+    for path in ROOT.rglob("*.py"):
+        if "_generated" in path.parts:
+            continue
+        text = path.read_text()
+        if text.count("\n") > MAX_MODULE_LINES:
+            too_long.append(f"{path.relative_to(ROOT)}: {text.count(chr(10))} lines")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.FunctionDef) and not _template_factory(node):
+                length = node.end_lineno - node.lineno + 1
+                if length > MAX_FUNCTION_LINES:
+                    too_long.append(f"{path.relative_to(ROOT)}:{node.name}: {length} lines")
+    assert not too_long, too_long
+
+
+def test_a_variants_type_is_asked_only_in_the_scenario():
+    """The package asks a variant's traits (geovs_drake.scenario.traits), not its type:
+    outside scenario/ no isinstance names a variant class (issue 41)."""
+    import geovs_drake.scenario as scenario
+
+    variants = {kind.__name__ for axis in scenario.AXES.values() for kind in axis.values()}
+    variants |= {"CameraModel", "RigidBodyConfig"}
+    asked = []
+    for path in ROOT.rglob("*.py"):
+        if path.relative_to(ROOT).parts[0] == "scenario":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", "") == "isinstance":
+                names = {n.id for n in ast.walk(node.args[1]) if isinstance(n, ast.Name)}
+                if names & variants:
+                    asked.append(f"{path.relative_to(ROOT)}:{node.lineno}: {ast.unparse(node)}")
+    assert not asked, asked

@@ -54,7 +54,7 @@ _AXIS_HELP: dict[str, tuple[str, dict[str, str]]] = {
         "what carries the camera",
         {
             "free": "the rigid body of Appendix C, eye-in-hand",
-            "fixed_camera": "the camera fixed in the world and the target sphere driven "
+            "fixed": "the camera fixed in the world and the target sphere driven "
             "(eye-to-hand, G = H^-1 of Eq. 16)",
             "arm": "a robot arm, eye-in-hand: joint torques with --plant dynamic, joint "
             "velocities with kinematic",
@@ -273,7 +273,7 @@ def _add_arm_flags(p: argparse.ArgumentParser) -> None:
         type=gain_scale_arg,
         metavar="SCALE",
     )
-    # Deprecated, so out of --help: --carrier fixed_camera|free says it as a file does.
+    # Deprecated, so out of --help: --carrier fixed|free says it as a file does.
     add_variant_flag(p, "--mount", _mount, argparse.SUPPRESS, choices=tuple(_MOUNT_SPELLING))
 
 
@@ -363,7 +363,7 @@ def _feedforward(config: ScenarioConfig, flag: str, mode: str) -> None:
 
 
 #: ``--mount``'s values, and the carrier each is spelled as now.
-_MOUNT_SPELLING = {"hand": "free (or arm)", "fixed": "fixed_camera"}
+_MOUNT_SPELLING = {"hand": "free (or arm)", "fixed": "fixed"}
 
 
 def _mount(config: ScenarioConfig, flag: str, mount: str) -> None:
@@ -374,14 +374,14 @@ def _mount(config: ScenarioConfig, flag: str, mount: str) -> None:
     types): the two rigid bodies share their fields."""
     carrier, name = config.carrier, variant_name(config.carrier)
     pointer = f"write --carrier {_MOUNT_SPELLING[mount]}"
-    rigid = {"free": "fixed_camera", "fixed_camera": "free"}
+    rigid = {"free": "fixed", "fixed": "free"}
     if mount == "fixed" and name not in rigid:
         raise ValueError(
             f"{flag} fixed needs the free body (--carrier free): the carrier here is "
             f"{type(carrier).__name__}, which carries the camera in its hand ({flag} is "
             f"deprecated: {pointer})"
         )
-    wanted = "fixed_camera" if mount == "fixed" else "free"
+    wanted = "fixed" if mount == "fixed" else "free"
     if name in rigid and name != wanted:
         config.carrier = AXES["carrier"][wanted](carrier.mass, list(carrier.inertia_diagonal))
     print(f"geovs-drake: warning: {flag} {mount} is deprecated: {pointer}", file=sys.stderr)

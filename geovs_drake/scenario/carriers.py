@@ -172,7 +172,7 @@ NOMINAL_GAIN_SCALES: dict[type, float] = {Dynamic: 10.0, Kinematic: 1.0}
 #: A carrier's configuration: one of the variants above.
 CarrierConfig = FreeRig | FixedCamera | Arm
 #: The carrier of each name, as ``--carrier`` and a file's bare name give it.
-CARRIER_VARIANTS: dict[str, type] = {"free": FreeRig, "fixed_camera": FixedCamera, "arm": Arm}
+CARRIER_VARIANTS: dict[str, type] = {"free": FreeRig, "fixed": FixedCamera, "arm": Arm}
 
 #: The arm's scalar fields with a lower bound: name -> (bound, strict, unit).
 _ARM_BOUNDS: dict[str, tuple[float, bool, str]] = {

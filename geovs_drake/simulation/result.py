@@ -496,65 +496,84 @@ class SimulationResult:
             "predicted_steady_error_m": self.predicted_steady_error,
             # How far that linear lag holds: measured for the NF's behind a constant twist
             # (issue 42; the variants by their registry names).
+            # How far that linear lag holds: measured for the NF's behind a constant twist
+            # (issue 42).
             "predicted_steady_error_range": (
                 tracking_lag_range(self.config, self.config.target_motion.twist)
                 if self.predicted_steady_error is not None
-                and variant_name(law) == "nf"
-                and variant_name(self.config.target_motion) == "twist"
+                and law.traits.navigation
+                and self.config.target_motion.traits.constant_twist
                 else None
             ),
         }
+        out |= self._target_entries() | self._camera_entries() | self._effort_entries()
+        out["radius_error"] = radius_error_of(self.config.sensor)
+        if self.arm is not None:
+            out.update(self.arm.summary())
+        out |= self._step_entries()
+        return json_ready(out)
+
+    def _target_entries(self) -> dict:
+        """A moving target's entry: its kind, feed-forward, twist or end, estimator."""
         motion = self.config.target_motion
-        if self.config.moving_target:
-            out["target_motion"] = {
-                "kind": type(motion).__name__,
-                "feedforward": motion.feedforward,
-            }
-            if motion.traits.constant_twist:
-                out["target_motion"]["twist"] = [float(v) for v in motion.twist]
-            else:  # a trajectory's knots: its end, where the target stops
-                out["target_motion"]["end_time_s"] = self.target_end_time
-            if self.target is not None:
-                out["target_motion"].update(self.target.summary())
+        if not self.config.moving_target:
+            return {}
+        entry = {"kind": type(motion).__name__, "feedforward": motion.feedforward}
+        if motion.traits.constant_twist:
+            entry["twist"] = [float(v) for v in motion.twist]
+        else:  # a trajectory's knots: its end, where the target stops
+            entry["end_time_s"] = self.target_end_time
+        if self.target is not None:
+            entry.update(self.target.summary())
+        return {"target_motion": entry}
+
+    def _camera_entries(self) -> dict:
+        """A camera's entry: its settings and the sampled-data model's verdict at the goal."""
         cam = self.config.sensor
-        if cam.traits.camera:
-            out["camera"] = {
-                "rate_hz": cam.rate,
-                "resolution": [int(v) for v in cam.resolution],
-                "pixel_noise_px": cam.pixel_noise,
-                "focal_error": cam.focal_error,
-                "latency_frames": int(cam.latency_frames),
-                "prediction": cam.prediction,
+        if not cam.traits.camera:
+            return {}
+        entry = {
+            "rate_hz": cam.rate,
+            "resolution": [int(v) for v in cam.resolution],
+            "pixel_noise_px": cam.pixel_noise,
+            "focal_error": cam.focal_error,
+            "latency_frames": int(cam.latency_frames),
+            "prediction": cam.prediction,
+        }
+        fit = self.camera_fit
+        if fit is not None:  # the sampled-data model at the goal (goal.camera_fit)
+            entry["spectral_radius"] = fit.spectral_radius
+            entry["largest_stable_gain"] = {
+                "field": fit.gain_name,
+                "value": fit.largest_stable_gain,  # inf (every scale searched): null
+                "this_run": fit.gain_value,
             }
-            fit = self.camera_fit
-            if fit is not None:  # the sampled-data model at the goal (loop.camera_fit)
-                out["camera"]["spectral_radius"] = fit.spectral_radius
-                out["camera"]["largest_stable_gain"] = {
-                    "field": fit.gain_name,
-                    "value": (
-                        fit.largest_stable_gain if math.isfinite(fit.largest_stable_gain) else None
-                    ),
-                    "this_run": fit.gain_value,
-                }
+        return {"camera": entry}
+
+    def _effort_entries(self) -> dict:
+        """The torques over the energy level set against the effort limits, if checked."""
         effort = self.effort_fit
-        if effort is not None:  # the torques over the energy level set (loop.effort_fit)
-            out["effort"] = {
+        if effort is None:
+            return {}
+        return {
+            "effort": {
                 "level": effort.level,
                 "worst_ratio": effort.worst_ratio,
                 "joint": effort.joint,
-                "largest_gain_scale": (
-                    effort.largest_scale if math.isfinite(effort.largest_scale) else None
-                ),
+                "largest_gain_scale": effort.largest_scale,  # inf: null
                 "this_run": effort.gain_scale,
                 "samples": effort.samples,
             }
-        out["radius_error"] = radius_error_of(cam)
-        if self.arm is not None:
-            out.update(self.arm.summary())
+        }
+
+    def _step_entries(self) -> dict:
+        """What the integrator ran with, and why (the resolver's step limit)."""
         limit = self.step_limit
-        if limit is not None:  # what the integrator ran with, and why (simulation.step_limit)
-            lam = limit.fastest_mode
-            out["max_step_size"] = limit.max_step_size
-            out["max_step_automatic"] = limit.automatic
-            out["fastest_mode"] = None if lam is None else [lam.real, lam.imag]
-        return json_ready(out)
+        if limit is None:
+            return {}
+        lam = limit.fastest_mode
+        return {
+            "max_step_size": limit.max_step_size,
+            "max_step_automatic": limit.automatic,
+            "fastest_mode": None if lam is None else [lam.real, lam.imag],
+        }

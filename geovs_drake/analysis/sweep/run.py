@@ -337,6 +337,104 @@ def _on_dask(client, todo: list[tuple[Part, str]]) -> Iterator[tuple[dict, objec
         yield result
 
 
+def _check_starts_and_extras(
+    config: ScenarioConfig, source, workers: int, scheduler: str | None
+) -> bool:
+    """SweepError for starts the loop cannot take; MissingExtra for a package the sweep
+    needs and lacks. Whether it runs on Dask."""
+    if isinstance(source, SampledStarts):
+        source.check(config)
+    elif not config.dynamic and np.any(source[1] != 0):
+        raise SweepError("initial twists apply to the dynamic plant only (kinematic: at rest)")
+    use_dask = workers > 1 or scheduler is not None
+    if use_dask:
+        require("distributed", "sweep", "run_sweep on Dask", package="dask[distributed]")
+    require("pyarrow", "sweep", "run_sweep")  # the parts' Parquet files, with or without Dask
+    return use_dask
+
+
+def _shipped_parameters(config: ScenarioConfig, engine: str):
+    """The kernels' parameters, read once here from the built diagram and shipped with
+    every part. The Drake engine runs any carrier and sensor; its starts are drawn with
+    the free rig's kernels on the exact y (the same domain, goal and NF), which the batch
+    engine also runs. SweepError for a loop the batch engine does not run."""
+    try:
+        drawn_by = config if engine == "batch" else exact_twin(free_twin(config))
+        return loop_parameters(drawn_by)
+    except ValueError as e:
+        raise SweepError(str(e)) from e
+
+
+def _parts(
+    text: str, n: int, chunk: int, source, out: Path | None, use_dask: bool, common: dict
+) -> tuple[list[Part], list[str]]:
+    """The sweep's parts of at most ``chunk`` starts each, and their file names: sampled
+    starts are drawn in each part (its seed and index), given ones sliced into it."""
+    parts, names = [], []
+    count = math.ceil(n / chunk)
+    for index in range(count):
+        a, b = index * chunk, min((index + 1) * chunk, n)
+        given = {}
+        if not isinstance(source, SampledStarts):
+            given = {"X_BC": source[0][a:b], "twists": source[1][a:b]}
+        parts.append(
+            Part(
+                config_yaml=text,
+                index=index,
+                first=a,
+                last=b,
+                seed=getattr(source, "seed", 0),
+                velocity=getattr(source, "velocity", "none"),
+                results=None if out is None else str(out / "results"),
+                single_thread=use_dask,
+                **common,
+                **given,
+            )
+        )
+        names.append(part_name(index, count))
+    return parts, names
+
+
+def _run_parts(
+    todo: list,
+    summary: SweepSummary,
+    on_part: Callable[[int], None] | None,
+    use_dask: bool,
+    scheduler: str | None,
+    workers: int,
+    out: Path | None,
+    manifest: dict,
+    resume: bool,
+) -> tuple[list, bool]:
+    """Run the parts still to do (on Dask, or in this process), merging each one's summary
+    as it finishes; the tables kept (without ``out``) and whether Ctrl-C stopped it. The
+    client and the cluster are closed whatever happens."""
+    tables = []
+    interrupted = False
+    client = cluster = None
+    try:
+        # Connect before writing anything: an unreachable scheduler leaves no folder.
+        if use_dask and todo:
+            client, cluster = _connect(scheduler, workers)
+        if out is not None and not resume:
+            _start_folder(out, manifest)
+        results = _on_dask(client, todo) if client is not None else _in_process(todo)
+        for data, table in results:
+            summary.merge(SweepSummary.from_json(data))
+            if table is not None:
+                tables.append(table)
+            if on_part is not None:
+                on_part(int(data["finished"]))
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+    return tables, interrupted
+
+
 def run_sweep(
     config: ScenarioConfig,
     starts: SampledStarts | tuple[np.ndarray, np.ndarray | None],
@@ -390,14 +488,7 @@ def run_sweep(
     config = resolved.fitted_config
     n, source = _check_settings(starts, duration, engine, workers, chunk)
     dynamic = config.dynamic
-    if isinstance(source, SampledStarts):
-        source.check(config)
-    elif not dynamic and np.any(source[1] != 0):
-        raise SweepError("initial twists apply to the dynamic plant only (kinematic: at rest)")
-    use_dask = workers > 1 or scheduler is not None
-    if use_dask:
-        require("distributed", "sweep", "run_sweep on Dask", package="dask[distributed]")
-    require("pyarrow", "sweep", "run_sweep")  # the parts' Parquet files, with or without Dask
+    use_dask = _check_starts_and_extras(config, source, workers, scheduler)
     text = yaml_dump_typed(config)
     out = None if out is None else Path(out)
     if resume and out is None:
@@ -405,38 +496,9 @@ def run_sweep(
     manifest = _manifest(text, n, source, duration, chunk, engine, variant_name(config.plant))
     if resume:  # before anything else: a different sweep in the folder is the first thing to say
         _check_record(out, manifest)
-    try:  # read once here from the built diagram, and shipped with every part
-        # The Drake engine runs any carrier and sensor; its starts are drawn with the free
-        # rig's kernels on the exact y (the same domain, goal and NF), which the batch
-        # engine also runs.
-        drawn_by = config if engine == "batch" else exact_twin(free_twin(config))
-        parameters = loop_parameters(drawn_by)
-    except ValueError as e:  # a loop the batch engine does not run
-        raise SweepError(str(e)) from e
-    parts, names = [], []
-    count = math.ceil(n / chunk)
-    for index in range(count):
-        a, b = index * chunk, min((index + 1) * chunk, n)
-        given = {}
-        if not isinstance(source, SampledStarts):
-            given = {"X_BC": source[0][a:b], "twists": source[1][a:b]}
-        parts.append(
-            Part(
-                config_yaml=text,
-                index=index,
-                first=a,
-                last=b,
-                duration=float(duration),
-                engine=engine,
-                parameters=parameters,
-                seed=getattr(source, "seed", 0),
-                velocity=getattr(source, "velocity", "none"),
-                results=None if out is None else str(out / "results"),
-                single_thread=use_dask,
-                **given,
-            )
-        )
-        names.append(part_name(index, count))
+    parameters = _shipped_parameters(config, engine)
+    common = dict(duration=float(duration), engine=engine, parameters=parameters)
+    parts, names = _parts(text, n, chunk, source, out, use_dask, common)
     summary = SweepSummary.empty(config, duration)
     done: dict[int, dict] = {}
     if resume:
@@ -446,31 +508,10 @@ def run_sweep(
         if on_part is not None:
             on_part(int(data["finished"]))
     todo = [(p, name) for p, name in zip(parts, names, strict=True) if p.index not in done]
-    tables = []
-
     start = time.perf_counter()
-    interrupted = False
-    client = cluster = None
-    try:
-        # Connect before writing anything: an unreachable scheduler leaves no folder.
-        if use_dask and todo:
-            client, cluster = _connect(scheduler, workers)
-        if out is not None and not resume:
-            _start_folder(out, manifest)
-        results = _on_dask(client, todo) if client is not None else _in_process(todo)
-        for data, table in results:
-            summary.merge(SweepSummary.from_json(data))
-            if table is not None:
-                tables.append(table)
-            if on_part is not None:
-                on_part(int(data["finished"]))
-    except KeyboardInterrupt:
-        interrupted = True
-    finally:
-        if client is not None:
-            client.close()
-        if cluster is not None:
-            cluster.close()
+    tables, interrupted = _run_parts(
+        todo, summary, on_part, use_dask, scheduler, workers, out, manifest, resume
+    )
     result = SweepResult(
         summary=summary,
         plant=variant_name(config.plant),
