@@ -95,7 +95,7 @@ def test_every_combination_builds_through_build_loop_and_converges(carrier, sens
         (
             dict(carrier="gantry"),
             "exact",
-            "carrier must be one of free, fixed_camera, arm, got 'gantry'",
+            "carrier must be one of free, fixed, arm, got 'gantry'",
         ),
         (dict(controller="kinematic"), "exact", "names a plant: write plant: kinematic"),
         (dict(controller="lqr"), "exact", "controller must be one of nf, ibvs"),

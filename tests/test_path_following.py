@@ -305,7 +305,7 @@ def test_path_config_and_cli(capsys):
         ("controller: !PathFollowing {duration: 0}\n", "controller.duration"),
         ("controller: !PathFollowing {feedback_gain: -1}\n", "controller.feedback_gain"),
         ("controller: !PathFollowing {radius_scale: 0}\n", "controller.radius_scale"),
-        ("carrier: ceiling\n", "carrier must be one of free, fixed_camera, arm"),
+        ("carrier: ceiling\n", "carrier must be one of free, fixed, arm"),
     ):
         with pytest.raises(ValueError, match=needle):
             load_scenario(data=bad).validate()
