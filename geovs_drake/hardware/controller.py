@@ -41,46 +41,49 @@ from pydrake.systems.lcm import LcmInterfaceSystem
 from pydrake.systems.primitives import Demultiplexer
 
 from geovs_drake.geometry._ops import MATH
-from geovs_drake.geometry.camera import inverse_pose
+from geovs_drake.geometry.camera import camera_map_inverse, inverse_pose
 from geovs_drake.geometry.prediction import predicted_image
 from geovs_drake.geometry.rigid import quaternion_to_rotation
 from geovs_drake.goal.arm import arm_model
 from geovs_drake.hardware.config import HardwareConfig, check_still_target
 from geovs_drake.hardware.images import (
+    IMAGE_HISTORY,
     ImageFeatureFrames,
     SelfFilter,
     add_masked_image,
     add_self_filter,
-    check_rendered_over_lcm,
     subscribe_images,
 )
 from geovs_drake.hardware.messages import (
+    CAPTURE_SLACK_US,
+    FRAME_INDEX,
     FRAME_SIZE,
+    FRAME_STATUS,
     FRAME_UTIME,
+    FRAME_VALUE_SIZE,
     FRAME_VALUE_START,
+    FRAME_Y,
     STATUS_NUM_JOINTS,
     STATUS_Q,
     STATUS_UTIME,
     STATUS_V,
     STATUS_VECTOR_SIZE,
+    US_PER_S,
     frame_vector,
     frame_vector_size,
     status_vector,
     subscribe_vector,
 )
-from geovs_drake.hardware.station import (
-    FRAME_INDEX,
-    FRAME_STATUS,
-    FRAME_VALUE_SIZE,
-    FRAME_Y,
-    US_PER_S,
-)
+from geovs_drake.loop.build import FEATURE_SIZE
 from geovs_drake.loop.laws import add_nf_law
+from geovs_drake.loop.sensors import sampled_settings
 from geovs_drake.scenario import Rendered, ResolvedScenario
+from geovs_drake.simulation.result import pose_error
 from geovs_drake.systems import (
     ArmCamera,
     NavigationController,
 )
+from geovs_drake.systems._parameters import POSE_SIZE
 from geovs_drake.systems.arm_camera import actuation_permutation
 from geovs_drake.systems.arm_model import CAMERA_FRAME, ArmModel, arm_plant, camera_jacobian
 
@@ -130,10 +133,6 @@ LINK_FIELDS = (
 )
 (_L_STATUSES, _L_FRAMES, _L_DROPPED, _L_STATUS_T, _L_FRAME_T, _L_VALID, _L_STATUS_UTIME,
  _L_CAPTURE, _L_INDEX, _L_MAX_GAP, _L_HEAD) = range(len(LINK_FIELDS) + 1)  # fmt: skip
-#: A status counts as taken at or before a frame's capture within this [us]: Drake
-#: stamps statuses and images with ``int64(t * 1e6)``, a truncation, so a stamp may
-#: read a microsecond early; statuses are a millisecond apart.
-_CAPTURE_SLACK_US = 1.5
 #: Velocity mode: the fraction of each joint's velocity limit the command may reach.
 VELOCITY_FRACTION = 0.5
 #: The latency histogram (frame capture to the first command computed from it): bins
@@ -141,8 +140,12 @@ VELOCITY_FRACTION = 0.5
 LATENCY_BIN_MS = 1.0
 LATENCY_BINS = 20
 #: The pose's layout: quaternion (w, x, y, z), then position.
-_QUATERNION, _POSITION = slice(0, 4), slice(4, 7)
-POSE_SIZE = 7
+_QUATERNION, _POSITION = slice(0, 4), slice(4, POSE_SIZE)
+#: The tracker's held frame: its capture [s] (-1: none), y, the camera's pose at the
+#: capture, the frame's index (-1: none).
+_H_CAPTURE, _H_Y = 0, slice(1, 1 + FEATURE_SIZE)
+_H_POSE = slice(_H_Y.stop, _H_Y.stop + POSE_SIZE)
+_H_INDEX = _H_POSE.stop
 _IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 _ORIGIN = (0.0, 0.0, 0.0)
 
@@ -210,7 +213,7 @@ class FrameTracker(LeafSystem):
         # pose, so that no kinematics runs at the status rate (only once a frame).
         self._history = self.DeclareDiscreteState(np.full(POSE_HISTORY * self._row, -1.0))
         self._frame = self.DeclareDiscreteState(
-            np.concatenate([[-1.0], np.full(13, math.nan), np.zeros(POSE_SIZE), [-1.0]])
+            np.concatenate([[-1.0], np.full(FEATURE_SIZE, math.nan), np.zeros(POSE_SIZE), [-1.0]])
         )
         # LINK_FIELDS, then the history's next row.
         link = np.zeros(len(LINK_FIELDS) + 1)
@@ -219,7 +222,7 @@ class FrameTracker(LeafSystem):
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self.predicted_image_features_output = self.DeclareVectorOutputPort(
             "predicted_image_features",
-            13,
+            FEATURE_SIZE,
             self._predict,
             prerequisites_of_calc={self.all_input_ports_ticket(), self.xd_ticket()},
         )
@@ -248,16 +251,18 @@ class FrameTracker(LeafSystem):
         capture = frame[FRAME_UTIME] / US_PER_S
         held = context.get_discrete_state(self._frame).get_value()
         carried = frame[FRAME_SIZE] == FRAME_VALUE_SIZE
-        if carried and capture != held[0] and link[_L_STATUSES] > 0:
+        # A new frame by its index (a frame held through latency or failures may carry
+        # the capture of the one before).
+        index = frame[FRAME_VALUE_START + FRAME_INDEX]
+        if carried and index != held[_H_INDEX] and link[_L_STATUSES] > 0:
             value = frame[FRAME_VALUE_START:]
-            index = value[FRAME_INDEX]
-            if held[-1] >= 0 and index > held[-1] + 1:
-                link[_L_DROPPED] += index - held[-1] - 1
+            if held[_H_INDEX] >= 0 and index > held[_H_INDEX] + 1:
+                link[_L_DROPPED] += index - held[_H_INDEX] - 1
             # The updated history: this update's status may be the frame's.
             rows = state.get_mutable_vector(self._history).get_value()
             rows = rows.reshape(POSE_HISTORY, self._row)
             kept = rows[rows[:, 0] >= 0]
-            before = kept[kept[:, 0] <= capture + _CAPTURE_SLACK_US / US_PER_S]
+            before = kept[kept[:, 0] <= capture + CAPTURE_SLACK_US / US_PER_S]
             pick = before[np.argmax(before[:, 0])] if len(before) else kept[np.argmin(kept[:, 0])]
             state.get_mutable_vector(self._frame).SetFromVector(
                 np.concatenate([[capture], value[FRAME_Y], self._pose(pick[1:]), [index]])
@@ -277,15 +282,15 @@ class FrameTracker(LeafSystem):
     def held_frame(self, context: Context) -> tuple[float, np.ndarray]:
         """The held frame's capture time [s] (-1: none yet) and its y."""
         frame = context.get_discrete_state(self._frame).get_value()
-        return float(frame[0]), frame[1:14].copy()
+        return float(frame[_H_CAPTURE]), frame[_H_Y].copy()
 
     def _predict(self, context: Context, output) -> None:
         frame = context.get_discrete_state(self._frame).get_value()
-        y = frame[1:14]
-        if frame[0] < 0 or not np.all(np.isfinite(y)):
-            output.SetFromVector(np.full(13, math.nan))
+        y = frame[_H_Y]
+        if frame[_H_CAPTURE] < 0 or not np.all(np.isfinite(y)):
+            output.SetFromVector(np.full(FEATURE_SIZE, math.nan))
             return
-        then = frame[14:21].tolist()
+        then = frame[_H_POSE].tolist()
         now = self.body_pose_input.Eval(context).tolist()
         output.SetFromVector(
             predicted_image(
@@ -363,7 +368,7 @@ class CommandPublisher(LeafSystem):
         self.command_input = self.DeclareVectorInputPort("command", nv)
         self.arm_state_input = self.DeclareVectorInputPort("arm_state", nq + nv)
         self.link_input = self.DeclareVectorInputPort("link", len(LINK_FIELDS))
-        self.image_features_input = self.DeclareVectorInputPort("image_features", 13)
+        self.image_features_input = self.DeclareVectorInputPort("image_features", FEATURE_SIZE)
         self._state = self.DeclareDiscreteState(np.array([0.0, 0.0, 0.0, 0.0, -1.0]))
         self._histogram = self.DeclareDiscreteState(LATENCY_BINS)
         period = 1.0 / hardware.command_rate
@@ -507,6 +512,20 @@ class Controller:
         p_BC, p_BC_goal = (_camera_in_target(v, self.resolved.believed_radius) for v in (y, goal))
         return float(np.linalg.norm(y - goal)), float(np.linalg.norm(p_BC - p_BC_goal))
 
+    def estimated_pose_error(self, root: Context) -> tuple[float, float]:
+        """Its own estimate of the camera's pose error from the goal now, ``(position
+        [m], rotation [rad])``: the pose ``c^-1(y)`` of the held frame moved to now
+        against ``c^-1(y*)`` (Eq. 23, the believed radius); NaN without a frame."""
+        context = self.tracker.GetMyContextFromRoot(root)
+        y = self.tracker.predicted_image_features_output.Eval(context)
+        if not np.all(np.isfinite(y)):
+            return math.nan, math.nan
+        radius = self.resolved.believed_radius
+        X_CB, X_CB_goal = (
+            camera_map_inverse(np.asarray(v), radius) for v in (y, self.resolved.y_goal)
+        )
+        return pose_error(X_CB.inverse(), X_CB_goal.inverse())
+
 
 def _camera_in_target(y: np.ndarray, radius: float) -> np.ndarray:
     """p_BC, the camera's position in the target frame that y implies: X_CB = c^-1(y)
@@ -556,7 +575,6 @@ def build_controller(
     builder.Connect(arm.camera_state_output, pose.get_input_port())
     rendered = isinstance(config.sensor, Rendered)
     if rendered:
-        check_rendered_over_lcm(resolved)
         frame, images = _add_image_frames(builder, resolved, hardware, model, decoder, interface)
     else:
         frame = builder.AddNamedSystem(
@@ -626,17 +644,22 @@ def _add_image_frames(
     self_filter = add_self_filter(builder, resolved, model)
     masked = add_masked_image(builder, color, self_filter, believed.width, believed.height)
     nq = self_filter.plant.num_positions()
+    settings = sampled_settings(resolved)
+    # The statuses to keep: those of the camera's own delay (a frame is sent that long
+    # after its capture), and the bus's slack.
+    delay = settings["latency_frames"] * settings["period"] + settings["capture_delay"]
     frames = builder.AddNamedSystem(
         "feature_extractor",
         ImageFeatureFrames(
             believed,
             num_joints=nq,
             period=1.0 / hardware.status_rate,
-            camera_period=1.0 / cam.rate,
+            camera_period=settings["period"],
             offset=cam.capture_offset,
-            max_lost_frames=int(cam.max_lost_frames),
-            pixel_noise=cam.pixel_noise,
-            seed=int(cam.seed),
+            max_lost_frames=settings["max_lost_frames"],
+            pixel_noise=settings["pixel_noise"],
+            seed=settings["seed"],
+            history=IMAGE_HISTORY + math.ceil(delay * hardware.status_rate),
         ),
     )
     builder.Connect(utime, frames.image_utime_input)
