@@ -463,3 +463,25 @@ def test_the_controller_reports_statuses_lost_mid_servo_as_an_error():
     assert summary["estimated_position_error_m"] == pytest.approx(expected[0], abs=1e-9)
     assert summary["estimated_rotation_error_rad"] == pytest.approx(expected[1], abs=1e-6)
     assert expected[0] > 10 * convergence_tolerance(setup.resolved.config)[0]
+
+
+@pytest.mark.parametrize("command", ["station", "controller"])
+def test_the_station_and_the_controller_drive_the_panda_only(capsys, command):
+    """Another arm, by flag or by scenario, is refused in one line (exit 2); the help
+    names the one arm and no --carrier flag (neither command has one)."""
+    with pytest.raises(SystemExit) as exit_:  # argparse's refusal
+        main([command, "--arm", "default"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert "--arm: invalid choice: 'default'" in err and len(err.strip().splitlines()) == 1
+    for scenario, got in (("!Arm {model: default}", "model 'default'"), ("!FreeRig {}", "FreeRig")):
+        assert main([command, "--scenario-text", f"carrier: {scenario}"]) == 2
+        err = capsys.readouterr().err
+        assert err.strip() == (
+            f"geovs-drake: the {command} drives the panda only (drake-franka-driver's "
+            f"channels): carrier must be !Arm {{model: panda}}, got {got}"
+        )
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    text = capsys.readouterr().out
+    assert "--arm {panda}" in text and "--carrier" not in text

@@ -45,7 +45,7 @@ from geovs_drake.geometry.camera import camera_map_inverse, inverse_pose
 from geovs_drake.geometry.prediction import predicted_image
 from geovs_drake.geometry.rigid import quaternion_to_rotation
 from geovs_drake.goal.arm import arm_model
-from geovs_drake.hardware.config import HardwareConfig, check_still_target
+from geovs_drake.hardware.config import HardwareConfig, check_hardware_arm, check_still_target
 from geovs_drake.hardware.images import (
     IMAGE_HISTORY,
     ImageFeatureFrames,
@@ -541,6 +541,8 @@ def build_controller(
     """The controller of a Panda scenario on the bus ``lcm``: only the arm's own model
     (inside :class:`~geovs_drake.systems.ArmCamera`), no plant of the world."""
     config = resolved.config
+    check_hardware_arm(config, "controller")
+    check_still_target(config, "controller")
     model = arm_model(config)
     nv = arm_plant(model).num_velocities()
     builder = DiagramBuilder()
@@ -557,7 +559,6 @@ def build_controller(
     )
     decoder = builder.AddNamedSystem("status_decoder", StatusDecoder(nv))
     builder.Connect(status.get_output_port(), decoder.status_input)
-    check_still_target(config, "controller")
     carrier = config.carrier
     barrier = carrier.joint_barrier_width > 0 or carrier.joint_barrier_fraction > 0
     if barrier:

@@ -45,7 +45,7 @@ from pydrake.systems.primitives import Demultiplexer, DiscreteTimeDelay
 from pydrake.systems.sensors import RgbdSensor
 
 from geovs_drake.goal.arm import initial_joints
-from geovs_drake.hardware.config import HardwareConfig, check_still_target
+from geovs_drake.hardware.config import HardwareConfig, check_hardware_arm, check_still_target
 from geovs_drake.hardware.images import add_image_camera, check_rendered_over_lcm
 from geovs_drake.hardware.messages import (
     COMMAND_NUM_TORQUE,
@@ -314,6 +314,7 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     ``!Pinhole`` camera) on the bus ``lcm``. ValueError in one line for a scenario the
     station cannot run."""
     config = resolved.config
+    check_hardware_arm(config, "station")
     rendered = isinstance(config.sensor, Rendered)
     if not isinstance(config.sensor, Pinhole) and not rendered:
         raise ValueError(
