@@ -36,6 +36,7 @@ import numpy as np
 from drake import lcmt_panda_command, lcmt_panda_status, lcmt_scope
 from pydrake.common.value import AbstractValue
 from pydrake.lcm import DrakeLcm
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.lcm import LcmInterfaceSystem
 from pydrake.systems.primitives import Demultiplexer
@@ -74,8 +75,12 @@ from geovs_drake.hardware.messages import (
     status_vector,
     subscribe_vector,
 )
-from geovs_drake.loop.build import FEATURE_SIZE
-from geovs_drake.loop.laws import add_nf_law
+
+# _drive: the loop's own wiring of a law's command to its carrier (private to
+# loop.build, which another engineer owns: used, not copied).
+from geovs_drake.loop.build import FEATURE_SIZE, _drive
+from geovs_drake.loop.carriers import CarrierParts, no_initial_state
+from geovs_drake.loop.laws import LAWS
 from geovs_drake.loop.sensors import sampled_settings
 from geovs_drake.scenario import Rendered, ResolvedScenario
 from geovs_drake.simulation.result import pose_error
@@ -469,8 +474,10 @@ _PANDA_VELOCITY, _PANDA_TORQUE = 2, 4
 class Controller:
     """A built controller: its ``diagram``, the scenario it believes, the
     ``tracker`` (:class:`FrameTracker`), the ``publisher`` (:class:`CommandPublisher`),
-    the ``navigation`` controller and the ``law`` (ImageJacobianForce in torque mode,
-    KinematicController in velocity mode); with the rendered camera, ``images``
+    the ``navigation`` controller and the ``law`` (the scenario's law's system, from
+    the loop's registry :data:`~geovs_drake.loop.laws.LAWS`: for the NF,
+    ImageJacobianForce in torque mode, KinematicController in velocity mode); with the
+    rendered camera, ``images``
     (:class:`~geovs_drake.hardware.images.ImageFeatureFrames`) and the ``self_filter``
     (:class:`~geovs_drake.hardware.images.SelfFilter`), else None."""
 
@@ -525,6 +532,11 @@ class Controller:
             camera_map_inverse(np.asarray(v), radius) for v in (y, self.resolved.y_goal)
         )
         return pose_error(X_CB.inverse(), X_CB_goal.inverse())
+
+
+def _no_states(states: np.ndarray, ops: object) -> tuple:
+    """The LCM link has no continuous state (it is the robot's): nothing to read."""
+    raise NotImplementedError("the LCM controller's link has no continuous state")
 
 
 def _camera_in_target(y: np.ndarray, radius: float) -> np.ndarray:
@@ -605,17 +617,36 @@ def build_controller(
     )
     builder.Connect(y, nav.image_features_input)
     publisher = builder.AddNamedSystem("command_publisher", CommandPublisher(model, hardware, lcm))
-    # The loop's own NF law (the camera's frame is C itself here: X_RC = I).
-    law = add_nf_law(builder, resolved, y, nav, takes_wrench=hardware.mode == "torque")
+
+    # The LCM link as the loop's carrier: in torque mode it takes a wrench in C (through
+    # J_C^T, ArmCamera), in velocity mode a twist in C (through J_C^+); the camera's frame
+    # is C itself (X_RC = I).
+    def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
+        builder.Connect(force.wrench_C_output, arm.wrench_C_input)
+
+    link = CarrierParts(
+        body_pose=pose.get_output_port(0),
+        state=arm.camera_state_output,
+        state_log_name="camera_state",
+        X_WB=config.X_WB,
+        X_RC=RigidTransform(),
+        pose_of_states=_no_states,
+        set_initial_state=no_initial_state,
+        body_state=arm.camera_state_output,
+        connect_force=connect_force if hardware.mode == "torque" else None,
+    )
     if hardware.mode == "torque":
-        builder.Connect(arm.camera_state_output, law.body_state_input)
-        builder.Connect(law.wrench_C_output, arm.wrench_C_input)
         builder.Connect(arm.actuation_output, publisher.command_input)
     else:
         joints = builder.AddNamedSystem("joint_velocity_law", JointVelocityLaw(model))
         builder.Connect(decoder.arm_state_output, joints.arm_state_input)
-        builder.Connect(law.camera_velocity_output, joints.camera_velocity_input)
         builder.Connect(joints.joint_velocity_output, publisher.command_input)
+        link.twist_input = joints.camera_velocity_input
+    # The scenario's law from the loop's registry, connected as the loop connects it (a
+    # twist on the torque link through VelocityTrackingForce).
+    command = LAWS[type(resolved.law)].add(builder, resolved, y, nav, link)
+    _drive(builder, resolved, link, command, False)
+    law = command if isinstance(command, LeafSystem) else command.get_system()
     builder.Connect(decoder.arm_state_output, publisher.arm_state_input)
     builder.Connect(tracker.link_output, publisher.link_input)
     builder.Connect(y, publisher.image_features_input)
