@@ -438,6 +438,12 @@ def test_the_controller_ends_station_stopped_when_statuses_stop_after_it_converg
     assert summary["estimated_position_error_m"] < 1e-9
     assert summary["estimated_rotation_error_rad"] < 1e-6
     assert summary["status"] in CONTROLLER_SUCCESS
+    # Its loop's wall times: one a simulator step, at least one step a status period
+    # (the tracker's 1 kHz update), binned by the edges it names.
+    histogram = summary["loop_time_histogram"]
+    assert len(histogram) == len(summary["loop_time_edges_ms"]) + 1
+    assert sum(histogram) >= summary["sim_time_s"] / STATUS_PERIOD_S - 1
+    assert summary["max_loop_time_s"] > 0
     # It stopped one status timeout after the last status (it checks at each command,
     # the last status arriving at the controller's next step).
     slack = 1 / setup.hardware.command_rate + 2 * STATUS_PERIOD_S

@@ -3,6 +3,7 @@ simulator, and the summary each prints (``geovs-drake station`` / ``controller``
 
 from __future__ import annotations
 
+import gc
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -36,6 +37,7 @@ from geovs_drake.simulation.result import convergence_tolerance, pose_error
 
 __all__ = [
     "CONTROLLER_SUCCESS",
+    "LOOP_TIME_EDGES_MS",
     "SETTLED_JOINT_SPEED",
     "TRACE_PERIOD_S",
     "Lockstep",
@@ -56,6 +58,10 @@ SETTLED_JOINT_SPEED = 0.01
 #: The controller's statuses that end a run well (exit 0): it ran its duration, or the
 #: station stopped after it had converged (:func:`controller_status`).
 CONTROLLER_SUCCESS = ("completed", "station_stopped")
+#: The controller's ``loop_time_histogram``: the upper edges [ms] of its bins of the
+#: wall time between two simulator steps (the last bin: the rest). The status period
+#: is 1 ms; the command timeout 100 ms.
+LOOP_TIME_EDGES_MS = (1.5, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
 #: The period [s] of the station's ``position_error_trace_m``.
 TRACE_PERIOD_S = 1.0
 #: Slack on a count of periods in a float time.
@@ -271,18 +277,35 @@ def run_controller(controller: Controller, duration: float) -> dict:
     ``estimated_rotation_error_rad`` (its own estimates, from the frames),
     ``latency_histogram`` (frames by the latency from their capture to the first
     command from them, ``latency_bin_ms`` bins from 0, the last one the rest),
-    ``sim_time_s``, ``wall_time_s`` and ``realtime_rate``. ValueError when its first
+    ``sim_time_s``, ``wall_time_s`` and ``realtime_rate``; its loop's wall time from
+    one simulator step to the next: ``loop_time_histogram`` (counts in the bins whose
+    upper edges are ``loop_time_edges_ms``, the last bin the rest) and
+    ``max_loop_time_s``. ValueError when its first
     frame's image cannot be inverted (it never commanded)."""
     setup = Setup(controller.resolved, controller.hardware)
     controller.warm_up()
     simulator = _simulator(controller.diagram, setup)
     publisher = controller.publisher
+    # The loop's wall time, step to step, counted in place (no allocation in the loop).
+    edges = np.array(LOOP_TIME_EDGES_MS) * 1e-3
+    loop_counts = np.zeros(len(edges) + 1, dtype=np.int64)
+    last = [math.nan, 0.0]  # the last step's wall clock, the longest step
 
     def monitor(root) -> EventStatus:
+        now = time.perf_counter()
+        step = now - last[0]
+        if step == step:  # not the first (NaN)
+            loop_counts[int(np.searchsorted(edges, step))] += 1
+            last[1] = max(last[1], step)
+        last[0] = now
         if publisher.stopped(publisher.GetMyContextFromRoot(root)):
             return EventStatus.ReachedTermination(publisher, "stopped")
         return EventStatus.Succeeded()
 
+    # Everything built so far is kept out of the garbage collector's scans: a full
+    # collection of the diagram's objects mid-run is a pause of milliseconds.
+    gc.collect()
+    gc.freeze()
     wall = _run_until(simulator, monitor, duration)
     root = simulator.get_context()
     context = publisher.GetMyContextFromRoot(root)
@@ -312,6 +335,9 @@ def run_controller(controller: Controller, duration: float) -> dict:
             "sim_time_s": root.get_time(),
             "wall_time_s": wall,
             "realtime_rate": simulator.get_actual_realtime_rate(),
+            "loop_time_edges_ms": list(LOOP_TIME_EDGES_MS),
+            "loop_time_histogram": loop_counts.tolist(),
+            "max_loop_time_s": last[1],
         }
     )
 

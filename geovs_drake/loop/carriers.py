@@ -32,7 +32,6 @@ from pydrake.multibody.tree import BodyIndex, RigidBody, RotationalInertia, Spat
 from pydrake.systems.framework import Context, DiagramBuilder, InputPort, LeafSystem, OutputPort
 from pydrake.systems.primitives import Demultiplexer, Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
-from pydrake.visualization import AddFrameTriadIllustration
 
 from geovs_drake.geometry._ops import MATH, NUMPY
 from geovs_drake.geometry.joint_barrier import joint_widths
@@ -241,6 +240,10 @@ def _meshcat_with_camera(
     """Meshcat for the scene, with the camera frame C's axes drawn on the body it rides."""
 
     def add_meshcat(builder: DiagramBuilder, meshcat: Meshcat) -> None:
+        # Imported here: pydrake.visualization imports matplotlib (0.5 s), which every
+        # loop without Meshcat, the LCM controller's start among them, would pay.
+        from pydrake.visualization import AddFrameTriadIllustration
+
         MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
         AddFrameTriadIllustration(
             scene_graph=scene_graph,
