@@ -306,7 +306,10 @@ def run_controller(controller: Controller, duration: float) -> dict:
     # collection of the diagram's objects mid-run is a pause of milliseconds.
     gc.collect()
     gc.freeze()
-    wall = _run_until(simulator, monitor, duration)
+    try:
+        wall = _run_until(simulator, monitor, duration)
+    finally:  # a caller's later garbage (a test session's) is collected again
+        gc.unfreeze()
     root = simulator.get_context()
     context = publisher.GetMyContextFromRoot(root)
     reason = publisher.stop_reason(context)
