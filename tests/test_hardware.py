@@ -31,6 +31,7 @@ from geovs_drake.hardware.controller import build_controller
 from geovs_drake.hardware.messages import (
     FRAME_INDEX,
     FRAME_VALUE_SIZE,
+    NUM_JOINTS,
     decode_status_vector,
     status_vector,
 )
@@ -146,8 +147,8 @@ class StoppingCommandSource(LeafSystem):
             return
         message = lcmt_panda_command()
         message.utime = int(round(t * 1e6))
-        message.num_joint_torque = 7
-        message.joint_torque = [self._torque] * 7
+        message.num_joint_torque = NUM_JOINTS
+        message.joint_torque = [self._torque] * NUM_JOINTS
         message.control_mode_expected = 4  # drake-franka-driver's torque mode
         self._lcm.Publish(HardwareConfig().channels.command, message.encode(), t)
 
@@ -422,7 +423,7 @@ def _controller_after_a_stop(y_of) -> tuple[dict, object]:
     controller = build_controller(setup.resolved, setup.hardware, lcm)
     builder = DiagramBuilder()
     builder.AddSystem(controller.diagram)
-    q = np.zeros(7)
+    q = np.zeros(NUM_JOINTS)
     builder.AddSystem(ScriptedStation(lcm, y_of(setup), q, SCRIPT_STOP_S))
     both = dataclasses.replace(controller, diagram=builder.Build())
     return run_controller(both, SCRIPT_RUN_S), setup
