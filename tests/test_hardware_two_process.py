@@ -14,7 +14,7 @@ plant's ground truth); this process also listens on the bus and counts the comma
     their capture, issue 42): the pair converges from the small move and from a start
     on the other side of the goal, the controller ending ``station_stopped``.
 
-Both slow (each is a real-time run): ``pytest -m slow tests/test_hardware_two_process.py``.
+All slow (each is a real-time run): ``pytest -m slow tests/test_hardware_two_process.py``.
 """
 
 from __future__ import annotations
