@@ -27,7 +27,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "from the camera channel (predicted between frames from the joints' motion), and "
         "command PANDA_COMMAND. With no status or no frame within its timeout it stops "
         "commanding and says so; it refuses to start from an image it cannot invert (exit "
-        "2). At the end: frames received and dropped, its own estimate of the image error.",
+        "2). At the end: frames received and dropped, its own estimate of the image error. "
+        "Exit 0 when it ran its duration, or when the statuses stopped after its own "
+        "estimate had converged (status station_stopped: the station ended its run); 3 "
+        "when it stopped otherwise (statuses lost mid-servo, no frame, the target lost).",
     )
     add_hardware_options(p)
     add_field(
@@ -58,12 +61,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the controller; the exit code (0 when it ran its duration, 3 when it stopped)."""
+    """Run the controller; the exit code (0 when it ran its duration or the station
+    stopped after it had converged, 3 when it stopped otherwise)."""
     if args.command_rate is not None and not args.command_rate > 0:
         raise ValueError(f"--command-rate must be > 0 [Hz]: {args.command_rate}")
     setup = setup_of(args, mode=args.mode, command_rate=args.command_rate)
     from geovs_drake.hardware.controller import build_controller
-    from geovs_drake.hardware.run import open_lcm, run_controller
+    from geovs_drake.hardware.run import CONTROLLER_SUCCESS, open_lcm, run_controller
 
     controller = build_controller(setup.resolved, setup.hardware, open_lcm(setup.hardware.lcm_url))
     summary = run_controller(controller, setup.resolved.config.duration)
@@ -77,4 +81,4 @@ def run(args: argparse.Namespace) -> int:
             f"image error {summary['final_image_error']:.3g} (real-time rate "
             f"{summary['realtime_rate']:.3g})"
         )
-    return EXIT_CONVERGED if summary["status"] == "completed" else EXIT_NOT_CONVERGED
+    return EXIT_CONVERGED if summary["status"] in CONTROLLER_SUCCESS else EXIT_NOT_CONVERGED

@@ -10,29 +10,30 @@ from geovs_drake.cli._options import (
     EXIT_CONVERGED,
     EXIT_NOT_CONVERGED,
     _apply_variant_fields,
+    _set_variant_field,
     add_command,
     add_config,
     add_field,
     add_json,
     add_latency_frames,
-    add_variant_field,
+    add_variant_flag,
     pose_arg,
 )
-from geovs_drake.hardware.config import DEFAULT_LCM_URL, MODES, check_lcm_url
+from geovs_drake.hardware.config import DEFAULT_LCM_URL, HARDWARE_ARM, MODES, check_lcm_url
 
 
 def add_hardware_options(p: argparse.ArgumentParser) -> None:
     """What ``station`` and ``controller`` share: the station file, the arm, the bus and
     the duration."""
     add_config(p)
-    add_variant_field(
+    # Its own flag, not the simulator's --arm: one arm only, and no --carrier here.
+    add_variant_flag(
         p,
         "--arm",
-        "carrier",
-        ("arm",),
-        "model",
-        "the arm (panda: drake-franka-driver's channels)",
-        metavar="panda",
+        _set_variant_field("carrier", ("arm",), "model"),
+        f"the arm: {HARDWARE_ARM} only (drake-franka-driver's channels, 7 joints; "
+        "the default, and the station file's)",
+        choices=(HARDWARE_ARM,),
     )
     p.add_argument(
         "--lcm",

@@ -25,11 +25,13 @@ from geovs_drake.scenario import ScenarioConfig
 
 __all__ = [
     "DEFAULT_LCM_URL",
+    "HARDWARE_ARM",
     "HARDWARE_SECTION",
     "LCM_SCHEMES",
     "MODES",
     "ChannelsConfig",
     "HardwareConfig",
+    "check_hardware_arm",
     "check_lcm_url",
     "check_still_target",
     "load_hardware",
@@ -49,6 +51,9 @@ MODES: dict[str, str] = {
     "torque": "joint torques, gravity excluded (the robot compensates it, as the FCI does)",
     "velocity": "joint velocities, tracked by the robot's own joint controller",
 }
+#: The one arm the station and the controller drive: drake-franka-driver's channels
+#: carry a Franka Panda's 7 joints.
+HARDWARE_ARM = "panda"
 #: The section of a station file that holds :class:`HardwareConfig`.
 HARDWARE_SECTION = "hardware"
 #: The largest UDP port number.
@@ -153,6 +158,19 @@ def check_still_target(config: ScenarioConfig, part: str) -> None:
         raise ValueError(
             f"the {part}'s target stands still: target_motion must be !Still {{}} (a moving "
             f"target runs in `geovs-drake simulate`), got {type(config.target_motion).__name__}"
+        )
+
+
+def check_hardware_arm(config: ScenarioConfig, part: str) -> None:
+    """The station and the controller drive :data:`HARDWARE_ARM` alone; ValueError in
+    one line naming ``part`` and the scenario's carrier otherwise."""
+    # Not a variant's type: any carrier without the arm's model field is refused too.
+    model = getattr(config.carrier, "model", None)
+    if model != HARDWARE_ARM:
+        got = f"model {model!r}" if model is not None else type(config.carrier).__name__
+        raise ValueError(
+            f"the {part} drives the {HARDWARE_ARM} only (drake-franka-driver's channels): "
+            f"carrier must be !Arm {{model: {HARDWARE_ARM}}}, got {got}"
         )
 
 

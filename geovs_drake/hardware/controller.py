@@ -33,57 +33,56 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from drake import lcmt_panda_command, lcmt_panda_status, lcmt_scope
-from pydrake.common.value import AbstractValue
+from drake import lcmt_panda_status, lcmt_scope
 from pydrake.lcm import DrakeLcm
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.lcm import LcmInterfaceSystem
 from pydrake.systems.primitives import Demultiplexer
 
 from geovs_drake.geometry._ops import MATH
-from geovs_drake.geometry.camera import inverse_pose
-from geovs_drake.geometry.prediction import predicted_image
-from geovs_drake.geometry.rigid import quaternion_to_rotation
+from geovs_drake.geometry.camera import camera_map_inverse, inverse_pose
 from geovs_drake.goal.arm import arm_model
-from geovs_drake.hardware.config import HardwareConfig, check_still_target
+from geovs_drake.hardware.config import HardwareConfig, check_hardware_arm, check_still_target
 from geovs_drake.hardware.images import (
+    IMAGE_HISTORY,
     ImageFeatureFrames,
     SelfFilter,
     add_masked_image,
     add_self_filter,
-    check_rendered_over_lcm,
     subscribe_images,
 )
+from geovs_drake.hardware.link import (
+    LATENCY_BIN_MS,
+    LATENCY_BINS,
+    LINK_FIELDS,
+    POSE_HISTORY,
+    STOP_REASONS,
+    CommandPublisher,
+    FrameTracker,
+    JointVelocityLaw,
+    StatusDecoder,
+)
 from geovs_drake.hardware.messages import (
-    FRAME_SIZE,
-    FRAME_UTIME,
-    FRAME_VALUE_START,
-    STATUS_NUM_JOINTS,
-    STATUS_Q,
-    STATUS_UTIME,
-    STATUS_V,
+    FRAME_VALUE_SIZE,
     STATUS_VECTOR_SIZE,
     frame_vector,
     frame_vector_size,
     status_vector,
     subscribe_vector,
 )
-from geovs_drake.hardware.station import (
-    FRAME_INDEX,
-    FRAME_STATUS,
-    FRAME_VALUE_SIZE,
-    FRAME_Y,
-    US_PER_S,
-)
-from geovs_drake.loop import ResolvedScenario
-from geovs_drake.loop.laws import add_nf_law
-from geovs_drake.scenario import Rendered
+from geovs_drake.loop.assembly import drive_carrier
+from geovs_drake.loop.carriers import CarrierParts, no_initial_state
+from geovs_drake.loop.laws import LAWS
+from geovs_drake.loop.resolved import ResolvedScenario
+from geovs_drake.loop.sensors import sampled_settings
+from geovs_drake.simulation.result import pose_error
 from geovs_drake.systems import (
     ArmCamera,
     NavigationController,
 )
-from geovs_drake.systems.arm_camera import actuation_permutation
-from geovs_drake.systems.arm_model import CAMERA_FRAME, ArmModel, arm_plant, camera_jacobian
+from geovs_drake.systems._parameters import POSE_SIZE
+from geovs_drake.systems.arm_model import ArmModel, arm_plant
 
 __all__ = [
     "LATENCY_BINS",
@@ -99,374 +98,15 @@ __all__ = [
     "build_controller",
 ]
 
-#: How many statuses' joints the tracker keeps (at 1 kHz, 0.5 s): a frame whose
-#: capture is older than that is predicted from the oldest kept.
-POSE_HISTORY = 512
-#: Why the controller stopped commanding, by its code.
-STOP_REASONS: dict[int, str] = {
-    0: "",
-    1: "no status within the status timeout",
-    2: "no frame within the frame timeout",
-    3: "no status and frame within the startup timeout",
-    4: "the camera lost the target (its frame is not valid)",
-    5: "the image cannot be inverted (y outside I)",
-}
-_NO_STATUS, _NO_FRAME, _NO_START, _FEATURE_LOST, _NOT_INVERTIBLE = 1, 2, 3, 4, 5
-#: The tracker's ``link`` output: statuses recorded, frames received, frames dropped
-#: (gaps in the frames' indices), the last status's arrival [s, the controller's
-#: clock], the last frame's arrival [s], the frame's valid flag, the last status's
-#: utime [s, the robot's clock], the held frame's capture utime [s], its index, and the
-#: longest time between two new statuses [s, the controller's clock] after the first.
-LINK_FIELDS = (
-    "statuses",
-    "frames",
-    "dropped",
-    "status_arrival",
-    "frame_arrival",
-    "valid",
-    "status_utime",
-    "capture",
-    "index",
-    "max_status_gap",
-)
-(_L_STATUSES, _L_FRAMES, _L_DROPPED, _L_STATUS_T, _L_FRAME_T, _L_VALID, _L_STATUS_UTIME,
- _L_CAPTURE, _L_INDEX, _L_MAX_GAP, _L_HEAD) = range(len(LINK_FIELDS) + 1)  # fmt: skip
-#: A status counts as taken at or before a frame's capture within this [us]: Drake
-#: stamps statuses and images with ``int64(t * 1e6)``, a truncation, so a stamp may
-#: read a microsecond early; statuses are a millisecond apart.
-_CAPTURE_SLACK_US = 1.5
-#: Velocity mode: the fraction of each joint's velocity limit the command may reach.
-VELOCITY_FRACTION = 0.5
-#: The latency histogram (frame capture to the first command computed from it): bins
-#: of this width [ms], the last one everything above.
-LATENCY_BIN_MS = 1.0
-LATENCY_BINS = 20
-#: The pose's layout: quaternion (w, x, y, z), then position.
-_QUATERNION, _POSITION = slice(0, 4), slice(4, 7)
-POSE_SIZE = 7
-_IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
-_ORIGIN = (0.0, 0.0, 0.0)
-
-
-class StatusDecoder(LeafSystem):
-    """The latest status (the vector of
-    :func:`~geovs_drake.hardware.messages.status_vector`) -> ``arm_state`` (q, v), zeros
-    before the first status (no command is sent before it), and ``status_utime`` [s]
-    (0 before it)."""
-
-    def __init__(self, num_joints: int) -> None:
-        super().__init__()
-        self._n = num_joints
-        self.status_input = self.DeclareAbstractInputPort(
-            "status", AbstractValue.Make(np.zeros(STATUS_VECTOR_SIZE))
-        )
-        self.arm_state_output = self.DeclareVectorOutputPort(
-            "arm_state", 2 * num_joints, self._state
-        )
-        self.status_utime_output = self.DeclareVectorOutputPort("status_utime", 1, self._utime)
-
-    def _state(self, context: Context, output) -> None:
-        status = self.status_input.Eval(context)
-        if status[STATUS_NUM_JOINTS] != self._n:
-            output.SetFromVector(np.zeros(2 * self._n))
-            return
-        output.SetFromVector(status[STATUS_Q.start : STATUS_V.stop])
-
-    def _utime(self, context: Context, output) -> None:
-        output.SetAtIndex(0, self.status_input.Eval(context)[STATUS_UTIME] / US_PER_S)
-
-
-class FrameTracker(LeafSystem):
-    """The camera's frames as they arrive, moved to the camera's pose now.
-
-    Inputs ``frame`` (the latest camera message as the vector of
-    :func:`~geovs_drake.hardware.messages.frame_vector`, its ``utime`` the capture
-    time), ``status_utime`` [s], ``arm_state`` (that status's q, v) and ``body_pose``
-    (the camera's pose ``[q_WC, p_WC]`` now, from the joints). Every ``period`` (the
-    status rate) it records each new status's joints by its utime (:data:`POSE_HISTORY`
-    of them) and, on a new frame, the camera's pose at the frame's capture utime (the
-    joints of the latest status not after it, through its own model of the arm).
-    ``predicted_image_features``: the held frame's y carried from that pose to
-    ``body_pose`` (:func:`~geovs_drake.geometry.prediction.predicted_image`, the
-    believed ``radius``); NaN before a first frame. ``link``: :data:`LINK_FIELDS`.
-    """
-
-    def __init__(self, model: ArmModel, radius: float, period: float) -> None:
-        super().__init__()
-        self._radius = radius
-        self._plant = arm_plant(model)
-        self._context = self._plant.CreateDefaultContext()
-        self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
-        self._nq = nq = self._plant.num_positions()
-        self._row = 1 + nq
-        self.frame_input = self.DeclareAbstractInputPort(
-            "frame", AbstractValue.Make(np.full(frame_vector_size(FRAME_VALUE_SIZE), math.nan))
-        )
-        self.status_utime_input = self.DeclareVectorInputPort("status_utime", 1)
-        self.arm_state_input = self.DeclareVectorInputPort(
-            "arm_state", nq + self._plant.num_velocities()
-        )
-        self.body_pose_input = self.DeclareVectorInputPort("body_pose", POSE_SIZE)
-        # The history of (utime, q), one row a status: the joints, not the camera's
-        # pose, so that no kinematics runs at the status rate (only once a frame).
-        self._history = self.DeclareDiscreteState(np.full(POSE_HISTORY * self._row, -1.0))
-        self._frame = self.DeclareDiscreteState(
-            np.concatenate([[-1.0], np.full(13, math.nan), np.zeros(POSE_SIZE), [-1.0]])
-        )
-        # LINK_FIELDS, then the history's next row.
-        link = np.zeros(len(LINK_FIELDS) + 1)
-        link[[_L_STATUS_T, _L_FRAME_T, _L_STATUS_UTIME, _L_CAPTURE, _L_INDEX]] = -1.0
-        self._link = self.DeclareDiscreteState(link)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
-        self.predicted_image_features_output = self.DeclareVectorOutputPort(
-            "predicted_image_features",
-            13,
-            self._predict,
-            prerequisites_of_calc={self.all_input_ports_ticket(), self.xd_ticket()},
-        )
-        self.link_output = self.DeclareVectorOutputPort(
-            "link", len(LINK_FIELDS), self._link_out, prerequisites_of_calc={self.xd_ticket()}
-        )
-
-    def _update(self, context: Context, state) -> None:
-        t = context.get_time()
-        link = context.get_discrete_state(self._link).get_value().copy()
-        utime = float(self.status_utime_input.Eval(context)[0])
-        if utime > 0 and utime != link[_L_STATUS_UTIME]:
-            # Only the new row is written: the history (4096 numbers) is not copied.
-            head = int(link[_L_HEAD])
-            row = head * self._row
-            history = state.get_mutable_vector(self._history).get_mutable_value()
-            history[row] = utime
-            history[row + 1 : row + self._row] = self.arm_state_input.Eval(context)[: self._nq]
-            if link[_L_STATUSES] > 0:
-                link[_L_MAX_GAP] = max(link[_L_MAX_GAP], t - link[_L_STATUS_T])
-            link[_L_HEAD] = (head + 1) % POSE_HISTORY
-            link[_L_STATUS_UTIME] = utime
-            link[_L_STATUSES] += 1
-            link[_L_STATUS_T] = t
-        frame = self.frame_input.Eval(context)
-        capture = frame[FRAME_UTIME] / US_PER_S
-        held = context.get_discrete_state(self._frame).get_value()
-        carried = frame[FRAME_SIZE] == FRAME_VALUE_SIZE
-        if carried and capture != held[0] and link[_L_STATUSES] > 0:
-            value = frame[FRAME_VALUE_START:]
-            index = value[FRAME_INDEX]
-            if held[-1] >= 0 and index > held[-1] + 1:
-                link[_L_DROPPED] += index - held[-1] - 1
-            # The updated history: this update's status may be the frame's.
-            rows = state.get_mutable_vector(self._history).get_value()
-            rows = rows.reshape(POSE_HISTORY, self._row)
-            kept = rows[rows[:, 0] >= 0]
-            before = kept[kept[:, 0] <= capture + _CAPTURE_SLACK_US / US_PER_S]
-            pick = before[np.argmax(before[:, 0])] if len(before) else kept[np.argmin(kept[:, 0])]
-            state.get_mutable_vector(self._frame).SetFromVector(
-                np.concatenate([[capture], value[FRAME_Y], self._pose(pick[1:]), [index]])
-            )
-            link[_L_FRAMES] += 1
-            link[_L_FRAME_T] = t
-            link[_L_VALID] = value[FRAME_STATUS][0]
-            link[_L_CAPTURE], link[_L_INDEX] = capture, index
-        state.get_mutable_vector(self._link).SetFromVector(link)
-
-    def _pose(self, q: np.ndarray) -> np.ndarray:
-        """The camera's pose ``[q_WC, p_WC]`` at joints q (ArmCamera's layout)."""
-        self._plant.SetPositions(self._context, q)
-        X_WC = self._camera.CalcPoseInWorld(self._context)
-        return np.concatenate([X_WC.rotation().ToQuaternion().wxyz(), X_WC.translation()])
-
-    def held_frame(self, context: Context) -> tuple[float, np.ndarray]:
-        """The held frame's capture time [s] (-1: none yet) and its y."""
-        frame = context.get_discrete_state(self._frame).get_value()
-        return float(frame[0]), frame[1:14].copy()
-
-    def _predict(self, context: Context, output) -> None:
-        frame = context.get_discrete_state(self._frame).get_value()
-        y = frame[1:14]
-        if frame[0] < 0 or not np.all(np.isfinite(y)):
-            output.SetFromVector(np.full(13, math.nan))
-            return
-        then = frame[14:21].tolist()
-        now = self.body_pose_input.Eval(context).tolist()
-        output.SetFromVector(
-            predicted_image(
-                tuple(y.tolist()),
-                self._radius,
-                quaternion_to_rotation(then[_QUATERNION], MATH),
-                tuple(then[_POSITION]),
-                quaternion_to_rotation(now[_QUATERNION], MATH),
-                tuple(now[_POSITION]),
-                _IDENTITY,
-                _ORIGIN,
-                MATH,
-            )
-        )
-
-    def _link_out(self, context: Context, output) -> None:
-        output.SetFromVector(context.get_discrete_state(self._link).get_value()[: len(LINK_FIELDS)])
-
-
-class JointVelocityLaw(LeafSystem):
-    """Velocity mode: the kinematic law's camera twist (Omega, V) carried to the joints,
-    ``v_cmd = s J_C(q)^+ (Omega, V)`` (the arm's own model), with s <= 1 the factor that
-    brings the fastest joint to ``velocity_fraction`` of its limit (the direction kept,
-    as :class:`~geovs_drake.systems.KinematicArm` does: the NF's twist far from the goal
-    asks for tens of rad/s). Inputs ``arm_state``, ``camera_velocity``; output
-    ``joint_velocity``."""
-
-    def __init__(self, model: ArmModel, velocity_fraction: float = VELOCITY_FRACTION) -> None:
-        super().__init__()
-        self._plant = arm_plant(model)
-        self._context = self._plant.CreateDefaultContext()
-        self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
-        self._limits = velocity_fraction * self._plant.GetVelocityUpperLimits()
-        nq, nv = self._plant.num_positions(), self._plant.num_velocities()
-        self.arm_state_input = self.DeclareVectorInputPort("arm_state", nq + nv)
-        self.camera_velocity_input = self.DeclareVectorInputPort("camera_velocity", 6)
-        self.joint_velocity_output = self.DeclareVectorOutputPort("joint_velocity", nv, self._calc)
-
-    def _calc(self, context: Context, output) -> None:
-        self._plant.SetPositionsAndVelocities(self._context, self.arm_state_input.Eval(context))
-        J = camera_jacobian(self._plant, self._context, self._camera)
-        v = np.linalg.pinv(J) @ self.camera_velocity_input.Eval(context)
-        ratio = float(np.max(np.abs(v) / self._limits))
-        output.SetFromVector(v if ratio <= 1.0 else v / ratio)
-
-
-class CommandPublisher(LeafSystem):
-    """PANDA_COMMAND at the command rate, while the link is fresh.
-
-    Inputs ``command`` (torque mode: ArmCamera's actuation, gravity compensation
-    included, which is taken back out here since the robot adds its own; velocity mode:
-    the joint velocities), ``arm_state``, ``link`` (:class:`FrameTracker`'s) and
-    ``image_features``. It starts once a status and a frame have come and the frame's y
-    is finite; it stops for good (:data:`STOP_REASONS`) when the last status is older
-    than ``status_timeout``, the last frame older than ``frame_timeout``, the frame is
-    not valid, or no start came within ``startup_timeout``.
-
-    A command's ``utime`` is on the robot's clock (what drake-franka-driver checks
-    ``expire_sec`` against): the last status's utime plus the time since it arrived.
-    From it and the held frame's capture utime the publisher keeps the latency
-    histogram from a frame's capture to the first command computed from it
-    (:data:`LATENCY_BINS` bins of :data:`LATENCY_BIN_MS`). State: ``[started, stopped,
-    reason, sent, last frame index commanded]`` and the histogram.
-    """
-
-    def __init__(self, model: ArmModel, hardware: HardwareConfig, lcm: DrakeLcm) -> None:
-        super().__init__()
-        self._lcm, self._hardware = lcm, hardware
-        self._plant = arm_plant(model)
-        self._context = self._plant.CreateDefaultContext()
-        self._B = actuation_permutation(self._plant)
-        nq, nv = self._plant.num_positions(), self._plant.num_velocities()
-        self._nq, self._nv = nq, nv
-        self._velocity_mode = hardware.mode == "velocity"
-        self.command_input = self.DeclareVectorInputPort("command", nv)
-        self.arm_state_input = self.DeclareVectorInputPort("arm_state", nq + nv)
-        self.link_input = self.DeclareVectorInputPort("link", len(LINK_FIELDS))
-        self.image_features_input = self.DeclareVectorInputPort("image_features", 13)
-        self._state = self.DeclareDiscreteState(np.array([0.0, 0.0, 0.0, 0.0, -1.0]))
-        self._histogram = self.DeclareDiscreteState(LATENCY_BINS)
-        period = 1.0 / hardware.command_rate
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
-        self.DeclarePeriodicPublishEvent(period, 0.0, self._publish)
-
-    def _robot_utime(self, context: Context, link: np.ndarray) -> int:
-        """Now on the robot's clock [us]: the last status's utime plus its age."""
-        age = context.get_time() - link[_L_STATUS_T]
-        return int(round((link[_L_STATUS_UTIME] + age) * US_PER_S))
-
-    def _update(self, context: Context, discrete_state) -> None:
-        started, stopped, reason, sent, commanded = context.get_discrete_state(
-            self._state
-        ).get_value()
-        t = context.get_time()
-        link = self.link_input.Eval(context)
-        h = self._hardware
-        if not stopped:
-            if not started:
-                if link[_L_STATUSES] > 0 and link[_L_FRAMES] > 0:
-                    y = self.image_features_input.Eval(context)
-                    started = 1.0
-                    if not np.all(np.isfinite(y)):
-                        stopped, reason = 1.0, _NOT_INVERTIBLE
-                elif t > h.startup_timeout:
-                    stopped, reason = 1.0, _NO_START
-            else:
-                if t - link[_L_STATUS_T] > h.status_timeout:
-                    stopped, reason = 1.0, _NO_STATUS
-                elif t - link[_L_FRAME_T] > h.frame_timeout:
-                    stopped, reason = 1.0, _NO_FRAME
-                elif link[_L_VALID] < 1:
-                    stopped, reason = 1.0, _FEATURE_LOST
-            # The publish at t (just before this update, the same inputs) sent a command
-            # from the held frame: the first from it adds its latency to the histogram.
-            if started and not stopped:
-                sent += 1
-                if link[_L_INDEX] != commanded:
-                    commanded = link[_L_INDEX]
-                    latency_ms = self._robot_utime(context, link) / 1e3 - link[_L_CAPTURE] * 1e3
-                    histogram = discrete_state.get_mutable_vector(self._histogram)
-                    k = min(max(int(latency_ms // LATENCY_BIN_MS), 0), LATENCY_BINS - 1)
-                    histogram.SetAtIndex(k, histogram.GetAtIndex(k) + 1)
-        discrete_state.get_mutable_vector(self._state).SetFromVector(
-            [started, stopped, reason, sent, commanded]
-        )
-
-    def _publish(self, context: Context) -> None:
-        started, stopped = context.get_discrete_state(self._state).get_value()[:2]
-        if not started or stopped:
-            return
-        message = lcmt_panda_command()
-        message.utime = self._robot_utime(context, self.link_input.Eval(context))
-        command = self.command_input.Eval(context)
-        if self._velocity_mode:
-            message.num_joint_velocity = self._nv
-            message.joint_velocity = command.tolist()
-            message.control_mode_expected = _PANDA_VELOCITY
-        else:
-            self._plant.SetPositions(self._context, self.arm_state_input.Eval(context)[: self._nq])
-            # ArmCamera compensated gravity (-g); the robot does it itself: add g back.
-            gravity = self._plant.CalcGravityGeneralizedForces(self._context)
-            tau = self._B @ command + gravity
-            message.num_joint_torque = self._nv
-            message.joint_torque = tau.tolist()
-            message.control_mode_expected = _PANDA_TORQUE
-        self._lcm.Publish(self._hardware.channels.command, message.encode(), context.get_time())
-
-    def stop_reason(self, context: Context) -> str:
-        """Why it stopped, in words ("" while it commands or waits)."""
-        code = int(context.get_discrete_state(self._state).get_value()[2])
-        return STOP_REASONS[code]
-
-    def commands_sent(self, context: Context) -> int:
-        """How many commands it has sent."""
-        return int(context.get_discrete_state(self._state).get_value()[3])
-
-    def started(self, context: Context) -> bool:
-        """Whether it has started commanding."""
-        return bool(context.get_discrete_state(self._state).get_value()[0])
-
-    def stopped(self, context: Context) -> bool:
-        """Whether it has stopped for good."""
-        return bool(context.get_discrete_state(self._state).get_value()[1])
-
-    def latency_histogram(self, context: Context) -> list[int]:
-        """Frames by the latency from their capture to the first command computed from
-        them, in bins of :data:`LATENCY_BIN_MS` from 0 (the last bin: the rest)."""
-        return [int(n) for n in context.get_discrete_state(self._histogram).get_value()]
-
-
-#: drake-franka-driver's control mode constants (PandaControlMode's kVelocity, kTorque).
-_PANDA_VELOCITY, _PANDA_TORQUE = 2, 4
-
 
 @dataclass
 class Controller:
     """A built controller: its ``diagram``, the scenario it believes, the
     ``tracker`` (:class:`FrameTracker`), the ``publisher`` (:class:`CommandPublisher`),
-    the ``navigation`` controller and the ``law`` (ImageJacobianForce in torque mode,
-    KinematicController in velocity mode); with the rendered camera, ``images``
+    the ``navigation`` controller and the ``law`` (the scenario's law's system, from
+    the loop's registry :data:`~geovs_drake.loop.laws.LAWS`: for the NF,
+    ImageJacobianForce in torque mode, KinematicController in velocity mode); with the
+    rendered camera, ``images``
     (:class:`~geovs_drake.hardware.images.ImageFeatureFrames`) and the ``self_filter``
     (:class:`~geovs_drake.hardware.images.SelfFilter`), else None."""
 
@@ -508,6 +148,25 @@ class Controller:
         p_BC, p_BC_goal = (_camera_in_target(v, self.resolved.believed_radius) for v in (y, goal))
         return float(np.linalg.norm(y - goal)), float(np.linalg.norm(p_BC - p_BC_goal))
 
+    def estimated_pose_error(self, root: Context) -> tuple[float, float]:
+        """Its own estimate of the camera's pose error from the goal now, ``(position
+        [m], rotation [rad])``: the pose ``c^-1(y)`` of the held frame moved to now
+        against ``c^-1(y*)`` (Eq. 23, the believed radius); NaN without a frame."""
+        context = self.tracker.GetMyContextFromRoot(root)
+        y = self.tracker.predicted_image_features_output.Eval(context)
+        if not np.all(np.isfinite(y)):
+            return math.nan, math.nan
+        radius = self.resolved.believed_radius
+        X_CB, X_CB_goal = (
+            camera_map_inverse(np.asarray(v), radius) for v in (y, self.resolved.y_goal)
+        )
+        return pose_error(X_CB.inverse(), X_CB_goal.inverse())
+
+
+def _no_states(states: np.ndarray, ops: object) -> tuple:
+    """The LCM link has no continuous state (it is the robot's): nothing to read."""
+    raise NotImplementedError("the LCM controller's link has no continuous state")
+
 
 def _camera_in_target(y: np.ndarray, radius: float) -> np.ndarray:
     """p_BC, the camera's position in the target frame that y implies: X_CB = c^-1(y)
@@ -523,6 +182,8 @@ def build_controller(
     """The controller of a Panda scenario on the bus ``lcm``: only the arm's own model
     (inside :class:`~geovs_drake.systems.ArmCamera`), no plant of the world."""
     config = resolved.config
+    check_hardware_arm(config, "controller")
+    check_still_target(config, "controller")
     model = arm_model(config)
     nv = arm_plant(model).num_velocities()
     builder = DiagramBuilder()
@@ -539,7 +200,6 @@ def build_controller(
     )
     decoder = builder.AddNamedSystem("status_decoder", StatusDecoder(nv))
     builder.Connect(status.get_output_port(), decoder.status_input)
-    check_still_target(config, "controller")
     carrier = config.carrier
     barrier = carrier.joint_barrier_width > 0 or carrier.joint_barrier_fraction > 0
     if barrier:
@@ -555,22 +215,7 @@ def build_controller(
     builder.Connect(decoder.arm_state_output, arm.arm_state_input)
     pose = builder.AddNamedSystem("camera_state_demux", Demultiplexer([POSE_SIZE, 6]))
     builder.Connect(arm.camera_state_output, pose.get_input_port())
-    rendered = isinstance(config.sensor, Rendered)
-    if rendered:
-        check_rendered_over_lcm(resolved)
-        frame, images = _add_image_frames(builder, resolved, hardware, model, decoder, interface)
-    else:
-        frame = builder.AddNamedSystem(
-            "camera_subscriber",
-            subscribe_vector(
-                hardware.channels.camera,
-                lcmt_scope,
-                frame_vector(FRAME_VALUE_SIZE),
-                np.full(frame_vector_size(FRAME_VALUE_SIZE), math.nan),
-                interface,
-            ),
-        ).get_output_port()
-        images = None
+    frame, images = _add_frames(builder, resolved, hardware, model, decoder, interface)
     tracker = builder.AddNamedSystem(
         "frame_predictor",
         # At the status rate: every status's pose kept, for the frames' capture times.
@@ -587,17 +232,36 @@ def build_controller(
     )
     builder.Connect(y, nav.image_features_input)
     publisher = builder.AddNamedSystem("command_publisher", CommandPublisher(model, hardware, lcm))
-    # The loop's own NF law (the camera's frame is C itself here: X_RC = I).
-    law = add_nf_law(builder, resolved, y, nav, takes_wrench=hardware.mode == "torque")
+
+    # The LCM link as the loop's carrier: in torque mode it takes a wrench in C (through
+    # J_C^T, ArmCamera), in velocity mode a twist in C (through J_C^+); the camera's frame
+    # is C itself (X_RC = I).
+    def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
+        builder.Connect(force.wrench_C_output, arm.wrench_C_input)
+
+    link = CarrierParts(
+        body_pose=pose.get_output_port(0),
+        state=arm.camera_state_output,
+        state_log_name="camera_state",
+        X_WB=config.X_WB,
+        X_RC=RigidTransform(),
+        pose_of_states=_no_states,
+        set_initial_state=no_initial_state,
+        body_state=arm.camera_state_output,
+        connect_force=connect_force if hardware.mode == "torque" else None,
+    )
     if hardware.mode == "torque":
-        builder.Connect(arm.camera_state_output, law.body_state_input)
-        builder.Connect(law.wrench_C_output, arm.wrench_C_input)
         builder.Connect(arm.actuation_output, publisher.command_input)
     else:
         joints = builder.AddNamedSystem("joint_velocity_law", JointVelocityLaw(model))
         builder.Connect(decoder.arm_state_output, joints.arm_state_input)
-        builder.Connect(law.camera_velocity_output, joints.camera_velocity_input)
         builder.Connect(joints.joint_velocity_output, publisher.command_input)
+        link.twist_input = joints.camera_velocity_input
+    # The scenario's law from the loop's registry, connected as the loop connects it (a
+    # twist on the torque link through VelocityTrackingForce).
+    command = LAWS[type(resolved.law)].add(builder, resolved, y, nav, link)
+    drive_carrier(builder, resolved, link, command, False)
+    law = command if isinstance(command, LeafSystem) else command.get_system()
     builder.Connect(decoder.arm_state_output, publisher.arm_state_input)
     builder.Connect(tracker.link_output, publisher.link_input)
     builder.Connect(y, publisher.image_features_input)
@@ -607,6 +271,24 @@ def build_controller(
         diagram, resolved, hardware, tracker, publisher, nav, law,
         images=images[0] if images else None, self_filter=images[1] if images else None,
     )  # fmt: skip
+
+
+def _add_frames(builder: DiagramBuilder, resolved, hardware, model, decoder, interface):
+    """The frames the tracker reads: the rendered camera's images, extracted here (and
+    the image systems), or the pinhole's feature frames as they come (None)."""
+    if resolved.config.sensor.traits.renders:
+        return _add_image_frames(builder, resolved, hardware, model, decoder, interface)
+    frame = builder.AddNamedSystem(
+        "camera_subscriber",
+        subscribe_vector(
+            hardware.channels.camera,
+            lcmt_scope,
+            frame_vector(FRAME_VALUE_SIZE),
+            np.full(frame_vector_size(FRAME_VALUE_SIZE), math.nan),
+            interface,
+        ),
+    ).get_output_port()
+    return frame, None
 
 
 def _add_image_frames(
@@ -627,17 +309,22 @@ def _add_image_frames(
     self_filter = add_self_filter(builder, resolved, model)
     masked = add_masked_image(builder, color, self_filter, believed.width, believed.height)
     nq = self_filter.plant.num_positions()
+    settings = sampled_settings(resolved)
+    # The statuses to keep: those of the camera's own delay (a frame is sent that long
+    # after its capture), and the bus's slack.
+    delay = settings["latency_frames"] * settings["period"] + settings["capture_delay"]
     frames = builder.AddNamedSystem(
         "feature_extractor",
         ImageFeatureFrames(
             believed,
             num_joints=nq,
             period=1.0 / hardware.status_rate,
-            camera_period=1.0 / cam.rate,
+            camera_period=settings["period"],
             offset=cam.capture_offset,
-            max_lost_frames=int(cam.max_lost_frames),
-            pixel_noise=cam.pixel_noise,
-            seed=int(cam.seed),
+            max_lost_frames=settings["max_lost_frames"],
+            pixel_noise=settings["pixel_noise"],
+            seed=settings["seed"],
+            history=IMAGE_HISTORY + math.ceil(delay * hardware.status_rate),
         ),
     )
     builder.Connect(utime, frames.image_utime_input)

@@ -7,7 +7,11 @@ its colour image goes out as ``lcmt_image_array`` through Drake's
 camera's clock (``capture_offset + k / rate``). Why that is the capture time exactly:
 ``ImageToLcmImageArrayT`` stamps ``header.utime`` with the context's time when the
 message is made, and the ``RgbdSensor`` renders the scene as it is then; a publish
-event at t sees the plant's state at t. No label image goes out: a real camera has none.
+event at t sees the plant's state at t. A camera with a delay (``latency_frames``,
+``output_delay``) makes the message at its capture, holds it in a line of
+``latency_frames + 1`` zero-order holds on the camera's clock (the message, its stamp
+included, as it was made), and sends it that much later. No label image goes out: a
+real camera has none.
 
 Controller side: ``LcmSubscriberSystem(lcmt_image_array)`` -> ``LcmImageArrayToImages``
 -> the colour image, and beside it a subscriber that reads only the message's
@@ -19,7 +23,7 @@ world, no target), drawn by a ``RgbdSensor`` with the same camera on the flange 
 them the background. :class:`ImageFeatureFrames` then extracts y from the masked image
 (``FeatureExtractor``'s kernel, :func:`~geovs_drake.systems.feature_extractor.extract_features`)
 once per new image and hands the frame to the controller's tracker in the layout of the
-pinhole camera's message (:data:`~geovs_drake.hardware.station.FRAME_VALUE_SIZE`).
+pinhole camera's message (:data:`~geovs_drake.hardware.messages.FRAME_VALUE_SIZE`).
 """
 
 from __future__ import annotations
@@ -46,6 +50,7 @@ from pydrake.systems.framework import (
     TriggerType,
 )
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
+from pydrake.systems.primitives import ZeroOrderHold
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from pydrake.systems.sensors import (
     ImageRgba8U,
@@ -57,14 +62,20 @@ from pydrake.systems.sensors import (
 
 from geovs_drake.geometry.features import FEATURE_OK, TargetMarks
 from geovs_drake.hardware.messages import (
+    CAPTURE_SLACK_US,
+    FRAME_INDEX,
     FRAME_SIZE,
+    FRAME_STATUS,
     FRAME_UTIME,
+    FRAME_VALUE_SIZE,
     FRAME_VALUE_START,
+    FRAME_Y,
+    US_PER_S,
     VectorSerializer,
     frame_vector_size,
 )
-from geovs_drake.loop import ResolvedScenario
-from geovs_drake.loop.sensors import add_scene_renderer, camera_config
+from geovs_drake.loop.resolved import ResolvedScenario
+from geovs_drake.loop.sensors import add_scene_renderer, camera_config, sampled_settings
 from geovs_drake.systems import SelfMask
 from geovs_drake.systems.arm_model import ArmModel, add_arm
 from geovs_drake.systems.feature_extractor import extract_features
@@ -84,34 +95,19 @@ __all__ = [
 
 #: The colour image's ``frame_name`` in ``lcmt_image_array``.
 COLOR_FRAME_NAME = "camera"
-#: How many statuses' joints :class:`ImageFeatureFrames` keeps to find the joints at a
-#: frame's capture (at 1 kHz, 0.1 s: an image arrives within a few ms of its capture).
+#: How many statuses' joints :class:`ImageFeatureFrames` keeps beyond the camera's own
+#: delay to find the joints at a frame's capture (at 1 kHz, 0.1 s: an image arrives
+#: within a few ms of its send).
 IMAGE_HISTORY = 100
-#: Microseconds per second: LCM's ``utime``.
-_US_PER_S = 1e6
-#: A status counts as taken at or before the capture within this [us]: Drake stamps
-#: both messages with ``int64(t * 1e6)``, a truncation, so one may read a microsecond
-#: early (0.1 s * 1e6 is 99999.99...); statuses are a millisecond apart.
-_CAPTURE_SLACK_US = 1.5
 #: ``lcmt_image_array``'s wire format: its fingerprint, then the nested ``lcmt_header``
 #: (``seq`` int32, then ``utime`` int64).
 _IMAGE_FINGERPRINT = lcmt_image_array._get_packed_fingerprint()
 _HEADER = struct.Struct(">iq")
-#: The frame's values (y, [valid, code, lost], index), as the pinhole station sends.
-_Y, _STATUS, _INDEX = slice(0, 13), slice(13, 16), 16
-_VALUE_SIZE = 17
 
 
-def check_rendered_over_lcm(resolved: ResolvedScenario, drop_every_frame: int = 0) -> None:
-    """ValueError in one line for a rendered camera the LCM link cannot give: a delay of
-    its own (``output_delay``, ``latency_frames``: over LCM the image reaches the
-    controller when the bus delivers it) or dropped frames."""
-    cam = resolved.config.sensor
-    if cam.output_delay > 0 or cam.latency_frames > 0:
-        raise ValueError(
-            "the rendered camera over LCM takes no delay of its own (sensor.output_delay "
-            f"{cam.output_delay}, latency_frames {cam.latency_frames}): the bus delivers it"
-        )
+def check_rendered_over_lcm(drop_every_frame: int = 0) -> None:
+    """ValueError in one line for a rendered camera the LCM link cannot give: dropped
+    frames (``drop_every_frame`` is the pinhole channel's)."""
     if drop_every_frame > 0:
         raise ValueError("hardware.drop_every_frame is for the pinhole camera (lcmt_scope)")
 
@@ -168,10 +164,14 @@ def add_image_camera(
     X_LinkC: RigidTransform,
     channel: str,
     interface: LcmInterfaceSystem,
-) -> RgbdSensor:
+    transport_delay: float = 0.0,
+) -> tuple[RgbdSensor, float]:
     """The station's camera: the scene drawn on the arm's camera (``body``, ``X_LinkC``)
-    and its colour image published on ``channel`` as ``lcmt_image_array`` at the
-    camera's capture times (``header.utime`` = the capture). Returns the sensor."""
+    and its colour image published on ``channel`` as ``lcmt_image_array``
+    (``header.utime`` = the capture): at the camera's capture times, or, for a camera
+    with a delay, ``latency_frames`` periods plus ``output_delay`` plus
+    ``transport_delay`` after each capture. Returns the sensor and when the first image
+    is sent [s]."""
     add_scene_renderer(scene_graph)
     perceive_collision_shapes(plant, scene_graph, body.model_instance())
     rgbd = _rgbd(builder, "rgbd_sensor", resolved, plant, scene_graph, body, X_LinkC)
@@ -181,6 +181,23 @@ def add_image_camera(
     color_in = to_lcm.DeclareImageInputPort[PixelType.kRgba8U](COLOR_FRAME_NAME)
     builder.Connect(rgbd.color_image_output_port(), color_in)
     cam = resolved.config.sensor
+    period = sampled_settings(resolved)["period"]
+    message = to_lcm.image_array_t_msg_output_port()
+    first_send = cam.capture_offset
+    if cam.latency_frames > 0 or cam.output_delay > 0:
+        # The message made at each capture (its stamp the capture), then held one more
+        # frame per latency frame: simultaneous updates read their input as it was, so
+        # the k-th hold gives the capture k frames back. Sent output_delay later, and a
+        # transport delay after the last hold's update (a publish at the update's own
+        # time would send the frame before).
+        model = message.Allocate()
+        for k in range(int(cam.latency_frames) + 1):
+            hold = builder.AddNamedSystem(
+                f"image_line_{k}", ZeroOrderHold(period, model, cam.capture_offset)
+            )
+            builder.Connect(message, hold.get_input_port())
+            message = hold.get_output_port()
+        first_send += cam.latency_frames * period + cam.output_delay + transport_delay
     publisher = builder.AddNamedSystem(
         "camera_publisher",
         LcmPublisherSystem.Make(
@@ -189,12 +206,12 @@ def add_image_camera(
             interface,
             use_cpp_serializer=True,
             publish_triggers={TriggerType.kPeriodic},
-            publish_period=1.0 / cam.rate,
-            publish_offset=cam.capture_offset,
+            publish_period=period,
+            publish_offset=first_send,
         ),
     )
-    builder.Connect(to_lcm.image_array_t_msg_output_port(), publisher.get_input_port())
-    return rgbd
+    builder.Connect(message, publisher.get_input_port())
+    return rgbd, first_send
 
 
 def decode_image_utime(data: bytes) -> np.ndarray:
@@ -287,10 +304,11 @@ def add_masked_image(
 
 
 #: ImageFeatureFrames' state: the last image's utime handled [us], whether a good y has
-#: come, frames failed in a row, then y (13) and the code of the last frame.
-_S_UTIME, _S_HAS_Y, _S_LOST, _S_CODE = 0, 1, 2, 3
-_S_Y = slice(4, 17)
-_S_SIZE = 17
+#: come, frames failed in a row, the code of the last frame, the capture utime of the
+#: held y [us] (a failed frame keeps the last good y and its capture), then y (13).
+_S_UTIME, _S_HAS_Y, _S_LOST, _S_CODE, _S_CAPTURE = 0, 1, 2, 3, 4
+_S_Y = slice(5, 5 + FRAME_Y.stop)
+_S_SIZE = _S_Y.stop
 
 
 class ImageFeatureFrames(LeafSystem):
@@ -299,10 +317,11 @@ class ImageFeatureFrames(LeafSystem):
     Inputs ``image_utime`` (the latest image's capture ``[utime]`` [us], -1 before
     one), ``masked_color_image`` (that image with the arm's pixels masked),
     ``status_utime`` [s] and ``arm_state`` (the latest status's). Every ``period`` (the
-    status rate) it keeps each new status's joints by their utime
-    (:data:`IMAGE_HISTORY`), and on a new image extracts y from the masked image
-    (``FeatureExtractor``'s kernel, ``intrinsics`` the believed camera, optional
-    ``pixel_noise`` drawn from ``seed`` and the frame's index as the extractor does);
+    status rate) it keeps each new status's joints by their utime (``history`` of
+    them: the camera's delay and :data:`IMAGE_HISTORY` more), and on a new image
+    extracts y from the masked image (``FeatureExtractor``'s kernel, ``intrinsics``
+    the believed camera, optional ``pixel_noise`` drawn from ``seed`` and the frame's
+    index as the extractor does);
     a failed frame keeps the last good y and counts one more lost, and the frame is
     not valid once more than ``max_lost_frames`` have failed in a row (or none has
     succeeded).
@@ -310,9 +329,10 @@ class ImageFeatureFrames(LeafSystem):
     Outputs: ``capture_positions``, the joints of the latest status not after the
     latest image's capture (the self-filter draws the arm there: the arm where the
     image shows it); ``frame``, the last image's frame as the vector of
-    :func:`~geovs_drake.hardware.messages.frame_vector` (utime, size, then y, ``[valid,
-    code, lost]`` and the frame's index ``round((capture - offset) / camera_period)``),
-    NaN before the first image. Why not the ``FeatureExtractor`` system itself: it
+    :func:`~geovs_drake.hardware.messages.frame_vector` (utime the capture of its y,
+    which a failed frame's holds from the last good one; size; then y, ``[valid, code,
+    lost]`` and the image's index ``round((capture - offset) / camera_period)``), NaN
+    before the first image. Why not the ``FeatureExtractor`` system itself: it
     reads its input on its own clock, which in another process is not the camera's;
     this reads an image when it arrives.
     """
@@ -328,8 +348,10 @@ class ImageFeatureFrames(LeafSystem):
         pixel_noise: float = 0.0,
         seed: int = 0,
         marks: TargetMarks | None = None,
+        history: int = IMAGE_HISTORY,
     ) -> None:
         super().__init__()
+        self._history_size = history
         self._intrinsics = intrinsics
         self._nq = num_joints
         self._row = 1 + num_joints
@@ -346,13 +368,15 @@ class ImageFeatureFrames(LeafSystem):
         )
         self.status_utime_input = self.DeclareVectorInputPort("status_utime", 1)
         self.arm_state_input = self.DeclareVectorInputPort("arm_state", 2 * num_joints)
-        self._history = self.DeclareDiscreteState(np.full(IMAGE_HISTORY * self._row, -1.0))
+        self._history = self.DeclareDiscreteState(np.full(history * self._row, -1.0))
         self._head = self.DeclareDiscreteState(1)
         initial = np.zeros(_S_SIZE)
         initial[_S_UTIME] = -1.0
         initial[_S_Y] = math.nan
         self._state = self.DeclareDiscreteState(initial)
-        self._frame = self.DeclareDiscreteState(np.full(frame_vector_size(_VALUE_SIZE), math.nan))
+        self._frame = self.DeclareDiscreteState(
+            np.full(frame_vector_size(FRAME_VALUE_SIZE), math.nan)
+        )
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self.capture_positions_output = self.DeclareVectorOutputPort(
             "capture_positions",
@@ -367,7 +391,7 @@ class ImageFeatureFrames(LeafSystem):
         )
         self.frame_output = self.DeclareAbstractOutputPort(
             "frame",
-            lambda: AbstractValue.Make(np.full(frame_vector_size(_VALUE_SIZE), math.nan)),
+            lambda: AbstractValue.Make(np.full(frame_vector_size(FRAME_VALUE_SIZE), math.nan)),
             self._frame_out,
             prerequisites_of_calc={self.xd_ticket()},
         )
@@ -382,12 +406,12 @@ class ImageFeatureFrames(LeafSystem):
         return rows[rows[:, 0] >= 0]
 
     def _capture_positions(self, context: Context, output) -> None:
-        capture = float(self.image_utime_input.Eval(context)[0]) / _US_PER_S
+        capture = float(self.image_utime_input.Eval(context)[0]) / US_PER_S
         rows = self._rows(context)
         if len(rows) == 0:  # nothing yet: the arm's zero configuration (no image either)
             output.SetFromVector(np.zeros(self._nq))
             return
-        before = rows[rows[:, 0] <= capture + _CAPTURE_SLACK_US / _US_PER_S]
+        before = rows[rows[:, 0] <= capture + CAPTURE_SLACK_US / US_PER_S]
         pick = before[np.argmax(before[:, 0])] if len(before) else rows[np.argmin(rows[:, 0])]
         output.SetFromVector(pick[1:])
 
@@ -395,12 +419,14 @@ class ImageFeatureFrames(LeafSystem):
         utime = float(self.status_utime_input.Eval(context)[0])
         history = discrete_state.get_mutable_vector(self._history).get_mutable_value()
         head = int(context.get_discrete_state(self._head).get_value()[0])
-        last = history[((head - 1) % IMAGE_HISTORY) * self._row]
+        last = history[((head - 1) % self._history_size) * self._row]
         if utime > 0 and utime != last:
             row = head * self._row
             history[row] = utime
             history[row + 1 : row + self._row] = self.arm_state_input.Eval(context)[: self._nq]
-            discrete_state.get_mutable_vector(self._head).SetAtIndex(0, (head + 1) % IMAGE_HISTORY)
+            discrete_state.get_mutable_vector(self._head).SetAtIndex(
+                0, (head + 1) % self._history_size
+            )
         s = context.get_discrete_state(self._state).get_value().copy()
         image_utime = float(self.image_utime_input.Eval(context)[0])
         if image_utime < 0 or image_utime == s[_S_UTIME]:
@@ -411,7 +437,7 @@ class ImageFeatureFrames(LeafSystem):
             return
         # A new image, masked at the joints of its capture (capture_positions reads this
         # update's inputs: the status that came with it counts).
-        capture = image_utime / _US_PER_S
+        capture = image_utime / US_PER_S
         index = int(round((capture - self._offset) / self._camera_period))
         noise = None
         if self._noise > 0:
@@ -425,13 +451,16 @@ class ImageFeatureFrames(LeafSystem):
             s[_S_CODE], s[_S_LOST] = float(code), s[_S_LOST] + 1
         else:
             s[_S_Y], s[_S_HAS_Y], s[_S_CODE], s[_S_LOST] = y, 1.0, float(FEATURE_OK), 0.0
+            s[_S_CAPTURE] = image_utime
         valid = 1.0 if s[_S_HAS_Y] > 0 and s[_S_LOST] <= self._max_lost else 0.0
-        frame = np.empty(frame_vector_size(_VALUE_SIZE))
-        frame[FRAME_UTIME], frame[FRAME_SIZE] = image_utime, _VALUE_SIZE
+        frame = np.empty(frame_vector_size(FRAME_VALUE_SIZE))
+        # The held y's capture: a failed image's frame carries the last good y, taken then.
+        frame[FRAME_UTIME] = s[_S_CAPTURE] if s[_S_HAS_Y] > 0 else image_utime
+        frame[FRAME_SIZE] = FRAME_VALUE_SIZE
         value = frame[FRAME_VALUE_START:]
-        value[_Y] = s[_S_Y]
-        value[_STATUS] = [valid, s[_S_CODE], s[_S_LOST]]
-        value[_INDEX] = index
+        value[FRAME_Y] = s[_S_Y]
+        value[FRAME_STATUS] = [valid, s[_S_CODE], s[_S_LOST]]
+        value[FRAME_INDEX] = index
         discrete_state.get_mutable_vector(self._state).SetFromVector(s)
         discrete_state.get_mutable_vector(self._frame).SetFromVector(frame)
 

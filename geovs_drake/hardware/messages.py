@@ -19,9 +19,17 @@ from pydrake.common.value import AbstractValue
 from pydrake.lcm import DrakeLcmInterface
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmSubscriberSystem, SerializerInterface
 
+from geovs_drake.loop.assembly import FEATURE_SIZE
+
 __all__ = [
+    "CAPTURE_SLACK_US",
     "COMMAND_VECTOR_SIZE",
+    "FRAME_INDEX",
+    "FRAME_STATUS",
+    "FRAME_VALUE_SIZE",
+    "FRAME_Y",
     "NUM_JOINTS",
+    "US_PER_S",
     "VectorSerializer",
     "command_vector",
     "decode_status_vector",
@@ -48,9 +56,24 @@ COMMAND_NUM_VELOCITY = 3 + NUM_JOINTS
 COMMAND_VELOCITY = slice(4 + NUM_JOINTS, 4 + 2 * NUM_JOINTS)
 COMMAND_VECTOR_SIZE = 4 + 2 * NUM_JOINTS
 
-# A camera frame (lcmt_scope): [utime [us], size, value (the encoder's FRAME_VALUE_SIZE)];
-# the values NaN unless size is FRAME_VALUE_SIZE.
+#: Microseconds per second: LCM's ``utime``.
+US_PER_S = 1e6
+#: A status counts as taken at or before a frame's capture within this [us]: Drake
+#: stamps statuses and images with ``int64(t * 1e6)``, a truncation, so a stamp may
+#: read a microsecond early (0.1 s * 1e6 is 99999.99...); statuses are a millisecond
+#: apart.
+CAPTURE_SLACK_US = 1.5
+
+# A camera frame (lcmt_scope): [utime [us], size, value (FRAME_VALUE_SIZE)]; the values
+# NaN unless size is FRAME_VALUE_SIZE. ``utime`` is the capture of the frame's y (not
+# when it is read or sent: with latency, or held through failed frames, it is older).
 FRAME_UTIME, FRAME_SIZE, FRAME_VALUE_START = 0, 1, 2
+#: The frame's ``value``: y (13), the sensor's ``[valid, code, lost]`` (3) and the
+#: frame's index (1), its sequence number on the camera's clock (a gap is a frame lost).
+FRAME_Y = slice(0, FEATURE_SIZE)
+FRAME_STATUS = slice(FEATURE_SIZE, FEATURE_SIZE + 3)
+FRAME_INDEX = FEATURE_SIZE + 3
+FRAME_VALUE_SIZE = FRAME_INDEX + 1
 
 
 def status_vector(message: lcmt_panda_status) -> np.ndarray:

@@ -3,6 +3,7 @@ simulator, and the summary each prints (``geovs-drake station`` / ``controller``
 
 from __future__ import annotations
 
+import gc
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -25,6 +26,7 @@ from geovs_drake.hardware.config import (
 from geovs_drake.hardware.controller import (
     LATENCY_BIN_MS,
     LINK_FIELDS,
+    STOP_REASONS,
     Controller,
     build_controller,
 )
@@ -34,10 +36,13 @@ from geovs_drake.scenario import ScenarioConfig, load_scenario
 from geovs_drake.simulation.result import convergence_tolerance, pose_error
 
 __all__ = [
+    "CONTROLLER_SUCCESS",
+    "LOOP_TIME_EDGES_MS",
     "SETTLED_JOINT_SPEED",
     "TRACE_PERIOD_S",
     "Lockstep",
     "Setup",
+    "controller_status",
     "default_station_file",
     "load_setup",
     "lockstep",
@@ -50,6 +55,13 @@ __all__ = [
 #: The joint speed [rad/s] below which a held arm counts as stopped (the station's
 #: ``hold_settle_time_s``).
 SETTLED_JOINT_SPEED = 0.01
+#: The controller's statuses that end a run well (exit 0): it ran its duration, or the
+#: station stopped after it had converged (:func:`controller_status`).
+CONTROLLER_SUCCESS = ("completed", "station_stopped")
+#: The controller's ``loop_time_histogram``: the upper edges [ms] of its bins of the
+#: wall time between two simulator steps (the last bin: the rest). The status period
+#: is 1 ms; the command timeout 100 ms.
+LOOP_TIME_EDGES_MS = (1.5, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
 #: The period [s] of the station's ``position_error_trace_m``.
 TRACE_PERIOD_S = 1.0
 #: Slack on a count of periods in a float time.
@@ -231,27 +243,73 @@ def run_station(station: Station, duration: float) -> dict:
     )
 
 
+#: The controller's stop reason that, with its own estimate converged, is the station's
+#: end and not a loss (``station_stopped``).
+_NO_STATUS_REASON = STOP_REASONS[1]
+
+
+def controller_status(controller: Controller, root) -> str:
+    """How the controller's run ended: ``completed`` (it commanded to its duration),
+    ``station_stopped`` (the statuses stopped after its own estimate of the camera's
+    pose error, :meth:`~.controller.Controller.estimated_pose_error`, was within the
+    scenario's convergence tolerance: the station, or the robot, ended a run that had
+    converged) or ``stopped`` (any other stop: statuses lost mid-servo, a frame
+    timeout, the target lost)."""
+    publisher = controller.publisher
+    context = publisher.GetMyContextFromRoot(root)
+    if not publisher.stopped(context):
+        return "completed"
+    if publisher.stop_reason(context) == _NO_STATUS_REASON:
+        dp, dr = controller.estimated_pose_error(root)
+        tol_p, tol_r = convergence_tolerance(controller.resolved.config)
+        if dp <= tol_p and dr <= tol_r:  # NaN (no frame) compares False: stopped
+            return "station_stopped"
+    return "stopped"
+
+
 def run_controller(controller: Controller, duration: float) -> dict:
     """Run the controller for ``duration`` [s] or until it stops commanding; a dict:
-    ``status`` (``completed`` or ``stopped``), ``stop_reason``, ``statuses_received``,
+    ``status`` (:func:`controller_status`: ``completed``, ``station_stopped`` or
+    ``stopped``), ``stop_reason``, ``statuses_received``,
     ``max_status_gap_s`` (the longest time between two new statuses, its own clock),
     ``frames_received``, ``frames_dropped``, ``commands_sent``, ``final_image_error``
-    (``|y - y*|``), ``estimated_position_error_m`` (its own estimates, from the
-    frames), ``latency_histogram`` (frames by the latency from their capture to the
-    first command from them, ``latency_bin_ms`` bins from 0, the last one the rest),
-    ``sim_time_s``, ``wall_time_s`` and ``realtime_rate``. ValueError when its first
+    (``|y - y*|``), ``estimated_position_error_m`` and
+    ``estimated_rotation_error_rad`` (its own estimates, from the frames),
+    ``latency_histogram`` (frames by the latency from their capture to the first
+    command from them, ``latency_bin_ms`` bins from 0, the last one the rest),
+    ``sim_time_s``, ``wall_time_s`` and ``realtime_rate``; its loop's wall time from
+    one simulator step to the next: ``loop_time_histogram`` (counts in the bins whose
+    upper edges are ``loop_time_edges_ms``, the last bin the rest) and
+    ``max_loop_time_s``. ValueError when its first
     frame's image cannot be inverted (it never commanded)."""
     setup = Setup(controller.resolved, controller.hardware)
     controller.warm_up()
     simulator = _simulator(controller.diagram, setup)
     publisher = controller.publisher
+    # The loop's wall time, step to step, counted in place (no allocation in the loop).
+    edges = np.array(LOOP_TIME_EDGES_MS) * 1e-3
+    loop_counts = np.zeros(len(edges) + 1, dtype=np.int64)
+    last = [math.nan, 0.0]  # the last step's wall clock, the longest step
 
     def monitor(root) -> EventStatus:
+        now = time.perf_counter()
+        step = now - last[0]
+        if step == step:  # not the first (NaN)
+            loop_counts[int(np.searchsorted(edges, step))] += 1
+            last[1] = max(last[1], step)
+        last[0] = now
         if publisher.stopped(publisher.GetMyContextFromRoot(root)):
             return EventStatus.ReachedTermination(publisher, "stopped")
         return EventStatus.Succeeded()
 
-    wall = _run_until(simulator, monitor, duration)
+    # Everything built so far is kept out of the garbage collector's scans: a full
+    # collection of the diagram's objects mid-run is a pause of milliseconds.
+    gc.collect()
+    gc.freeze()
+    try:
+        wall = _run_until(simulator, monitor, duration)
+    finally:  # a caller's later garbage (a test session's) is collected again
+        gc.unfreeze()
     root = simulator.get_context()
     context = publisher.GetMyContextFromRoot(root)
     reason = publisher.stop_reason(context)
@@ -261,10 +319,11 @@ def run_controller(controller: Controller, duration: float) -> dict:
             f"controller: refuses to start a command: {reason}: first y = {y.tolist()}"
         )
     link = controller.tracker.link_output.Eval(controller.tracker.GetMyContextFromRoot(root))
-    image_error, position_error = controller.image_error(root)
+    image_error, _ = controller.image_error(root)
+    position_error, rotation_error = controller.estimated_pose_error(root)
     return json_ready(
         {
-            "status": "stopped" if publisher.stopped(context) else "completed",
+            "status": controller_status(controller, root),
             "stop_reason": reason,
             "statuses_received": int(link[0]),
             "frames_received": int(link[1]),
@@ -273,11 +332,15 @@ def run_controller(controller: Controller, duration: float) -> dict:
             "commands_sent": publisher.commands_sent(context),
             "final_image_error": image_error,
             "estimated_position_error_m": position_error,
+            "estimated_rotation_error_rad": rotation_error,
             "latency_bin_ms": LATENCY_BIN_MS,
             "latency_histogram": publisher.latency_histogram(context),
             "sim_time_s": root.get_time(),
             "wall_time_s": wall,
             "realtime_rate": simulator.get_actual_realtime_rate(),
+            "loop_time_edges_ms": list(LOOP_TIME_EDGES_MS),
+            "loop_time_histogram": loop_counts.tolist(),
+            "max_loop_time_s": last[1],
         }
     )
 

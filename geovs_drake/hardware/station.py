@@ -5,10 +5,11 @@ Drake's hardware_sim::
 
     plant, scene_graph = the arm and the target (the loop's own arm scene)
     status   = PandaStatusSender -> LcmPublisherSystem(PANDA_STATUS, 1 kHz)
-    camera   = PinholeFeatureSensor on the camera's pose -> FeatureFrameEncoder
-               -> FramePublisher(camera channel, the camera's rate)
+    camera   = PinholeFeatureSensor on the camera's pose (the loop's own,
+               loop.sensors.add_pinhole_sensor) -> FeatureFrameEncoder (utime: the
+               held y's capture) -> FramePublisher(camera channel, the camera's rate)
     (rendered: RgbdSensor on the camera -> ImageToLcmImageArrayT -> LcmPublisherSystem
-               (image channel, at each capture: :mod:`.images`))
+               (image channel, stamped at each capture, sent latency later: :mod:`.images`))
     command  = LcmSubscriberSystem(PANDA_COMMAND, as a vector) -> CommandGate
                -> the plant's actuation (held at the status rate)
 
@@ -18,9 +19,12 @@ damping, gravity compensated) and the station waits; after it, no command for
 (``command_lost``). A torque command is what the Panda's FCI takes: gravity excluded,
 the robot compensates it; the gate adds it here.
 
-A frame is published ``1 / status_rate`` after its capture (the transport's delay):
+A frame is published ``1 / status_rate`` after it is read (the transport's delay):
 Drake dispatches a publish event at time t before the discrete update at t, so a
-publisher at the frame time itself would send the previous frame.
+publisher at the frame time itself would send the previous frame. Its ``utime`` is
+its capture, which the sensor says (``capture_time``): with ``latency_frames`` the
+frame read at t was taken ``latency_frames`` periods earlier, and the controller moves
+it by the joints' motion since then.
 """
 
 from __future__ import annotations
@@ -41,7 +45,7 @@ from pydrake.systems.primitives import Demultiplexer, DiscreteTimeDelay
 from pydrake.systems.sensors import RgbdSensor
 
 from geovs_drake.goal.arm import initial_joints
-from geovs_drake.hardware.config import HardwareConfig, check_still_target
+from geovs_drake.hardware.config import HardwareConfig, check_hardware_arm, check_still_target
 from geovs_drake.hardware.images import add_image_camera, check_rendered_over_lcm
 from geovs_drake.hardware.messages import (
     COMMAND_NUM_TORQUE,
@@ -50,18 +54,22 @@ from geovs_drake.hardware.messages import (
     COMMAND_UTIME,
     COMMAND_VECTOR_SIZE,
     COMMAND_VELOCITY,
+    FRAME_INDEX,
+    FRAME_VALUE_SIZE,
+    US_PER_S,
     command_vector,
     subscribe_vector,
 )
-from geovs_drake.loop import ResolvedScenario
+from geovs_drake.loop.assembly import FEATURE_SIZE
 from geovs_drake.loop.carriers import add_arm_scene
-from geovs_drake.scenario import Pinhole, Rendered
-from geovs_drake.systems import ArmCamera, PinholeFeatureSensor
+from geovs_drake.loop.resolved import ResolvedScenario
+from geovs_drake.loop.sensors import add_pinhole_sensor
+from geovs_drake.systems import ArmCamera
+from geovs_drake.systems._parameters import POSE_SIZE
 from geovs_drake.systems.arm_camera import actuation_permutation
 from geovs_drake.systems.arm_model import CAMERA_FRAME, ArmModel, arm_plant
 
 __all__ = [
-    "FRAME_VALUE_SIZE",
     "CommandGate",
     "FeatureFrameEncoder",
     "FramePublisher",
@@ -70,19 +78,13 @@ __all__ = [
     "joint_state_size",
 ]
 
-#: The camera message's ``value``: y (13), the sensor's ``[valid, code, lost]`` (3) and
-#: the frame's index (1).
-FRAME_Y, FRAME_STATUS, FRAME_INDEX = slice(0, 13), slice(13, 16), 16
-FRAME_VALUE_SIZE = 17
-#: Microseconds per second: LCM's ``utime``.
-US_PER_S = 1e6
 #: The gate's state: the last command's utime, when it came [s], commands received,
 #: started (0/1), lost (0/1), when it was lost [s], timeouts counted, commands refused
 #: (not of the station's mode: the arm is held for them).
 _LAST_UTIME, _LAST_TIME, _COUNT, _STARTED, _LOST, _LOST_TIME, _TIMEOUTS, _REFUSED = range(8)
 _GATE_STATE_SIZE = 8
-#: A frame's index is the floor of t / period, within this fraction of a period: the
-#: encoder runs a publish delay after the frame's own time.
+#: A frame's index is the floor of (t - offset) / period, within this fraction of a
+#: period: the encoder runs a publish delay after the frame's own time.
 _FRAME_ROUNDING = 1e-6
 
 
@@ -93,24 +95,30 @@ def joint_state_size(model: ArmModel) -> int:
 
 
 class FeatureFrameEncoder(LeafSystem):
-    """A sampled camera's held frame as an ``lcmt_scope`` message: ``utime`` the frame's
-    capture time [us] (the index of the frame held at t, on the camera's clock of
-    ``period``), ``value`` the :data:`FRAME_VALUE_SIZE` numbers (y, the sensor's
-    status, the index). Inputs ``image_features`` (13), ``feature_status`` (3)."""
+    """A sampled camera's held frame as an ``lcmt_scope`` message: ``utime`` the capture
+    time [us] of its y (the sensor's ``capture_time``; a frame with no y yet, the time
+    it was read), ``value`` the :data:`~.messages.FRAME_VALUE_SIZE` numbers (y, the
+    sensor's status, the index of the frame read last on the camera's clock of
+    ``period`` from ``offset``). Inputs ``image_features`` (13), ``feature_status``
+    (3), ``capture_time`` (1, [s])."""
 
-    def __init__(self, period: float) -> None:
+    def __init__(self, period: float, offset: float = 0.0) -> None:
         super().__init__()
-        self._period = period
-        self.image_features_input = self.DeclareVectorInputPort("image_features", 13)
+        self._period, self._offset = period, offset
+        self.image_features_input = self.DeclareVectorInputPort("image_features", FEATURE_SIZE)
         self.feature_status_input = self.DeclareVectorInputPort("feature_status", 3)
+        self.capture_time_input = self.DeclareVectorInputPort("capture_time", 1)
         self.message_output = self.DeclareAbstractOutputPort(
             "lcmt_scope", lambda: AbstractValue.Make(lcmt_scope()), self._encode
         )
 
     def _encode(self, context: Context, output: AbstractValue) -> None:
-        index = math.floor(context.get_time() / self._period + _FRAME_ROUNDING)
+        index = math.floor((context.get_time() - self._offset) / self._period + _FRAME_ROUNDING)
+        capture = float(self.capture_time_input.Eval(context)[0])
+        if not math.isfinite(capture):  # no y yet: the frame read, its own time
+            capture = self._offset + index * self._period
         message = lcmt_scope()
-        message.utime = int(round(index * self._period * US_PER_S))
+        message.utime = int(round(capture * US_PER_S))
         values = np.concatenate(
             [
                 self.image_features_input.Eval(context),
@@ -306,33 +314,13 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     ``!Pinhole`` camera) on the bus ``lcm``. ValueError in one line for a scenario the
     station cannot run."""
     config = resolved.config
-    rendered = isinstance(config.sensor, Rendered)
-    if not isinstance(config.sensor, Pinhole) and not rendered:
-        raise ValueError(
-            f"the station's camera must be pinhole or rendered (--sensor), got "
-            f"{type(config.sensor).__name__}"
-        )
-    if rendered:
-        check_rendered_over_lcm(resolved, hardware.drop_every_frame)
-    if not config.dynamic:
-        raise ValueError("the station simulates the arm's dynamics: plant must be !Dynamic {}")
-    check_still_target(config, "station")
+    _check_station(resolved, hardware)
+    rendered = config.sensor.traits.renders
     builder = DiagramBuilder()
     interface = builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
     model, plant, scene_graph, link, X_LinkC = add_arm_scene(builder, resolved, True, True)
     q0 = initial_joints(config, resolved.domain)
-    nq, nv = plant.num_positions(), plant.num_velocities()
-    demux = builder.AddNamedSystem("arm_state_demux", Demultiplexer([nq, nv]))
-    delay_steps = round(hardware.status_delay * hardware.status_rate)
-    delay = None
-    if delay_steps > 0:  # statuses that report the joints as they were status_delay ago
-        delay = builder.AddNamedSystem(
-            "status_delay", DiscreteTimeDelay(1.0 / hardware.status_rate, delay_steps, nq + nv)
-        )
-        builder.Connect(plant.get_state_output_port(), delay.get_input_port())
-        builder.Connect(delay.get_output_port(), demux.get_input_port())
-    else:
-        builder.Connect(plant.get_state_output_port(), demux.get_input_port())
+    demux, delay = _arm_status_state(builder, plant, hardware)
 
     # PANDA_COMMAND -> the gate -> the plant.
     command = builder.AddNamedSystem(
@@ -351,7 +339,7 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     builder.Connect(gate.actuation_output, plant.get_actuation_input_port())
 
     # The plant -> PANDA_STATUS at the status rate.
-    status = builder.AddNamedSystem("status_sender", PandaStatusSender(nv))
+    status = builder.AddNamedSystem("status_sender", PandaStatusSender(plant.num_velocities()))
     builder.Connect(demux.get_output_port(0), status.get_position_measured_input_port())
     builder.Connect(demux.get_output_port(1), status.get_velocity_measured_input_port())
     builder.Connect(gate.actuation_output, status.get_torque_commanded_input_port())
@@ -371,7 +359,7 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     cam = config.sensor
     period = 1.0 / cam.rate
     if rendered:  # the scene drawn on the arm's camera, its images on the image channel
-        rgbd = add_image_camera(
+        rgbd, first_publish = add_image_camera(
             builder,
             resolved,
             plant,
@@ -380,53 +368,93 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
             X_LinkC,
             hardware.channels.image,
             interface,
+            transport_delay=1.0 / hardware.status_rate,
         )
         diagram = builder.Build()
         diagram.set_name("panda_station")
         return Station(
             diagram, resolved, hardware, plant, gate, model, q0, period, delay,
-            camera=rgbd, frame_offset=cam.capture_offset,
+            camera=rgbd, frame_offset=first_publish,
         )  # fmt: skip
 
-    # The camera: its pose from the joints (ArmCamera), its frames on the camera channel.
-    arm = builder.AddNamedSystem("arm_camera", ArmCamera(model=model))
-    builder.Connect(plant.get_state_output_port(), arm.arm_state_input)
-    pose = builder.AddNamedSystem("camera_state_demux", Demultiplexer([7, 6]))
-    builder.Connect(arm.camera_state_output, pose.get_input_port())
-    theta = resolved.domain.fov_half_angle
-    sensor = builder.AddNamedSystem(
-        "feature_sensor",
-        PinholeFeatureSensor(
-            radius=config.radius,
-            intrinsics=cam.intrinsics(theta),
-            believed=cam.believed_intrinsics(theta),
-            X_WB=config.X_WB,
-            X_RC=RigidTransform(),  # the arm's camera_state is C's own pose
-            period=period,
-            latency_frames=int(cam.latency_frames),
-            max_lost_frames=int(cam.max_lost_frames),
-            pixel_noise=cam.pixel_noise,
-            seed=int(cam.seed),
-        ),
-    )
-    builder.Connect(pose.get_output_port(0), sensor.body_pose_input)
-    encoder = builder.AddNamedSystem("frame_encoder", FeatureFrameEncoder(period))
-    builder.Connect(sensor.image_features_output, encoder.image_features_input)
-    builder.Connect(sensor.feature_status_output, encoder.feature_status_input)
-    frames = builder.AddNamedSystem(
-        "camera_publisher",
-        FramePublisher(
-            hardware.channels.camera,
-            lcm,
-            period,
-            1.0 / hardware.status_rate,  # after the frame's update
-            hardware.drop_every_frame,
-        ),
-    )
-    builder.Connect(encoder.message_output, frames.message_input)
+    first_publish = _pinhole_frames(builder, resolved, hardware, model, plant, lcm)
     diagram = builder.Build()
     diagram.set_name("panda_station")
     return Station(
         diagram, resolved, hardware, plant, gate, model, q0, period, delay,
-        frame_offset=1.0 / hardware.status_rate,
+        frame_offset=first_publish,
     )  # fmt: skip
+
+
+def _check_station(resolved: ResolvedScenario, hardware: HardwareConfig) -> None:
+    """ValueError in one line for a scenario the station cannot run."""
+    config = resolved.config
+    check_hardware_arm(config, "station")
+    if not config.sensor.traits.camera:
+        raise ValueError(
+            f"the station's camera must be pinhole or rendered (--sensor), got "
+            f"{type(config.sensor).__name__}"
+        )
+    if config.sensor.traits.renders:
+        check_rendered_over_lcm(hardware.drop_every_frame)
+    if not config.dynamic:
+        raise ValueError("the station simulates the arm's dynamics: plant must be !Dynamic {}")
+    check_still_target(config, "station")
+
+
+def _arm_status_state(builder: DiagramBuilder, plant, hardware: HardwareConfig):
+    """The arm's (q, v) as the statuses report them, split: ``status_delay`` late where
+    it is set (a DiscreteTimeDelay at the status rate). The demultiplexer and the delay."""
+    nq, nv = plant.num_positions(), plant.num_velocities()
+    demux = builder.AddNamedSystem("arm_state_demux", Demultiplexer([nq, nv]))
+    delay_steps = round(hardware.status_delay * hardware.status_rate)
+    if delay_steps <= 0:
+        builder.Connect(plant.get_state_output_port(), demux.get_input_port())
+        return demux, None
+    # Statuses that report the joints as they were status_delay ago.
+    delay = builder.AddNamedSystem(
+        "status_delay", DiscreteTimeDelay(1.0 / hardware.status_rate, delay_steps, nq + nv)
+    )
+    builder.Connect(plant.get_state_output_port(), delay.get_input_port())
+    builder.Connect(delay.get_output_port(), demux.get_input_port())
+    return demux, delay
+
+
+def _pinhole_frames(
+    builder: DiagramBuilder,
+    resolved: ResolvedScenario,
+    hardware: HardwareConfig,
+    model: ArmModel,
+    plant,
+    lcm: DrakeLcm,
+) -> float:
+    """The camera: its pose from the joints (ArmCamera), the loop's own pinhole sensor
+    on it (the scenario's settings, latency and output delay included), its frames on
+    the camera channel, each stamped with its capture. When the first frame is published."""
+    config = resolved.config
+    cam = config.sensor
+    period = 1.0 / cam.rate
+    arm = builder.AddNamedSystem("arm_camera", ArmCamera(model=model))
+    builder.Connect(plant.get_state_output_port(), arm.arm_state_input)
+    pose = builder.AddNamedSystem(
+        "camera_state_demux", Demultiplexer([POSE_SIZE, arm.camera_state_output.size() - POSE_SIZE])
+    )
+    builder.Connect(arm.camera_state_output, pose.get_input_port())
+    # The arm's camera_state is C's own pose: X_RC = I.
+    sensor, _ = add_pinhole_sensor(
+        builder, resolved, pose.get_output_port(0), config.X_WB, RigidTransform()
+    )
+    first_read = cam.first_frame_time
+    encoder = builder.AddNamedSystem("frame_encoder", FeatureFrameEncoder(period, first_read))
+    builder.Connect(sensor.image_features_output, encoder.image_features_input)
+    builder.Connect(sensor.feature_status_output, encoder.feature_status_input)
+    builder.Connect(sensor.capture_time_output, encoder.capture_time_input)
+    first_publish = first_read + 1.0 / hardware.status_rate  # after the frame's update
+    frames = builder.AddNamedSystem(
+        "camera_publisher",
+        FramePublisher(
+            hardware.channels.camera, lcm, period, first_publish, hardware.drop_every_frame
+        ),
+    )
+    builder.Connect(encoder.message_output, frames.message_input)
+    return first_publish

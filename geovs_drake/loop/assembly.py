@@ -191,7 +191,7 @@ def assemble_loop(
     if carrier.phi_input is not None:
         builder.Connect(nav.phi_output, carrier.phi_input)
     command = LAWS[type(resolved.law)].add(builder, resolved, features, nav, carrier)
-    disturbance = _drive(builder, resolved, carrier, command, study_ports)
+    disturbance = drive_carrier(builder, resolved, carrier, command, study_ports)
     feature_sensor = (
         builder.GetSubsystemByName("feature_sensor")
         if builder.HasSubsystemNamed("feature_sensor")
@@ -216,7 +216,7 @@ def assemble_loop(
     return Loop(diagram, resolved, carrier, camera, nav, features, feature_sensor, disturbance)
 
 
-def _drive(
+def drive_carrier(
     builder: DiagramBuilder, resolved: ResolvedScenario, carrier, command, disturbed: bool
 ) -> str | None:
     """Connect the law's command to the carrier; a twist on a force-driven carrier goes

@@ -25,6 +25,7 @@ from pydrake.geometry import (
     Rgba,
     SceneGraph,
 )
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import LogVectorOutput, ZeroOrderHold
 from pydrake.systems.sensors import CameraConfig, CameraInfo, ImageRgba8U, RgbdSensor
@@ -49,8 +50,10 @@ __all__ = [
     "SENSORS",
     "VTK_PRINCIPAL_POINT_SHIFT",
     "Sensor",
+    "add_pinhole_sensor",
     "add_scene_renderer",
     "camera_config",
+    "sampled_settings",
     "scene_lights",
     "vtk_camera_info",
 ]
@@ -78,8 +81,12 @@ def _exact(builder, resolved, carrier, camera) -> OutputPort:
     return camera.image_features_output
 
 
-def _sampled_settings(resolved: ResolvedScenario) -> dict:
-    """The frame timing, noise and loss tolerance every camera model shares."""
+def sampled_settings(resolved: ResolvedScenario) -> dict:
+    """The frame timing, noise and loss tolerance every camera model shares: its
+    constructor's ``period``, ``latency_frames``, ``max_lost_frames``, ``pixel_noise``,
+    ``seed``, ``offset`` (the first frame's read) and ``capture_delay`` (a frame is
+    read ``output_delay`` after its capture). The loop's sensors and the LCM station's
+    and controller's take them from here."""
     cam = resolved.config.sensor  # a CameraModel
     return dict(
         period=1.0 / cam.rate,
@@ -87,6 +94,8 @@ def _sampled_settings(resolved: ResolvedScenario) -> dict:
         max_lost_frames=int(cam.max_lost_frames),
         pixel_noise=cam.pixel_noise,
         seed=int(cam.seed),
+        offset=cam.first_frame_time,
+        capture_delay=cam.output_delay,
     )
 
 
@@ -158,9 +167,17 @@ def _wait_for_first_frame(builder, resolved, sensor, y: OutputPort) -> OutputPor
     return wait.image_features_or_goal_output
 
 
-def _pinhole(builder, resolved, carrier, camera) -> OutputPort:
-    """The rendered loop's measurement (camera rate, latency, pixel noise, focal error,
-    the same fit) on exactly projected points, without a renderer."""
+def add_pinhole_sensor(
+    builder: DiagramBuilder,
+    resolved: ResolvedScenario,
+    body_pose: OutputPort,
+    X_WB: RigidTransform,
+    X_RC: RigidTransform,
+) -> tuple[PinholeFeatureSensor, OutputPort | None]:
+    """The pinhole camera model, ``feature_sensor``, on the body whose pose ``[q, p]``
+    is ``body_pose`` (the camera at ``X_RC`` on it, the target at ``X_WB``), and the
+    body's pose at the held frame's capture (None unless ``output_delay`` > 0). The
+    loop's pinhole sensor and the LCM station build it here."""
     config = resolved.config
     theta = resolved.domain.fov_half_angle
     sensor = builder.AddNamedSystem(
@@ -169,20 +186,29 @@ def _pinhole(builder, resolved, carrier, camera) -> OutputPort:
             radius=config.radius,
             intrinsics=config.sensor.intrinsics(theta),
             believed=config.sensor.believed_intrinsics(theta),
-            X_WB=carrier.X_WB,
-            X_RC=carrier.X_RC,
-            offset=config.sensor.first_frame_time,
-            **_sampled_settings(resolved),
+            X_WB=X_WB,
+            X_RC=X_RC,
+            **sampled_settings(resolved),
         ),
     )
     # A frame read output_delay after its capture shows the pose then (held, as the
     # rendered camera holds its image).
     cam = config.sensor
-    pose = carrier.body_pose
     capture_pose = None
     if cam.output_delay > 0:
-        pose = capture_pose = _held_from_capture(builder, cam, pose, POSE_SIZE, "capture_pose")
-    builder.Connect(pose, sensor.body_pose_input)
+        body_pose = capture_pose = _held_from_capture(
+            builder, cam, body_pose, POSE_SIZE, "capture_pose"
+        )
+    builder.Connect(body_pose, sensor.body_pose_input)
+    return sensor, capture_pose
+
+
+def _pinhole(builder, resolved, carrier, camera) -> OutputPort:
+    """The rendered loop's measurement (camera rate, latency, pixel noise, focal error,
+    the same fit) on exactly projected points, without a renderer."""
+    sensor, capture_pose = add_pinhole_sensor(
+        builder, resolved, carrier.body_pose, carrier.X_WB, carrier.X_RC
+    )
     y = _between_frames(builder, resolved, carrier, sensor.image_features_output, capture_pose)
     return _wait_for_first_frame(builder, resolved, sensor, y)
 
@@ -321,8 +347,7 @@ def _rendered(builder, resolved, carrier, camera) -> OutputPort:
         "feature_sensor",
         FeatureExtractor(
             intrinsics=cam.believed_intrinsics(theta),
-            offset=cam.first_frame_time,
-            **_sampled_settings(resolved),
+            **sampled_settings(resolved),
         ),
     )
     builder.Connect(color, sensor.color_image_input)

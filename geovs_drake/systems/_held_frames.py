@@ -27,8 +27,15 @@ exact projected points) both:
   frames is what a camera loop does, and a run then stops only when the target
   is really lost. Before any good frame the held y is NaN and ``valid`` is 0.
 
-State layout: ``latency_frames + 1`` entries of ``[y (13), has_y, code, lost]``,
-oldest first. The outputs depend on the discrete state only, so Drake caches
+* give the held y's capture time, ``capture_time`` [s]: the frame's read time less
+  ``capture_delay`` (the ``output_delay`` after its capture at which it is read), of
+  the frame that gave the held y (a failed frame keeps the last good y, and its
+  capture); NaN before any good frame. Why: a frame ``latency_frames`` old, or one
+  held through failures, was not taken when it is read, and a consumer that moves it
+  by the body's motion since (the LCM controller) must know when it was.
+
+State layout: ``latency_frames + 1`` entries of ``[y (13), has_y, code, lost,
+capture]``, oldest first. The outputs depend on the discrete state only, so Drake caches
 them between frames: a frame is measured once, however often the continuous
 integrator evaluates the controller.
 """
@@ -40,8 +47,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-ENTRY_SIZE = 16
-_Y, _HAS_Y, _CODE, _LOST = slice(0, 13), 13, 14, 15
+ENTRY_SIZE = 17
+_Y, _HAS_Y, _CODE, _LOST, _CAPTURE = slice(0, 13), 13, 14, 15, 16
 
 
 def frame_index(t: float, period: float, offset: float = 0.0) -> int:
@@ -62,12 +69,14 @@ def declare_sampled_features(
     max_lost_frames: int,
     measure: Callable,
     offset: float = 0.0,
-) -> tuple[object, object]:
-    """Declare the state, events and the ``image_features`` and ``feature_status`` outputs.
+    capture_delay: float = 0.0,
+) -> tuple[object, object, object]:
+    """Declare the state, events and the ``image_features``, ``feature_status`` and
+    ``capture_time`` outputs.
 
     ``measure(context) -> (y tuple | None, code)`` takes the current frame; frames are
-    read at ``offset + k period`` (and at t = 0 where ``offset`` is 0).
-    Returns the two output ports.
+    read at ``offset + k period`` (and at t = 0 where ``offset`` is 0), each taken
+    ``capture_delay`` [s] before it is read. Returns the three output ports.
     """
     if not (math.isfinite(period) and period > 0):
         raise ValueError(f"camera period must be finite and > 0 [s], got {period}")
@@ -79,6 +88,7 @@ def declare_sampled_features(
     n = latency_frames + 1
     initial = np.zeros(n * ENTRY_SIZE)
     initial.reshape(n, ENTRY_SIZE)[:, _Y] = math.nan
+    initial.reshape(n, ENTRY_SIZE)[:, _CAPTURE] = math.nan
     state = system.DeclareDiscreteState(initial)
 
     def entry(context, previous: np.ndarray) -> np.ndarray:
@@ -88,6 +98,7 @@ def declare_sampled_features(
             out[_CODE], out[_LOST] = float(code), previous[_LOST] + 1
         else:
             out[_Y], out[_HAS_Y], out[_CODE], out[_LOST] = y, 1.0, 0.0, 0.0
+            out[_CAPTURE] = context.get_time() - capture_delay
         return out
 
     def on_frame(context, discrete_state) -> None:
@@ -98,7 +109,7 @@ def declare_sampled_features(
     def on_start(context, discrete_state) -> None:
         # The first frame fills the latency line: before it, the loop has seen nothing else.
         empty = np.zeros(ENTRY_SIZE)
-        empty[_Y] = math.nan
+        empty[_Y] = empty[_CAPTURE] = math.nan
         first = entry(context, empty)
         discrete_state.get_mutable_vector(state).SetFromVector(np.tile(first, n))
 
@@ -114,6 +125,9 @@ def declare_sampled_features(
         usable = v[_HAS_Y] > 0 and v[_LOST] <= max_lost_frames
         output.SetFromVector([1.0 if usable else 0.0, v[_CODE], v[_LOST]])
 
+    def capture(context, output) -> None:
+        output.SetAtIndex(0, context.get_discrete_state(state).get_value()[_CAPTURE])
+
     ticket = {system.xd_ticket()}
     features_port = system.DeclareVectorOutputPort(
         "image_features", 13, features, prerequisites_of_calc=ticket
@@ -121,4 +135,7 @@ def declare_sampled_features(
     status_port = system.DeclareVectorOutputPort(
         "feature_status", 3, status, prerequisites_of_calc=ticket
     )
-    return features_port, status_port
+    capture_port = system.DeclareVectorOutputPort(
+        "capture_time", 1, capture, prerequisites_of_calc=ticket
+    )
+    return features_port, status_port, capture_port

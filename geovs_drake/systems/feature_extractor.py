@@ -232,6 +232,7 @@ def FeatureExtractor_(T):
             output_ports:
             - image_features
             - feature_status
+            - capture_time
 
         ``color_image`` is an ``ImageRgba8U`` of the scene of
         :data:`SCENE_COLOURS` (from an ``RgbdSensor``). Every ``period``
@@ -244,7 +245,9 @@ def FeatureExtractor_(T):
         code, lost]``: on a failed frame the last good y is held, ``code`` says
         why (:data:`~geovs_drake.geometry.features.FEATURE_FAILURES`) and
         ``lost`` counts the failed frames in a row; ``valid`` drops to 0 when
-        more than ``max_lost_frames`` have failed (or none has succeeded). See
+        more than ``max_lost_frames`` have failed (or none has succeeded);
+        ``capture_time`` [s] is when the held y's frame was taken (its read time
+        less ``capture_delay``; NaN before a good frame). See
         :mod:`geovs_drake.systems._held_frames`.
 
         Double only: ``RgbdSensor`` does not convert to AutoDiffXd or
@@ -269,6 +272,7 @@ def FeatureExtractor_(T):
             pixel_noise: float = 0.0,
             seed: int = 0,
             offset: float = 0.0,
+            capture_delay: float = 0.0,
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
@@ -285,6 +289,7 @@ def FeatureExtractor_(T):
                 pixel_noise,
                 seed,
                 offset,
+                capture_delay,
             )
             self._size = (intrinsics.width, intrinsics.height)
             self._period, self._offset = period, offset
@@ -296,8 +301,12 @@ def FeatureExtractor_(T):
             self.color_image_input = self.DeclareAbstractInputPort(
                 "color_image", AbstractValue.Make(ImageRgba8U(*self._size))
             )
-            self.image_features_output, self.feature_status_output = declare_sampled_features(
-                self, period, latency_frames, max_lost_frames, self._measure, offset
+            (
+                self.image_features_output,
+                self.feature_status_output,
+                self.capture_time_output,
+            ) = declare_sampled_features(
+                self, period, latency_frames, max_lost_frames, self._measure, offset, capture_delay
             )
 
         def _construct_copy(self, other, converter=None):

@@ -44,6 +44,7 @@ def PinholeFeatureSensor_(T):
             output_ports:
             - image_features
             - feature_status
+            - capture_time
 
         The model of :class:`FeatureExtractor` without the renderer: at each
         frame, :func:`~geovs_drake.geometry.features.pinhole_measurement` projects
@@ -78,6 +79,7 @@ def PinholeFeatureSensor_(T):
             pixel_noise: float = 0.0,
             seed: int = 0,
             offset: float = 0.0,
+            capture_delay: float = 0.0,
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
@@ -104,6 +106,7 @@ def PinholeFeatureSensor_(T):
                 pixel_noise,
                 seed,
                 offset,
+                capture_delay,
             )
             self._size = (intrinsics.width, intrinsics.height)
             self._period, self._offset = period, offset
@@ -119,8 +122,12 @@ def PinholeFeatureSensor_(T):
                 )
             )
             self.body_pose_input = self.DeclareVectorInputPort(name="body_pose", size=POSE_SIZE)
-            self.image_features_output, self.feature_status_output = declare_sampled_features(
-                self, period, latency_frames, max_lost_frames, self._measure, offset
+            (
+                self.image_features_output,
+                self.feature_status_output,
+                self.capture_time_output,
+            ) = declare_sampled_features(
+                self, period, latency_frames, max_lost_frames, self._measure, offset, capture_delay
             )
 
         def _construct_copy(self, other, converter=None):

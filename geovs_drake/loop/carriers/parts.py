@@ -21,7 +21,6 @@ from pydrake.multibody.tree import RigidBody, RotationalInertia, SpatialInertia
 from pydrake.systems.framework import Context, DiagramBuilder, InputPort, LeafSystem, OutputPort
 from pydrake.systems.primitives import Demultiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
-from pydrake.visualization import AddFrameTriadIllustration
 
 from geovs_drake.geometry._ops import NUMPY
 from geovs_drake.loop.resolved import ResolvedScenario
@@ -212,6 +211,10 @@ def meshcat_with_camera(
     """Meshcat for the scene, with the camera frame C's axes drawn on the body it rides."""
 
     def add_meshcat(builder: DiagramBuilder, meshcat: Meshcat) -> None:
+        # Imported here: pydrake.visualization imports matplotlib (0.5 s), which every
+        # loop without Meshcat, the LCM controller's start among them, would pay.
+        from pydrake.visualization import AddFrameTriadIllustration
+
         MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
         AddFrameTriadIllustration(
             scene_graph=scene_graph,
