@@ -261,7 +261,7 @@ def controller_status(controller: Controller, root) -> str:
         return "completed"
     if publisher.stop_reason(context) == _NO_STATUS_REASON:
         dp, dr = controller.estimated_pose_error(root)
-        tol_p, tol_r = convergence_tolerance(controller.resolved.config)
+        tol_p, tol_r = convergence_tolerance(controller.resolved)
         if dp <= tol_p and dr <= tol_r:  # NaN (no frame) compares False: stopped
             return "station_stopped"
     return "stopped"
