@@ -470,7 +470,7 @@ def test_the_controller_reports_statuses_lost_mid_servo_as_an_error():
     expected = pose_error(X_BC, setup.resolved.config.X_BC_goal)
     assert summary["estimated_position_error_m"] == pytest.approx(expected[0], abs=1e-9)
     assert summary["estimated_rotation_error_rad"] == pytest.approx(expected[1], abs=1e-6)
-    assert expected[0] > 10 * convergence_tolerance(setup.resolved.config)[0]
+    assert expected[0] > 10 * convergence_tolerance(setup.resolved)[0]
 
 
 @pytest.mark.parametrize("command", ["station", "controller"])
