@@ -237,6 +237,9 @@ def pose_head(builder: DiagramBuilder, state: OutputPort) -> OutputPort:
 
 
 def set_plant_state(plant: MultibodyPlant, config: ScenarioConfig) -> Callable[[Context], None]:
+    """A carrier's ``set_initial_state`` for a free body on ``plant``: its start pose, and
+    the velocity that gives the camera ``config.initial_velocity``."""
+
     def set_initial_state(root: Context) -> None:
         # The plant has no default velocity: the start's twist is set here.
         plant.SetPositionsAndVelocities(
