@@ -249,57 +249,6 @@ def _state_status(x, nu, margins, phi):
     return 1
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
-def _bs3_step(
-    kinematic, x, x_new, xs, k1, k2, k3, d, t, h, t_end, max_step, accuracy,
-    p_cam, p_nav, p_ctrl, p_body,
-):  # fmt: skip
-    """One accepted Bogacki-Shampine 3(2) step from ``x`` (``k1`` its derivative) into
-    ``x_new`` (``d`` the derivative there), shrinking ``h`` until the error is within
-    ``accuracy`` (fixed h where accuracy <= 0) and the step stays in D. Returns whether a
-    step was accepted, the new t and next h, and the new state's values from ``_rhs``."""
-    dim = len(x)
-    adaptive = accuracy > 0
-    while True:
-        last = h >= t_end - t
-        if last:
-            h = t_end - t
-        h = min(h, max_step)
-        for j in range(dim):
-            xs[j] = x[j] + 0.5 * h * k1[j]
-        _rhs(kinematic, xs, k2, p_cam, p_nav, p_ctrl, p_body)
-        for j in range(dim):
-            xs[j] = x[j] + 0.75 * h * k2[j]
-        _rhs(kinematic, xs, k3, p_cam, p_nav, p_ctrl, p_body)
-        for j in range(dim):
-            x_new[j] = x[j] + h * (2.0 / 9.0 * k1[j] + k2[j] / 3.0 + 4.0 / 9.0 * k3[j])
-        nu, margins, phi, kinetic = _rhs(kinematic, x_new, d, p_cam, p_nav, p_ctrl, p_body)
-        grow = 1.0
-        if adaptive:
-            err = 0.0
-            for j in range(dim):
-                ej = h * (-5.0 / 72.0 * k1[j] + k2[j] / 12.0 + k3[j] / 9.0 - d[j] / 8.0)
-                err = max(err, abs(ej) / max(1.0, abs(x[j])))
-            if not math.isfinite(err):
-                err = 1e300  # a trial stage left the maps' domain: shrink the step
-            # The exact flow of a start with E0 < k_p never leaves D: a step
-            # that does is rejected too, so a start leaves D only where the
-            # step size underflows at the boundary (then the check stops it).
-            outside = _state_status(x_new, nu, margins, phi) != 1
-            if err > accuracy or outside:
-                shrink = 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** (1 / 3)
-                h *= max(0.2, shrink)
-                if h >= 1e-10:
-                    continue
-                if not outside:
-                    return False, t, h, nu, margins, phi, kinetic  # no accurate step here
-                # At the boundary: accept, the check stops it.
-                return True, t + h, h, nu, margins, phi, kinetic
-            grow = 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** (1.0 / 3.0))
-        t = t_end if last and h == t_end - t else t + h
-        return True, t, h * grow, nu, margins, phi, kinetic
-
-
 @njit(cache=True, error_model="numpy", parallel=True)
 def _integrate(
     kinematic,
@@ -329,6 +278,7 @@ def _integrate(
     max_rise = np.zeros(n)
     steps = np.zeros(n, np.int64)
     final = X0.copy()
+    adaptive = accuracy > 0
     for i in prange(n):
         x = X0[i].copy()
         xs = np.empty(dim)
@@ -373,10 +323,48 @@ def _integrate(
             # accuracy <= 0, else error-controlled like Drake's integrators.
             for j in range(dim):
                 k1[j] = d[j]
-            accepted, t, h, nu, margins, phi, kinetic = _bs3_step(
-                kinematic, x, x_new, xs, k1, k2, k3, d, t, h, t_end, max_step, accuracy,
-                p_cam, p_nav, p_ctrl, p_body,
-            )  # fmt: skip
+            accepted = False
+            while True:
+                last = h >= t_end - t
+                if last:
+                    h = t_end - t
+                h = min(h, max_step)
+                for j in range(dim):
+                    xs[j] = x[j] + 0.5 * h * k1[j]
+                _rhs(kinematic, xs, k2, p_cam, p_nav, p_ctrl, p_body)
+                for j in range(dim):
+                    xs[j] = x[j] + 0.75 * h * k2[j]
+                _rhs(kinematic, xs, k3, p_cam, p_nav, p_ctrl, p_body)
+                for j in range(dim):
+                    x_new[j] = x[j] + h * (2.0 / 9.0 * k1[j] + k2[j] / 3.0 + 4.0 / 9.0 * k3[j])
+                nu, margins, phi, kinetic = _rhs(kinematic, x_new, d, p_cam, p_nav, p_ctrl, p_body)
+                grow = 1.0
+                if adaptive:
+                    err = 0.0
+                    for j in range(dim):
+                        ej = h * (-5.0 / 72.0 * k1[j] + k2[j] / 12.0 + k3[j] / 9.0 - d[j] / 8.0)
+                        err = max(err, abs(ej) / max(1.0, abs(x[j])))
+                    if not math.isfinite(err):
+                        err = 1e300  # a trial stage left the maps' domain: shrink the step
+                    # The exact flow of a start with E0 < k_p never leaves D: a step
+                    # that does is rejected too, so a start leaves D only where the
+                    # step size underflows at the boundary (then the check stops it).
+                    outside = _state_status(x_new, nu, margins, phi) != 1
+                    if err > accuracy or outside:
+                        shrink = 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** (1 / 3)
+                        h *= max(0.2, shrink)
+                        if h >= 1e-10:
+                            continue
+                        if not outside:
+                            break  # no accurate step exists here: non_finite below
+                        accepted = True  # at the boundary: accept, the check stops it
+                        t += h
+                        break
+                    grow = 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** (1.0 / 3.0))
+                accepted = True
+                t = t_end if last and h == t_end - t else t + h
+                h *= grow
+                break
             if not accepted:  # the step size underflowed: no accurate step exists here
                 status[i] = 4
                 t_stop[i] = t
