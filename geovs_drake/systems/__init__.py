@@ -10,6 +10,7 @@ __getattr__, __dir__, __all__ = attach(
     __name__,
     {
         "arm_camera": ("ArmCamera", "ArmCamera_"),
+        "attitude_cascade": ("AttitudeCascade", "AttitudeCascade_"),
         "feature_extractor": ("FeatureExtractor", "FeatureExtractor_"),
         "fixed_camera_kinematic_mount": ("FixedCameraKinematicMount", "FixedCameraKinematicMount_"),
         "fixed_camera_mount": ("FixedCameraMount", "FixedCameraMount_"),
