@@ -402,17 +402,38 @@ def check_quadrotor_scenario(
     quad: Quadrotor,
     X_WB: RigidTransform,
     X_BC_goal: RigidTransform,
+    X_BC_initial: RigidTransform,
     dynamic: bool,
     fov_half_angle: float,
 ) -> None:
     """What the quadrotor asks of the scenario around it, one line each: the dynamic
     plant (its rotors push; a velocity-commanded quadrotor is another carrier), a mount
-    that sees the target from the goal with the body level, and a goal held level."""
+    that sees the target from the goal with the body level, a goal held level, and a
+    start within the tilt the cascade ever asks (``max_tilt_deg``)."""
     if not dynamic:
         raise ValueError(
             "carrier Quadrotor runs on the dynamic plant only (its rotors push; a "
             "velocity-commanded quadrotor is not this carrier), got plant Kinematic()"
         )
+    _check_goal_level(quad, X_WB, X_BC_goal, fov_half_angle)
+    start_tilt = math.degrees(goal_tilt(X_WB @ X_BC_initial, quad.X_RC))
+    if start_tilt > quad.max_tilt_deg:
+        # Why refused: a body tilted past what the cascade asks falls while it turns
+        # (the default scenario's start, 115 deg with the forward mount, leaves D at
+        # t = 0.23 s, measured).
+        raise ValueError(
+            f"the start tilts the quadrotor by {start_tilt:.3g} deg, more than "
+            f"carrier.max_tilt_deg = {quad.max_tilt_deg:g}: start it near a level hover "
+            "(the forward mount: initial rpy [0, heading, 0], e.g. "
+            "--initial=0.12,-0.08,-0.8,0,0.3,0)"
+        )
+
+
+def _check_goal_level(
+    quad: Quadrotor, X_WB: RigidTransform, X_BC_goal: RigidTransform, fov_half_angle: float
+) -> None:
+    """The goal's body level, else one line: the mount that cannot see the target from
+    a level body, or the tilt the goal needs."""
     X_WC = X_WB @ X_BC_goal
     X_WR = X_WC @ quad.X_RC.inverse()
     tilt = goal_tilt(X_WC, quad.X_RC)

@@ -306,6 +306,7 @@ class ScenarioConfig:
                 self.carrier,
                 self.X_WB,
                 self.X_BC_goal,
+                self.X_BC_initial,
                 self.dynamic,
                 math.radians(self.domain.fov_half_angle_deg),
             )

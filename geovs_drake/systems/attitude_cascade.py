@@ -106,6 +106,13 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / (v @ v) ** 0.5
 
 
+_ARM, _MOMENT_RATIO = 0.15, 0.0245
+_DEFAULT_MIXER = mixer(
+    [[_ARM, 0, 0], [0, _ARM, 0], [-_ARM, 0, 0], [0, -_ARM, 0]],
+    [_MOMENT_RATIO, -_MOMENT_RATIO, _MOMENT_RATIO, -_MOMENT_RATIO],
+)
+
+
 @template_system("AttitudeCascade_")
 def AttitudeCascade_(T):
     class Impl(LeafSystem_[T]):
@@ -158,9 +165,9 @@ def AttitudeCascade_(T):
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
-            if mixer_matrix is None:
-                raise ValueError("AttitudeCascade needs the rotors' mixer (see mixer())")
-            M = np.asarray(mixer_matrix, dtype=float)
+            # The default: Drake's quadrotor example's rotors, a + of arm 0.15 m with
+            # moment ratios +-0.0245 m (the Quadrotor carrier's defaults).
+            M = _DEFAULT_MIXER if mixer_matrix is None else np.asarray(mixer_matrix, dtype=float)
             if M.shape != (4, 4) or abs(np.linalg.det(M)) < 1e-12:
                 raise ValueError(f"the mixer must be an invertible 4 x 4 matrix, got {M}")
             heading = np.asarray(heading_W, dtype=float)
