@@ -221,18 +221,21 @@ class Quadrotor:
     #: target (1 m up), which a level body holds only with the camera looking forward;
     #: ``down`` needs a target below it (a landing pad, docs/quadrotor.md).
     mount: str = "forward"
-    #: (k_R, k_Omega): 40 rad/s, damping ratio 0.9 on each axis. Why this fast: the NF's
-    #: translation at the goal has modes near 12 rad/s, and the thrust's direction lags
-    #: the NF's force by this loop (at 20 rad/s the loop at hover is unstable,
-    #: eigenvalues 2.5 +- 10.3j 1/s; docs/quadrotor.md).
-    attitude_gains: list[float] = field(default_factory=lambda: [1600.0, 72.0])
+    #: (k_R, k_Omega): 60 rad/s, damping ratio 0.9 on each axis. Why this fast: the NF's
+    #: translation across the optical axis at the goal has modes near 19 rad/s (the
+    #: down camera; 12 the forward one), and the thrust's direction lags the NF's force
+    #: by this loop: at 40 rad/s the down camera's loop at hover is unstable (0.62 +-
+    #: 18.97j 1/s), at 20 rad/s the forward one's (2.5 +- 10.3j); docs/quadrotor.md.
+    attitude_gains: list[float] = field(default_factory=lambda: [3600.0, 108.0])
     #: b [N s/m], the cascade's damping of the body's velocity, added to the NF's B on
-    #: the translation: with the NF's default 4 N s/m alone the lateral mode at hover is
-    #: unstable (0.7 +- 11.9j 1/s at the default attitude gains).
+    #: the translation: with the NF's default 4 N s/m alone the forward camera's lateral
+    #: mode at hover is unstable at 40 rad/s attitude gains (0.71 +- 11.92j 1/s).
     velocity_damping: float = 4.0
-    #: The largest tilt [deg] the cascade asks of the body: far from the goal the NF's
-    #: force alone would ask it to lie on its side (and it flips, measured).
-    max_tilt_deg: float = 30.0
+    #: The largest tilt [deg] the cascade asks of the body. A tilt turns the camera by as
+    #: much, and D is the real camera's: at 30 deg the down camera's loop left D within
+    #: 0.05 s from (0.05, -0.03, -0.6); at 10 it converged there in 3.6 s, and the
+    #: forward camera's starts converge as fast as at 30 (docs/quadrotor.md).
+    max_tilt_deg: float = 10.0
 
     traits: ClassVar[CarrierTraits] = CarrierTraits(
         camera_in_hand=True,
@@ -409,23 +412,24 @@ def check_quadrotor_scenario(
     """What the quadrotor asks of the scenario around it, one line each: the dynamic
     plant (its rotors push; a velocity-commanded quadrotor is another carrier), a mount
     that sees the target from the goal with the body level, a goal held level, and a
-    start within the tilt the cascade ever asks (``max_tilt_deg``)."""
+    start whose tilt the rotors can hold the weight at."""
     if not dynamic:
         raise ValueError(
             "carrier Quadrotor runs on the dynamic plant only (its rotors push; a "
             "velocity-commanded quadrotor is not this carrier), got plant Kinematic()"
         )
     _check_goal_level(quad, X_WB, X_BC_goal, fov_half_angle)
-    start_tilt = math.degrees(goal_tilt(X_WB @ X_BC_initial, quad.X_RC))
-    if start_tilt > quad.max_tilt_deg:
-        # Why refused: a body tilted past what the cascade asks falls while it turns
-        # (the default scenario's start, 115 deg with the forward mount, leaves D at
-        # t = 0.23 s, measured).
+    start_tilt = goal_tilt(X_WB @ X_BC_initial, quad.X_RC)
+    # Past this tilt the rotors at full thrust no longer hold the weight: the body falls
+    # while it levels (the default scenario's start, 115 deg with the forward mount,
+    # left D at t = 0.23 s, measured).
+    most = math.acos(min(1.0, quad.mass * GRAVITY / (4 * quad.max_rotor_thrust)))
+    if start_tilt > most:
         raise ValueError(
-            f"the start tilts the quadrotor by {start_tilt:.3g} deg, more than "
-            f"carrier.max_tilt_deg = {quad.max_tilt_deg:g}: start it near a level hover "
-            "(the forward mount: initial rpy [0, heading, 0], e.g. "
-            "--initial=0.12,-0.08,-0.8,0,0.3,0)"
+            f"the start tilts the quadrotor by {math.degrees(start_tilt):.3g} deg, past "
+            f"{math.degrees(most):.3g} deg, where its rotors at full thrust no longer hold "
+            "its weight: start it nearer a level hover (the forward mount: initial rpy "
+            "[0, heading, 0], e.g. --initial=0.12,-0.08,-0.8,0,0.3,0)"
         )
 
 

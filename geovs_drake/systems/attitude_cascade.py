@@ -141,7 +141,7 @@ def AttitudeCascade_(T):
         ``heading_W`` (the goal's body x axis, level) and z_d; the torque is Lee, Leok &
         McClamroch's, ``J (-k_R e_R - k_Omega Omega) + Omega x J Omega`` with ``e_R =
         1/2 vee(R_d^T R - R^T R_d)``, per unit of inertia, the wanted rate taken as zero
-        (f_d moves at the NF's pace, about 1 s, against the attitude's 0.05 s).
+        (f_d moves at the NF's pace against the attitude's 60 rad/s).
         ``rotor_thrusts`` (4) [N] are the allocation's (:func:`allocate`: the mixer's
         inverse, then saturation to [0, max_thrust], yaw given up first);
         ``saturated`` is 1 where the allocation gave anything up, else 0. The NF's torque
@@ -156,12 +156,12 @@ def AttitudeCascade_(T):
             mass: float = 0.775,
             inertia_diagonal: tuple[float, float, float] = (0.0015, 0.0025, 0.0035),
             gravity: float = 9.81,
-            attitude_gains: tuple[float, float] = (400.0, 36.0),
+            attitude_gains: tuple[float, float] = (3600.0, 108.0),
             heading_W: tuple[float, float, float] = (1.0, 0.0, 0.0),
             mixer_matrix: np.ndarray | None = None,
             max_thrust: float = 4.75,
             velocity_damping: float = 4.0,
-            max_tilt: float = math.radians(30.0),
+            max_tilt: float = math.radians(10.0),
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)

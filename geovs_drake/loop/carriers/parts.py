@@ -120,6 +120,10 @@ class CarrierParts:
     #: saturation), ``run_entries(root, states)`` from the run's root context and its
     #: logged continuous states (N, n); None where it has none.
     run_entries: Callable[[Context, np.ndarray], dict] | None = None
+    #: What the NF and the law read instead of the sensor's y, where the carrier turns
+    #: it (the quadrotor's image on the level body, :class:`~geovs_drake.systems.LevelView`):
+    #: ``view(builder, y)`` returns that port; None: the sensor's y as it is.
+    view: Callable[[DiagramBuilder, OutputPort], OutputPort] | None = None
 
     @property
     def takes_wrench(self) -> bool:

@@ -29,6 +29,7 @@ from geovs_drake.loop.resolved import ResolvedScenario
 from geovs_drake.loop.state import QUATERNION, initial_rig_pose
 from geovs_drake.scenario import Dynamic, Quadrotor, ScenarioConfig
 from geovs_drake.systems.attitude_cascade import AttitudeCascade, mixer
+from geovs_drake.systems.level_view import LevelView
 from geovs_drake.visualization import (
     add_camera_geometry,
     add_goal_ghost,
@@ -134,6 +135,15 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
     builder.Connect(plant.get_state_output_port(), cascade.body_state_input)
     builder.Connect(cascade.rotor_thrusts_output, propellers.get_command_input_port())
 
+    # The NF reads the image of a camera on the level body, and its damping that camera's
+    # velocity: a tilt then moves nothing the NF sees (LevelView's docstring).
+    level = builder.AddNamedSystem("level_view", LevelView(X_RC=config.X_RC))
+    builder.Connect(plant.get_state_output_port(), level.body_state_input)
+
+    def view(builder: DiagramBuilder, y):
+        builder.Connect(y, level.image_features_input)
+        return level.level_image_features_output
+
     def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
         # The NF's wrench enters the cascade, which keeps its force (in W).
         builder.Connect(force.generalized_force_output, cascade.generalized_force_input)
@@ -163,13 +173,14 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
         X_RC=config.X_RC,
         pose_of_states=leading_pose,
         set_initial_state=set_plant_state(plant, config),
-        body_state=plant.get_state_output_port(),
+        body_state=level.level_body_state_output,
         connect_force=connect_force,
         add_meshcat=meshcat_with_camera(scene_graph, body, config.X_RC),
         plant=plant,
         scene_graph=scene_graph,
         body=body,
         run_entries=run_entries,
+        view=view,
     )
 
 
