@@ -227,6 +227,7 @@ BAD_INPUTS = {
         ["--scenario-text", "carrier: !Quadrotor {mount: down}"],
         ["mount down does not see the target", "90.0 deg off the optical axis"],
     ),
+    "moving-target": (["--target-twist=0,0,0,0.05,0,0"], ["follows no moving target"]),
     "start-tilted": ([], ["start tilts the quadrotor by 115 deg, past 66.4 deg"]),
 }
 

@@ -316,12 +316,19 @@ class ScenarioConfig:
                 f"commands the camera's velocity): got initial_velocity = {twist} "
                 "with plant Kinematic()"
             )
-        if self.moving_target and not isinstance(self.carrier, FreeRig | Arm):
-            # Eye-to-hand, the target is the body the loop moves: it has no motion of its own.
+        if self.moving_target and not self.carrier.traits.moving_target:
+            # Eye-to-hand, the target is the body the loop moves: it has no motion of its
+            # own; a carrier in the hand says in its traits whether it follows one (the
+            # quadrotor's cascade is measured behind a still target only).
+            why = (
+                "its traits say it follows no moving target"
+                if self.carrier.traits.camera_in_hand
+                else "the fixed camera's loop moves the target itself"
+            )
             raise ValueError(
-                f"target_motion {type(self.target_motion).__name__}() needs a camera in the "
-                "hand (carrier FreeRig or Arm): the fixed camera's loop moves the target "
-                f"itself, got carrier {type(self.carrier).__name__}()"
+                f"target_motion {type(self.target_motion).__name__}() needs a carrier that "
+                f"follows a moving target (carrier FreeRig or Arm): {why}, got carrier "
+                f"{type(self.carrier).__name__}()"
             )
         if (
             self.moving_target
