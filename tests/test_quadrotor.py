@@ -4,6 +4,8 @@ finite differences, a short run, and the bad inputs."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from pydrake.common.eigen_geometry import Quaternion
@@ -205,6 +207,18 @@ def test_the_level_start_converges_within_30_s_and_stays_in_d():
     result = simulate(_config(duration=30.0))
     assert result.converged and not result.left_domain
     assert result.convergence_time < 30.0
+
+
+def test_linearize_command_reads_stable_with_the_finite_difference_check(run_cli):
+    code, out, err = run_cli("linearize", "--carrier", "quadrotor", "--json")
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["stable"] and result["max_real_part"] < -1.0
+    assert result["finite_difference_relative_error"] < 1e-6
+    assert result["continuum_modes"] and "quaternion" in result["continuum"]
+    # A study that needs a model at the goal: one line, exit 2.
+    code, out, err = run_cli("linearize", "--carrier", "quadrotor", "--latency", "1")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--latency" in err
 
 
 BAD_INPUTS = {
