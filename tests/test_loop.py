@@ -13,6 +13,7 @@ from pydrake.systems.analysis import Simulator
 
 from geovs_drake.loop import CARRIERS, LAWS, SENSORS, build_loop, refusal, resolve
 from geovs_drake.scenario import (
+    CARRIER_VARIANTS,
     CONTROLLERS,
     LAW_VARIANTS,
     SENSOR_VARIANTS,
@@ -24,6 +25,7 @@ from geovs_drake.scenario import (
     Kinematic,
     Pinhole,
     PoseConfig,
+    Quadrotor,
     Rendered,
     ScenarioConfig,
     variant_name,
@@ -49,7 +51,8 @@ def _suite_case(carrier: tuple[type, type], sensor: type, law: str):
     suite (make test-slow runs them all)."""
     # The rendered NF case too (5 s; make test's budget): test_rendered.py runs the rendered
     # loop against the pinhole one, and test_arm.py the rendered arm.
-    long = sensor is Rendered or (carrier[0] is Arm and law != "nf")
+    # The quadrotor's twist laws too (2 s each): its NF case stays in the suite.
+    long = sensor is Rendered or (carrier[0] in (Arm, Quadrotor) and law != "nf")
     name = "-".join([*(variant_name(kind()) for kind in (*carrier, sensor)), law])
     marks = [pytest.mark.slow] if long else []
     return pytest.param(carrier, sensor, law, marks=marks, id=name)
@@ -95,7 +98,8 @@ def test_every_combination_builds_through_build_loop_and_converges(carrier, sens
         (
             dict(carrier="gantry"),
             "exact",
-            "carrier must be one of free, fixed, arm, got 'gantry'",
+            # Every carrier's name, as CARRIER_VARIANTS spells it.
+            f"carrier must be one of {', '.join(CARRIER_VARIANTS)}, got 'gantry'",
         ),
         (dict(controller="kinematic"), "exact", "names a plant: write plant: kinematic"),
         (dict(controller="lqr"), "exact", "controller must be one of nf, ibvs"),

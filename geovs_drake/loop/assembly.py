@@ -183,6 +183,8 @@ def assemble_loop(
         builder.ExportOutput(camera.image_features_output, "image_features")
         builder.ExportOutput(carrier.body_pose, "body_pose")
         features = noise.get_output_port()
+    if carrier.view is not None:  # the carrier's own view of y (the quadrotor's level one)
+        features = carrier.view(builder, features)
     nav = builder.AddNamedSystem(
         "navigation_controller",
         NavigationController(goal=resolved.y_goal, domain=resolved.domain, gains=resolved.gains),

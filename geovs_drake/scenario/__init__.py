@@ -33,6 +33,7 @@ from geovs_drake.scenario.carriers import (
     CarrierConfig,
     FixedCamera,
     FreeRig,
+    Quadrotor,
     RigidBodyConfig,
 )
 from geovs_drake.scenario.laws import (
@@ -120,6 +121,7 @@ __all__ = [
     "Pinhole",
     "PlantConfig",
     "PoseConfig",
+    "Quadrotor",
     "Rendered",
     "RigidBodyConfig",
     "ScenarioConfig",

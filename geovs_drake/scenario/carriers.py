@@ -6,9 +6,14 @@ with its defaults. The loop takes each carrier's systems from
 :data:`geovs_drake.loop.carriers.CARRIERS`, keyed by the variant's and the plant's types.
 """
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar
+
+import numpy as np
+from pydrake.common.eigen_geometry import AngleAxis
+from pydrake.math import RigidTransform, RotationMatrix
 
 from geovs_drake.scenario.plants import Dynamic, Kinematic
 from geovs_drake.scenario.pose import PoseConfig, check_at_least, finite_numbers
@@ -23,6 +28,8 @@ __all__ = [
     "CarrierConfig",
     "FixedCamera",
     "FreeRig",
+    "QUADROTOR_MOUNTS",
+    "Quadrotor",
     "RigidBodyConfig",
     "check_carrier",
 ]
@@ -169,10 +176,99 @@ TORQUE_LIMITS: dict[str, str] = {
 #: ``auto`` without a camera.
 NOMINAL_GAIN_SCALES: dict[type, float] = {Dynamic: 10.0, Kinematic: 1.0}
 
+#: Standard gravity [m/s^2], Drake's default gravity field's magnitude.
+GRAVITY = 9.81
+
+#: The quadrotor's camera mounts (``Quadrotor.mount``): X_RC, the camera frame C on the
+#: body frame R (x forward, z along the thrust), as C's axes in R (the columns of R_RC)
+#: and C's origin in R [m]. ``forward``: the optical axis z_C along the body's x, the
+#: image's y axis along the body's z (the scenario's convention, where the target's arrow
+#: points up), at the box's front face; ``down``: z_C along -z of the body, y_C along
+#: its x, under the box.
+QUADROTOR_MOUNTS: dict[str, tuple[tuple[tuple[float, ...], ...], tuple[float, float, float]]] = {
+    "forward": (((0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (1.0, 0.0, 0.0)), (0.06, 0.0, 0.0)),
+    "down": (((0.0, 1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, -1.0)), (0.0, 0.0, -0.03)),
+}
+
+#: A goal attitude within this tilt [rad] of level is level: a tenth of the 1 mrad
+#: convergence tolerance, so that the body held level leaves the camera within it.
+LEVEL_TOLERANCE_RAD = 1e-4
+
+
+@dataclass
+class Quadrotor:
+    """A quadrotor that carries the camera: a free body of ``mass`` [kg] and principal
+    inertia ``inertia_diagonal`` [kg m^2] about its centre of mass (Drake's quadrotor
+    example's), driven by four of Drake's ``Propeller``s in a + at ``arm_length`` [m]
+    from the centre, each a thrust in [0, ``max_rotor_thrust``] [N] along the body's z
+    and a drag moment of ``moment_ratio`` [m] times it about z (alternating signs).
+    Gravity is on. The camera rides at ``mount`` (:data:`QUADROTOR_MOUNTS`: ``forward``
+    or ``down``). The NF's force, plus m g, sets the thrust and the attitude it wants;
+    Lee, Leok & McClamroch's geometric controller on SO(3) turns the attitude with
+    ``attitude_gains`` = (k_R [1/s^2], k_Omega [1/s]), per unit of inertia
+    (:class:`~geovs_drake.systems.AttitudeCascade`), which also damps the body's velocity
+    with ``velocity_damping`` [N s/m]. Dynamic plant only; the goal must be a level
+    hover."""
+
+    mass: float = 0.775
+    inertia_diagonal: list[float] = field(default_factory=lambda: [0.0015, 0.0025, 0.0035])
+    arm_length: float = 0.15
+    moment_ratio: float = 0.0245
+    #: 4 x 4.75 N = 19 N, about 2.5 m g with the default mass: room to accelerate and
+    #: to tilt while the weight is held.
+    max_rotor_thrust: float = 4.75
+    #: Why forward by default: the default scenario's goal looks horizontally at the
+    #: target (1 m up), which a level body holds only with the camera looking forward;
+    #: ``down`` needs a target below it (a landing pad, docs/quadrotor.md).
+    mount: str = "forward"
+    #: (k_R, k_Omega): 60 rad/s, damping ratio 0.9 on each axis. Why this fast: the NF's
+    #: translation across the optical axis at the goal has modes near 19 rad/s (the
+    #: down camera; 12 the forward one), and the thrust's direction lags the NF's force
+    #: by this loop: at 40 rad/s the down camera's loop at hover is unstable (0.62 +-
+    #: 18.97j 1/s), at 20 rad/s the forward one's (2.5 +- 10.3j); docs/quadrotor.md.
+    attitude_gains: list[float] = field(default_factory=lambda: [3600.0, 108.0])
+    #: b [N s/m], the cascade's damping of the body's velocity, added to the NF's B on
+    #: the translation: with the NF's default 4 N s/m alone the forward camera's lateral
+    #: mode at hover is unstable at 40 rad/s attitude gains (0.71 +- 11.92j 1/s).
+    velocity_damping: float = 4.0
+    #: The largest tilt [deg] the cascade asks of the body. A tilt turns the camera by as
+    #: much, and D is the real camera's: at 30 deg the down camera's loop left D within
+    #: 0.05 s from (0.05, -0.03, -0.6); at 10 it converged there in 3.6 s, and the
+    #: forward camera's starts converge as fast as at 30 (docs/quadrotor.md).
+    max_tilt_deg: float = 10.0
+
+    traits: ClassVar[CarrierTraits] = CarrierTraits(
+        camera_in_hand=True,
+        joints=False,
+        rigid_body_goal=False,
+        goal_model=False,
+        moving_target=False,
+        batch_kernel=False,
+        gain_scale=False,
+        effort_limits=False,
+        takes=(("dynamic", "rotor thrusts"),),
+        energy_exclusion=(
+            "the attitude cascade turns the NF's wrench into one thrust and an attitude "
+            "(underactuated), and Appendix C's energy argument needs the wrench applied"
+        ),
+    )
+
+    @property
+    def X_RC(self) -> RigidTransform:
+        """The camera's pose on the body, ``mount``'s (:data:`QUADROTOR_MOUNTS`)."""
+        axes, origin = QUADROTOR_MOUNTS[self.mount]
+        return RigidTransform(RotationMatrix(np.array(axes).T), np.array(origin))
+
+
 #: A carrier's configuration: one of the variants above.
-CarrierConfig = FreeRig | FixedCamera | Arm
+CarrierConfig = FreeRig | FixedCamera | Arm | Quadrotor
 #: The carrier of each name, as ``--carrier`` and a file's bare name give it.
-CARRIER_VARIANTS: dict[str, type] = {"free": FreeRig, "fixed": FixedCamera, "arm": Arm}
+CARRIER_VARIANTS: dict[str, type] = {
+    "free": FreeRig,
+    "fixed": FixedCamera,
+    "arm": Arm,
+    "quadrotor": Quadrotor,
+}
 
 #: The arm's scalar fields with a lower bound: name -> (bound, strict, unit).
 _ARM_BOUNDS: dict[str, tuple[float, bool, str]] = {
@@ -198,6 +294,9 @@ def check_carrier(carrier: object) -> None:
             )
         if isinstance(carrier, FreeRig):
             carrier.camera_offset.to_rigid_transform()
+        return
+    if isinstance(carrier, Quadrotor):
+        _check_quadrotor(carrier)
         return
     if not isinstance(carrier, Arm):
         return
@@ -256,3 +355,114 @@ def check_carrier(carrier: object) -> None:
         values = getattr(carrier, name)
         if finite_numbers(values, len(values)) is None:
             raise ValueError(f"carrier.{name} must be finite numbers [rad, rad/s], got {values!r}")
+
+
+def _check_quadrotor(quad: Quadrotor) -> None:
+    """The quadrotor's own fields: ValueError naming the first bad one and its value."""
+    check_at_least("carrier.mass", quad.mass, 0.0, True, " [kg]")
+    inertia = finite_numbers(quad.inertia_diagonal, 3)
+    if inertia is None or not all(v > 0 for v in inertia):
+        raise ValueError(
+            "carrier.inertia_diagonal must be exactly 3 positive numbers [kg m^2], "
+            f"got {quad.inertia_diagonal!r}"
+        )
+    check_at_least("carrier.arm_length", quad.arm_length, 0.0, True, " [m]")
+    check_at_least("carrier.moment_ratio", quad.moment_ratio, 0.0, True, " [m]")
+    check_at_least("carrier.max_rotor_thrust", quad.max_rotor_thrust, 0.0, True, " [N]")
+    check_at_least("carrier.velocity_damping", quad.velocity_damping, 0.0, False, " [N s/m]")
+    check_at_least("carrier.max_tilt_deg", quad.max_tilt_deg, 0.0, True, " [deg]")
+    if quad.max_tilt_deg >= 90:
+        raise ValueError(
+            f"carrier.max_tilt_deg must be < 90 [deg]: max_tilt_deg = {quad.max_tilt_deg!r}"
+        )
+    weight = quad.mass * GRAVITY
+    if 4 * quad.max_rotor_thrust <= weight:
+        raise ValueError(
+            f"carrier.max_rotor_thrust cannot hover: 4 x {quad.max_rotor_thrust:g} N = "
+            f"{4 * quad.max_rotor_thrust:.4g} N <= m g = {weight:.4g} N"
+        )
+    if quad.mount not in QUADROTOR_MOUNTS:
+        raise ValueError(
+            f"carrier.mount must be one of {', '.join(QUADROTOR_MOUNTS)}, got {quad.mount!r}"
+        )
+    gains = finite_numbers(quad.attitude_gains, 2)
+    if gains is None or not all(v > 0 for v in gains):
+        raise ValueError(
+            "carrier.attitude_gains must be 2 numbers > 0 (k_R [1/s^2], k_Omega [1/s]), "
+            f"got {quad.attitude_gains!r}"
+        )
+
+
+def goal_tilt(X_WC_goal: RigidTransform, X_RC: RigidTransform) -> float:
+    """The tilt [rad] of a carrier's body from level where its camera is at
+    ``X_WC_goal``, the camera at ``X_RC`` on the body: the angle between the body's z
+    axis and the world's."""
+    z_body = (X_WC_goal @ X_RC.inverse()).rotation().matrix()[:, 2]
+    return float(math.acos(max(-1.0, min(1.0, z_body[2]))))
+
+
+def check_quadrotor_scenario(
+    quad: Quadrotor,
+    X_WB: RigidTransform,
+    X_BC_goal: RigidTransform,
+    X_BC_initial: RigidTransform,
+    dynamic: bool,
+    fov_half_angle: float,
+) -> None:
+    """What the quadrotor asks of the scenario around it, one line each: the dynamic
+    plant (its rotors push; a velocity-commanded quadrotor is another carrier), a mount
+    that sees the target from the goal with the body level, a goal held level, and a
+    start whose tilt the rotors can hold the weight at."""
+    if not dynamic:
+        raise ValueError(
+            "carrier Quadrotor runs on the dynamic plant only (its rotors push; a "
+            "velocity-commanded quadrotor is not this carrier), got plant Kinematic()"
+        )
+    _check_goal_level(quad, X_WB, X_BC_goal, fov_half_angle)
+    start_tilt = goal_tilt(X_WB @ X_BC_initial, quad.X_RC)
+    # Past this tilt the rotors at full thrust no longer hold the weight: the body falls
+    # while it levels (the default scenario's start, 115 deg with the forward mount,
+    # left D at t = 0.23 s, measured).
+    most = math.acos(min(1.0, quad.mass * GRAVITY / (4 * quad.max_rotor_thrust)))
+    if start_tilt > most:
+        raise ValueError(
+            f"the start tilts the quadrotor by {math.degrees(start_tilt):.3g} deg, past "
+            f"{math.degrees(most):.3g} deg, where its rotors at full thrust no longer hold "
+            "its weight: start it nearer a level hover (the forward mount: initial rpy "
+            "[0, heading, 0], e.g. --initial=0.12,-0.08,-0.8,0,0.3,0)"
+        )
+
+
+def _check_goal_level(
+    quad: Quadrotor, X_WB: RigidTransform, X_BC_goal: RigidTransform, fov_half_angle: float
+) -> None:
+    """The goal's body level, else one line: the mount that cannot see the target from
+    a level body, or the tilt the goal needs."""
+    X_WC = X_WB @ X_BC_goal
+    X_WR = X_WC @ quad.X_RC.inverse()
+    tilt = goal_tilt(X_WC, quad.X_RC)
+    if tilt <= LEVEL_TOLERANCE_RAD:
+        return
+    # The level body nearest the goal's (turned about the horizontal axis that levels it):
+    # where would its camera look?
+    z_body = X_WR.rotation().matrix()[:, 2]
+    axis = np.cross(z_body, [0.0, 0.0, 1.0])
+    norm = np.linalg.norm(axis)
+    axis = axis / norm if norm > 1e-12 else np.array([1.0, 0.0, 0.0])
+    R_level = RotationMatrix(AngleAxis(tilt, axis)) @ X_WR.rotation()
+    optical_axis = (R_level @ quad.X_RC.rotation()).matrix()[:, 2]
+    to_target = X_WB.translation() - X_WC.translation()
+    off_axis = math.acos(
+        max(-1.0, min(1.0, float(optical_axis @ to_target / np.linalg.norm(to_target))))
+    )
+    if off_axis >= fov_half_angle:
+        raise ValueError(
+            f"carrier.mount {quad.mount} does not see the target at the goal: with the body "
+            f"level the target is {math.degrees(off_axis):.1f} deg off the optical axis "
+            f"(field of view {math.degrees(fov_half_angle):.1f} deg)"
+        )
+    raise ValueError(
+        f"the goal needs the quadrotor tilted by {math.degrees(tilt):.3g} deg (with carrier."
+        f"mount {quad.mount}): a quadrotor holds a level hover only; give a goal whose "
+        "camera, on the mount, leaves the body level"
+    )

@@ -32,7 +32,9 @@ from geovs_drake.scenario.carriers import (
     Arm,
     FixedCamera,
     FreeRig,
+    Quadrotor,
     check_carrier,
+    check_quadrotor_scenario,
 )
 from geovs_drake.scenario.laws import (
     LAW_VARIANTS,
@@ -224,7 +226,7 @@ class ScenarioConfig:
     #: What carries the camera: :class:`FreeRig`, the rigid body of Appendix C
     #: (eye-in-hand); :class:`FixedCamera`, the camera fixed in the world and the target
     #: driven (eye-to-hand); :class:`Arm`, a robot arm. In YAML ``carrier: !Arm {...}``.
-    carrier: FreeRig | FixedCamera | Arm = field(default_factory=FreeRig)
+    carrier: FreeRig | FixedCamera | Arm | Quadrotor = field(default_factory=FreeRig)
     #: How the carrier is driven: :class:`Dynamic` (a wrench or joint torques, Appendix C)
     #: or :class:`Kinematic` (its velocity commanded, Eqs. 17-19).
     plant: Dynamic | Kinematic = field(default_factory=Dynamic)
@@ -299,18 +301,34 @@ class ScenarioConfig:
     def _check_combination(self, twist: list[float]) -> None:
         """What no union can say: the combinations of the variants that make no loop."""
         moving = any(v != 0 for v in twist)
+        if isinstance(self.carrier, Quadrotor):  # what it asks of the scene around it
+            check_quadrotor_scenario(
+                self.carrier,
+                self.X_WB,
+                self.X_BC_goal,
+                self.X_BC_initial,
+                self.dynamic,
+                math.radians(self.domain.fov_half_angle_deg),
+            )
         if moving and not self.dynamic:
             raise ValueError(
                 "initial_velocity applies to the dynamic loop only (the kinematic loop "
                 f"commands the camera's velocity): got initial_velocity = {twist} "
                 "with plant Kinematic()"
             )
-        if self.moving_target and not isinstance(self.carrier, FreeRig | Arm):
-            # Eye-to-hand, the target is the body the loop moves: it has no motion of its own.
+        if self.moving_target and not self.carrier.traits.moving_target:
+            # Eye-to-hand, the target is the body the loop moves: it has no motion of its
+            # own; a carrier in the hand says in its traits whether it follows one (the
+            # quadrotor's cascade is measured behind a still target only).
+            why = (
+                "its traits say it follows no moving target"
+                if self.carrier.traits.camera_in_hand
+                else "the fixed camera's loop moves the target itself"
+            )
             raise ValueError(
-                f"target_motion {type(self.target_motion).__name__}() needs a camera in the "
-                "hand (carrier FreeRig or Arm): the fixed camera's loop moves the target "
-                f"itself, got carrier {type(self.carrier).__name__}()"
+                f"target_motion {type(self.target_motion).__name__}() needs a carrier that "
+                f"follows a moving target (carrier FreeRig or Arm): {why}, got carrier "
+                f"{type(self.carrier).__name__}()"
             )
         if (
             self.moving_target
@@ -381,10 +399,13 @@ class ScenarioConfig:
 
     @property
     def X_RC(self) -> RigidTransform:
-        """X_RC, the camera frame's pose on the free rig (:class:`FreeRig`'s
-        ``camera_offset``); the identity for another carrier."""
+        """X_RC, the camera frame's pose on the free body that carries it
+        (:class:`FreeRig`'s ``camera_offset``, :class:`Quadrotor`'s ``mount``); the
+        identity for another carrier."""
         if isinstance(self.carrier, FreeRig):
             return self.carrier.camera_offset.to_rigid_transform()
+        if isinstance(self.carrier, Quadrotor):
+            return self.carrier.X_RC
         return RigidTransform()
 
     @property

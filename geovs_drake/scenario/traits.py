@@ -33,7 +33,9 @@ class CarrierTraits:
     target. ``batch_kernel``: the batch engine integrates it. ``gain_scale``: it has a
     ``gain_scale`` field that scales the law's gains (``auto``: fitted by the resolver).
     ``effort_limits``: its dynamic plant clamps torques at effort limits (the effort
-    check applies). ``takes``: what it takes on each plant (by the plant's name)."""
+    check applies). ``takes``: what it takes on each plant (by the plant's name).
+    ``energy_exclusion``: why Appendix C's energy argument does not cover a loop on this
+    carrier, in a phrase (the run's ``energy_guarantee`` is then null with it), or empty."""
 
     camera_in_hand: bool
     joints: bool
@@ -44,6 +46,7 @@ class CarrierTraits:
     gain_scale: bool
     effort_limits: bool
     takes: tuple[tuple[str, str], ...]
+    energy_exclusion: str = ""
 
 
 @dataclass(frozen=True)

@@ -91,6 +91,10 @@ def energy_exclusions(resolved: ResolvedScenario) -> list[str]:
     the work the argument counts on). The warning lines and the run's line say the same."""
     config = resolved.config
     out = []
+    # A carrier that breaks the argument by what it is (the quadrotor's cascade) says so
+    # in its traits.
+    if config.carrier.traits.energy_exclusion:
+        out.append(config.carrier.traits.energy_exclusion)
     if config.moving_target:
         if config.target_motion.feedforward != "known":
             out.append("behind a moving target it needs the known twist")
@@ -272,6 +276,9 @@ class SimulationResult:
     #: A moving target's end [s], where it stops (its trajectory's last knot; inf for a
     #: constant twist), as the run's TargetMotion had it; else None.
     target_end_time: float | None = None
+    #: The carrier's own entries in :meth:`summary` (``CarrierParts.run_entries``: the
+    #: quadrotor's rotor saturation and peak tilt); empty for the others.
+    carrier_entries: dict = field(default_factory=dict)
 
     @property
     def config(self) -> ScenarioConfig:
@@ -508,6 +515,7 @@ class SimulationResult:
         }
         out |= self._target_entries() | self._camera_entries() | self._effort_entries()
         out["radius_error"] = radius_error_of(self.config.sensor)
+        out |= self.carrier_entries
         if self.arm is not None:
             out.update(self.arm.summary())
         out |= self._step_entries()

@@ -260,6 +260,9 @@ def _report(loop: Loop, simulator, monitor, wall: float, failure: str | None) ->
         target_end_time=(
             loop.diagram.GetSubsystemByName("target_motion").end_time() if moving else None
         ),
+        carrier_entries=(
+            {} if loop.carrier.run_entries is None else loop.carrier.run_entries(root, states)
+        ),
     )
     # The notes the message carries: the energy's where it does not cover the start
     # (the result's energy_guarantee), the planner's, the saddle's.

@@ -10,6 +10,7 @@ __getattr__, __dir__, __all__ = attach(
     __name__,
     {
         "arm_camera": ("ArmCamera", "ArmCamera_"),
+        "attitude_cascade": ("AttitudeCascade", "AttitudeCascade_"),
         "feature_extractor": ("FeatureExtractor", "FeatureExtractor_"),
         "fixed_camera_kinematic_mount": ("FixedCameraKinematicMount", "FixedCameraKinematicMount_"),
         "fixed_camera_mount": ("FixedCameraMount", "FixedCameraMount_"),
@@ -20,6 +21,7 @@ __getattr__, __dir__, __all__ = attach(
         "kinematic_arm": ("KinematicArm", "KinematicArm_"),
         "kinematic_controller": ("KinematicController", "KinematicController_"),
         "kinematic_rigid_body": ("KinematicRigidBody", "KinematicRigidBody_"),
+        "level_view": ("LevelView", "LevelView_"),
         "navigation_controller": ("NavigationController", "NavigationController_"),
         "path_following_controller": ("PathFollowingController", "PathFollowingController_"),
         "pbvs_controller": ("PbvsController", "PbvsController_"),

@@ -6,12 +6,13 @@ damps, its own state for the loggers) and what it *takes* (a wrench through
 :attr:`CarrierParts.connect_force`, or a twist at :attr:`CarrierParts.twist_input`).
 :data:`CARRIERS` registers one factory per carrier variant and plant
 (:func:`carrier_key`: the types of ``config.carrier`` and ``config.plant``). Each carrier
-is a module of its own (:mod:`.free_rig`, :mod:`.fixed_camera`, :mod:`.arm`) that holds
+is a module of its own (:mod:`.free_rig`, :mod:`.fixed_camera`, :mod:`.arm`,
+:mod:`.quadrotor`) that holds
 its factories and their ``ENTRIES``; adding a carrier is one variant with its traits
 (:mod:`geovs_drake.scenario.carriers`), one module here and its line below.
 """
 
-from geovs_drake.loop.carriers import arm, fixed_camera, free_rig
+from geovs_drake.loop.carriers import arm, fixed_camera, free_rig, quadrotor
 from geovs_drake.loop.carriers.arm import add_arm_scene, world_view_meshcat
 from geovs_drake.loop.carriers.parts import (
     RIG_BODY_NAME,
@@ -41,4 +42,5 @@ CARRIERS: dict[tuple[type, type], CarrierFactory] = {
     **free_rig.ENTRIES,
     **fixed_camera.ENTRIES,
     **arm.ENTRIES,
+    **quadrotor.ENTRIES,
 }
