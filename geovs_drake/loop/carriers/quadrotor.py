@@ -1,5 +1,5 @@
 """The quadrotor, eye-in-hand: a MultibodyPlant free body under gravity, pushed by four of
-Drake's ``Propeller``s, whose thrusts the NF's wrench sets through an attitude cascade
+Drake's ``Propeller`` systems, whose thrusts the NF's wrench sets through an attitude cascade
 (:class:`~geovs_drake.systems.AttitudeCascade`)."""
 
 from __future__ import annotations
