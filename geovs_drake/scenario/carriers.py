@@ -199,7 +199,7 @@ LEVEL_TOLERANCE_RAD = 1e-4
 class Quadrotor:
     """A quadrotor that carries the camera: a free body of ``mass`` [kg] and principal
     inertia ``inertia_diagonal`` [kg m^2] about its centre of mass (Drake's quadrotor
-    example's), driven by four of Drake's ``Propeller``s in a + at ``arm_length`` [m]
+    example's), driven by four of Drake's ``Propeller`` systems in a + at ``arm_length`` [m]
     from the centre, each a thrust in [0, ``max_rotor_thrust``] [N] along the body's z
     and a drag moment of ``moment_ratio`` [m] times it about z (alternating signs).
     Gravity is on. The camera rides at ``mount`` (:data:`QUADROTOR_MOUNTS`: ``forward``
