@@ -21,9 +21,9 @@ the last command between.
 
 Why its own predictor, not :class:`~geovs_drake.systems.FramePredictor`: that system
 keeps the camera's pose at its own clock's frame times, which in another process are
-not the station's; :class:`FrameTracker` keeps the joints of the last statuses by
-their ``utime``, takes the camera's pose at the frame's capture ``utime`` from them,
-then predicts with the same kernel,
+not the station's; :class:`~geovs_drake.hardware.link.FrameTracker` keeps the joints of
+the last statuses by their ``utime``, takes the camera's pose at the frame's capture
+``utime`` from them, then predicts with the same kernel,
 :func:`~geovs_drake.geometry.prediction.predicted_image`.
 """
 
@@ -53,11 +53,6 @@ from geovs_drake.hardware.images import (
     subscribe_images,
 )
 from geovs_drake.hardware.link import (
-    LATENCY_BIN_MS,
-    LATENCY_BINS,
-    LINK_FIELDS,
-    POSE_HISTORY,
-    STOP_REASONS,
     CommandPublisher,
     FrameTracker,
     JointVelocityLaw,
@@ -84,25 +79,14 @@ from geovs_drake.systems import (
 from geovs_drake.systems._parameters import POSE_SIZE
 from geovs_drake.systems.arm_model import ArmModel, arm_plant
 
-__all__ = [
-    "LATENCY_BINS",
-    "LATENCY_BIN_MS",
-    "LINK_FIELDS",
-    "POSE_HISTORY",
-    "STOP_REASONS",
-    "CommandPublisher",
-    "Controller",
-    "FrameTracker",
-    "JointVelocityLaw",
-    "StatusDecoder",
-    "build_controller",
-]
+__all__ = ["Controller", "build_controller"]
 
 
 @dataclass
 class Controller:
     """A built controller: its ``diagram``, the scenario it believes, the
-    ``tracker`` (:class:`FrameTracker`), the ``publisher`` (:class:`CommandPublisher`),
+    ``tracker`` (:class:`~geovs_drake.hardware.link.FrameTracker`), the ``publisher``
+    (:class:`~geovs_drake.hardware.link.CommandPublisher`),
     the ``navigation`` controller and the ``law`` (the scenario's law's system, from
     the loop's registry :data:`~geovs_drake.loop.laws.LAWS`: for the NF,
     ImageJacobianForce in torque mode, KinematicController in velocity mode); with the

@@ -23,13 +23,8 @@ from geovs_drake.hardware.config import (
     load_hardware,
     split_station_file,
 )
-from geovs_drake.hardware.controller import (
-    LATENCY_BIN_MS,
-    LINK_FIELDS,
-    STOP_REASONS,
-    Controller,
-    build_controller,
-)
+from geovs_drake.hardware.controller import Controller, build_controller
+from geovs_drake.hardware.link import LATENCY_BIN_MS, LINK_FIELDS, STOP_REASONS
 from geovs_drake.hardware.station import Station, build_station
 from geovs_drake.loop import ResolvedScenario, resolve
 from geovs_drake.scenario import ScenarioConfig, load_scenario
