@@ -102,6 +102,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_rendered.py
 	$(BIN)/python benchmarks/bench_arm.py
 	$(BIN)/python benchmarks/bench_moving_target.py
+	$(BIN)/python benchmarks/bench_quadrotor.py
 	$(BIN)/python benchmarks/bench_linearize.py
 	$(BIN)/python benchmarks/bench_sweep.py overhead
 	$(BIN)/python benchmarks/time_to_converge.py
