@@ -321,6 +321,52 @@ def test_the_kinematic_arm_moves_the_camera_with_the_commanded_twist():
     assert np.allclose(np.concatenate([Omega, V]), nu, atol=1e-7)
 
 
+def test_the_arm_systems_kept_kinematics_follow_the_state():
+    """The arm systems keep their last state's kinematics (one forward kinematics a state,
+    shared by their ports): one context moved to another state and back, and a second
+    context between, read their own state's camera pose (and, on the dynamic arm, its
+    spatial velocity) as Drake's forward kinematics give it, and the kinematic arm's
+    qdot is the one a fresh system gives."""
+    from geovs_drake.systems import ArmCamera, KinematicArm
+
+    model = arm_model(_arm())
+    plant = arm_plant(model)
+    pc = plant.CreateDefaultContext()
+    camera, world = plant.GetFrameByName(CAMERA_FRAME), plant.world_frame()
+    qa = np.array([0.3, -1.2, 1.4, -1.6, -1.5, 0.4])
+    qb = qa + np.array([0.2, 0.1, -0.3, 0.25, 0.15, -0.2])
+    v = np.array([0.05, -0.04, 0.06, 0.03, -0.05, 0.04])
+    nu = np.array([0.05, -0.02, 0.03, 0.01, 0.02, -0.015])
+
+    def truth(q):
+        plant.SetPositionsAndVelocities(pc, np.concatenate([q, v]))
+        X = camera.CalcPoseInWorld(pc)
+        V = camera.CalcSpatialVelocity(pc, world, world)
+        pose = np.concatenate([X.rotation().ToQuaternion().wxyz(), X.translation()])
+        return pose, np.concatenate([pose, V.rotational(), V.translational()])
+
+    def qdot_fresh(q):
+        arm = KinematicArm(model=model, q0=q)
+        context = arm.CreateDefaultContext()
+        arm.camera_velocity_input.FixValue(context, nu)
+        return arm.EvalTimeDerivatives(context).CopyToVector()
+
+    kinematic, dynamic = KinematicArm(model=model, q0=qa), ArmCamera(model=model)
+    contexts = [(kinematic.CreateDefaultContext(), dynamic.CreateDefaultContext()) for _ in "ab"]
+    for k_context, d_context in contexts:
+        kinematic.camera_velocity_input.FixValue(k_context, nu)
+        dynamic.wrench_C_input.FixValue(d_context, np.zeros(6))
+    for i, q in [(0, qa), (0, qb), (1, qa), (0, qa), (1, qb), (0, qb)]:
+        k_context, d_context = contexts[i]
+        kinematic.set_joints(k_context, q)
+        dynamic.arm_state_input.FixValue(d_context, np.concatenate([q, v]))
+        pose, state = truth(q)
+        assert np.allclose(kinematic.camera_pose_output.Eval(k_context), pose, atol=1e-14)
+        assert np.allclose(dynamic.camera_state_output.Eval(d_context), state, atol=1e-14)
+        qdot = kinematic.EvalTimeDerivatives(k_context).CopyToVector()
+        assert np.allclose(qdot, qdot_fresh(q), rtol=1e-12, atol=1e-15)
+
+
 def test_the_singular_zone_s_damping_is_the_singularity_robust_inverse():
     """At a configuration near the wrist singularity (wrist 2 at 0.01 rad) qdot is
     J^T (J J^T + lambda^2 I)^-1 nu with lambda^2 = mu^2 + m^2 - sigma_min^2, written here

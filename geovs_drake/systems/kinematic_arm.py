@@ -87,11 +87,16 @@ def KinematicArm_(T):
             self._plant = arm_plant(model, T)
             self._context = self._plant.CreateDefaultContext()
             self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
+            # The last joints' kinematics (float only): (q, camera_pose, J_C), shared by
+            # camera_pose and the derivatives, which the simulator evaluates at the same
+            # q within a step (:meth:`_kinematics`).
+            self._last: tuple | None = None
             float_plant = arm_plant(model)
             lower = float_plant.GetPositionLowerLimits()
             upper = float_plant.GetPositionUpperLimits()
             self._q_mid = np.where(np.isfinite(lower + upper), 0.5 * (lower + upper), 0.0)
             nq = float_plant.num_positions()
+            self._eye_twist, self._eye_joints = np.eye(6), np.eye(nq)
             q0 = np.zeros(nq) if q0 is None else np.asarray(q0, dtype=float)
             self._defaults = (model, q0, mu, null_space_gain, singularity_damping)
             limits = float_plant.GetVelocityUpperLimits()
@@ -122,28 +127,38 @@ def KinematicArm_(T):
             """Set the state to the joint configuration ``q`` in ``context``."""
             context.SetContinuousState(np.asarray(q, dtype=float))
 
-        def _set(self, context) -> np.ndarray:
+        def _kinematics(self, context) -> tuple:
+            """``(q, camera_pose, J_C)`` at the state's q: for float computed once per q
+            and kept (the derivatives and ``camera_pose`` read the same q within a step,
+            and the plant's own kinematics cache in its private context survives while
+            its positions are not set again); for AutoDiffXd computed on every call."""
             q = context.get_continuous_state_vector().CopyToVector()
+            key = q.tobytes() if T is float else None  # the exact values, compared in 0.1 us
+            last = self._last
+            if last is not None and key == last[0]:
+                return last[1]
             self._plant.SetPositions(self._context, q)
-            return q
+            X_WC = self._camera.CalcPoseInWorld(self._context)
+            pose = np.concatenate([X_WC.rotation().ToQuaternion().wxyz(), X_WC.translation()])
+            J = camera_jacobian(self._plant, self._context, self._camera)
+            kinematics = (q, pose, J)
+            if T is float:
+                self._last = (key, kinematics)
+            return kinematics
 
         def CalcArmPosition(self, context, output) -> None:
             output.SetFromVector(context.get_continuous_state_vector().CopyToVector())
 
         def CalcCameraPose(self, context, output) -> None:
-            self._set(context)
-            X_WC = self._camera.CalcPoseInWorld(self._context)
-            q = X_WC.rotation().ToQuaternion()
-            output.SetFromVector(np.concatenate([[q.w(), q.x(), q.y(), q.z()], X_WC.translation()]))
+            output.SetFromVector(self._kinematics(context)[1])
 
         def _unscaled(self, context) -> tuple[np.ndarray, np.ndarray]:
             """(qdot before the velocity scaling, the velocity limits)."""
-            q = self._set(context)
+            q, _, J = self._kinematics(context)
             p = param_vector(context, self._params_index, T)
-            J = camera_jacobian(self._plant, self._context, self._camera)
             nu = self.camera_velocity_input.Eval(context)
-            J_pinv = J.T @ inv(J @ J.T + self._damping(J, p) * np.eye(6))
-            null = np.eye(len(q)) - J_pinv @ J
+            J_pinv = J.T @ inv(J @ J.T + self._damping(J, p) * self._eye_twist)
+            null = self._eye_joints - J_pinv @ J
             return J_pinv @ nu + p[_NULL_GAIN] * (null @ (self._q_mid - q)), p[_LIMITS]
 
         def _damping(self, J: np.ndarray, p: np.ndarray):
@@ -152,15 +167,18 @@ def KinematicArm_(T):
             lam2 = p[_MU] ** 2
             if m <= 0:
                 return lam2
-            values = np.array([[x if T is float else x.value() for x in row] for row in J])
+            values = J if T is float else np.array([[x.value() for x in row] for row in J])
             sigma = np.linalg.svd(values, compute_uv=False)[min(values.shape) - 1]
             return lam2 + (m**2 - sigma**2 if sigma < m else 0.0)
 
         def _scale(self, qdot: np.ndarray, limits: np.ndarray) -> float:
             """s: 1, or what brings the fastest joint to its limit (a constant factor
             for AutoDiffXd: the derivative of the clip where it acts is not wanted)."""
-            value = np.array([x if T is float else x.value() for x in qdot], dtype=float)
-            bound = np.array([x if T is float else x.value() for x in limits], dtype=float)
+            if T is float:
+                value, bound = qdot, limits
+            else:
+                value = np.array([x.value() for x in qdot], dtype=float)
+                bound = np.array([x.value() for x in limits], dtype=float)
             ratio = np.max(np.abs(value) / bound)
             return 1.0 if ratio <= 1.0 else 1.0 / ratio
 

@@ -92,10 +92,10 @@ def _joint_limits(model: ArmModel) -> Callable[[np.ndarray], str | None]:
 
     def limit_check(x: np.ndarray) -> str | None:
         q = np.asarray(x[:nq])
-        outside = np.flatnonzero((q < lower) | (q > upper))
-        if len(outside) == 0:
+        outside = (q < lower) | (q > upper)
+        if not outside.any():  # the monitor's every step: the common case first
             return None
-        i = int(outside[0])
+        i = int(np.flatnonzero(outside)[0])
         name = names[i] if len(names) == nq else f"joint {i}"
         return f"joint limit: {name} = {q[i]:.4g} rad outside [{lower[i]:.4g}, {upper[i]:.4g}]"
 
