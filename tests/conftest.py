@@ -7,10 +7,14 @@
   the default with one axis changed, ``kinematic_config`` (``plant=Kinematic()``),
   ``pinhole_config`` (``sensor=Pinhole()``), ``fixed_camera_config``
   (``carrier=FixedCamera()``) and ``arm_config`` (``carrier=Arm()``).
+* ``lcm_url(transport)``: an LCM bus for the hardware tests, ``memq://`` in this process
+  or a UDP multicast URL on a port nothing is bound to (``ttl=0``: this machine only).
 """
 
 from __future__ import annotations
 
+import random
+import socket
 import subprocess as _subprocess
 import sys
 from collections.abc import Callable
@@ -19,6 +23,37 @@ from typing import NamedTuple
 import pytest
 
 from geovs_drake.scenario import Arm, FixedCamera, Kinematic, Pinhole, ScenarioConfig
+
+#: The multicast group the UDP buses use (LCM's default) and the range their ports are
+#: drawn from.
+LCM_GROUP, LCM_PORT_RANGE = "239.255.76.67", (20000, 60000)
+
+
+def _free_udp_port() -> int:
+    """A UDP port in LCM_PORT_RANGE that nothing is bound to (a bind without SO_REUSEADDR
+    fails where an LCM socket, which sets it, already listens)."""
+    rng = random.Random()
+    for _ in range(100):
+        port = rng.randint(*LCM_PORT_RANGE)
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            try:
+                s.bind(("", port))
+            except OSError:
+                continue
+        return port
+    raise RuntimeError(f"no free UDP port in {LCM_PORT_RANGE}")
+
+
+@pytest.fixture
+def lcm_url() -> Callable[[str], str]:
+    """``lcm_url("memq")``: the in-process bus; ``lcm_url("udpm")``: a fresh UDP bus."""
+
+    def url(transport: str) -> str:
+        if transport == "memq":
+            return "memq://"
+        return f"udpm://{LCM_GROUP}:{_free_udp_port()}?ttl=0"
+
+    return url
 
 
 @pytest.fixture

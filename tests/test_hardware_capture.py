@@ -14,8 +14,6 @@ scenario, where a frame stamped when it was sent had sent the arm 1.05 m off by 
 from __future__ import annotations
 
 import importlib.metadata
-import random
-import socket
 
 import numpy as np
 import pytest
@@ -44,8 +42,6 @@ RENDERED = "sensor: !Rendered {latency_frames: 1}"
 #: exceeds the kernel's default UDP receive buffer (212 kB) and is dropped whole
 #: (docs/hardware.md).
 RENDERED_UDP = "sensor: !Rendered {latency_frames: 1, resolution: [160, 120]}"
-#: The multicast group (LCM's default) and the range a free port is drawn from.
-GROUP, PORT_RANGE = "239.255.76.67", (20000, 60000)
 #: The run [s]: the arm moving from the second frame on (a frame's motion below must
 #: exceed the tolerance many times over, or the test could not tell the stamps apart).
 RUN_S = {"pinhole": 0.5, "rendered": 0.3}
@@ -66,24 +62,6 @@ MOTION_FACTOR, MOVING_FRAMES = 5.0, 3
 SIMULATE_MATCH_M = 3e-3
 
 
-def free_port() -> int:
-    """A UDP port in PORT_RANGE that nothing is bound to."""
-    rng = random.Random()
-    for _ in range(100):
-        port = rng.randint(*PORT_RANGE)
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-            try:
-                s.bind(("", port))
-            except OSError:
-                continue
-        return port
-    raise RuntimeError(f"no free UDP port in {PORT_RANGE}")
-
-
-def _url(transport: str) -> str:
-    return "memq://" if transport == "memq" else f"udpm://{GROUP}:{free_port()}?ttl=0"
-
-
 def _heard_y(kind: str, setup, data: bytes) -> tuple[int, np.ndarray, int]:
     """A message's stamp [us], its y (the pinhole's own; the image's, extracted here
     by the controller's kernel on the believed camera) and its index (-1: none)."""
@@ -102,8 +80,8 @@ def _heard_y(kind: str, setup, data: bytes) -> tuple[int, np.ndarray, int]:
     return message.header.utime, np.asarray(y), -1
 
 
-def _run(kind: str, transport: str):
-    """The lockstep run of ``kind`` on ``transport``: the exact camera's y at each
+def _run(kind: str, transport: str, url: str):
+    """The lockstep run of ``kind`` on ``transport`` (its bus ``url``): the exact camera's y at each
     capture time, the frames heard (stamp, y, index), the setup, the camera's distance
     from the goal at the end, the camera's period and y's tolerance."""
     scenario = PINHOLE if kind == "pinhole" else RENDERED
@@ -115,7 +93,7 @@ def _run(kind: str, transport: str):
         [("test", {"initial": SMALL_MOVE, "duration": run_s}), ("sensor", scenario)],
         {"lcm_url": "memq://", "real_time_rate": 0.0},
     )
-    lcm = DrakeLcm(_url(transport))
+    lcm = DrakeLcm(url)
     heard: list[bytes] = []
     channels = setup.hardware.channels
     lcm.Subscribe(channels.camera if kind == "pinhole" else channels.image, heard.append)
@@ -161,8 +139,8 @@ def _simulated_error(setup, t: float) -> float:
 
 
 @pytest.mark.parametrize("transport", ["memq", "udpm"])
-def test_a_pinhole_frame_carries_its_capture_time(transport):
-    truth, frames, setup, error, period, tol = _run("pinhole", transport)
+def test_a_pinhole_frame_carries_its_capture_time(transport, lcm_url):
+    truth, frames, setup, error, period, tol = _run("pinhole", transport, lcm_url(transport))
     _check_stamps("pinhole", truth, frames, period, tol, complete=transport == "memq")
     if transport == "memq":  # in lockstep on memq the loop is simulate's
         expected = _simulated_error(setup, RUN_S["pinhole"])
@@ -170,6 +148,6 @@ def test_a_pinhole_frame_carries_its_capture_time(transport):
 
 
 @pytest.mark.parametrize("transport", ["memq", "udpm"])
-def test_a_rendered_frame_carries_its_capture_time(transport):
-    truth, frames, _setup, _error, period, tol = _run("rendered", transport)
+def test_a_rendered_frame_carries_its_capture_time(transport, lcm_url):
+    truth, frames, _setup, _error, period, tol = _run("rendered", transport, lcm_url(transport))
     _check_stamps("rendered", truth, frames, period, tol, complete=transport == "memq")

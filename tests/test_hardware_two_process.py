@@ -23,9 +23,7 @@ import importlib.metadata
 import json
 import math
 import os
-import random
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -47,9 +45,6 @@ pytestmark = pytest.mark.slow
 
 #: The issue's small move.
 SMALL_MOVE = "--initial=0.05,-0.03,-0.55,0.1,-0.05,0.3"
-#: The multicast group (LCM's default) and the range the port is drawn from.
-GROUP = "239.255.76.67"
-PORT_RANGE = (20000, 60000)
 #: The issue's must-show: a 30 s run, more than this many commands received.
 RUN_S = 30.0
 MIN_COMMANDS = 1000
@@ -71,21 +66,6 @@ SINGLE_THREAD = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS
 SLACK_S = 60.0
 #: Time [s] the listener waits for a message in one call.
 POLL_MS = 50
-
-
-def free_port() -> int:
-    """A UDP port in PORT_RANGE nothing is bound to (a bind without SO_REUSEADDR fails
-    where an LCM socket, which sets it, already listens)."""
-    rng = random.Random()
-    for _ in range(100):
-        port = rng.randint(*PORT_RANGE)
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-            try:
-                s.bind(("", port))
-            except OSError:
-                continue
-        return port
-    raise RuntimeError(f"no free UDP port in {PORT_RANGE}")
 
 
 def _cli(*args: str) -> list[str]:
@@ -147,6 +127,7 @@ class BusListener:
 
 
 def _run_pair(
+    url: str,
     duration: float,
     kill_after: float | None = None,
     station_args: tuple = (),
@@ -154,10 +135,9 @@ def _run_pair(
     initial: str = SMALL_MOVE,
 ):
     """Controller, then station (``station_args`` added, ``both_args`` to both, from
-    ``initial``), on a fresh port; the controller killed once commands have been heard
-    for ``kill_after`` [s]; the station's and the controller's exit codes, JSON and
-    stderr, this process's listener, and the wall time."""
-    url = f"udpm://{GROUP}:{free_port()}?ttl=0"
+    ``initial``), on the bus ``url`` (a fresh UDP port); the controller killed once
+    commands have been heard for ``kill_after`` [s]; the station's and the controller's
+    exit codes, JSON and stderr, this process's listener, and the wall time."""
     listener = BusListener(url)
     start = time.monotonic()
     deadline = start + duration + SLACK_S
@@ -183,9 +163,9 @@ def _run_pair(
     return station_out, controller_out, listener, time.monotonic() - start
 
 
-def test_a_30_s_two_process_run_converges_in_real_time():
+def test_a_30_s_two_process_run_converges_in_real_time(lcm_url):
     (rc, station, err), (rc_c, controller, _err_c), listener, wall = _run_pair(
-        RUN_S, station_args=("--command-timeout", str(CONVERGE_COMMAND_TIMEOUT_S))
+        lcm_url("udpm"), RUN_S, station_args=("--command-timeout", str(CONVERGE_COMMAND_TIMEOUT_S))
     )
     print(f"\nstation {station}\ncontroller {controller}")
     print(f"heard {listener.seen}, rates {listener.rates()} Hz, wall {wall:.1f} s")
@@ -205,8 +185,10 @@ def test_a_30_s_two_process_run_converges_in_real_time():
     )
 
 
-def test_killing_the_controller_holds_the_arm_and_it_stops():
-    (rc, station, err), (rc_c, _c, _e), listener, wall = _run_pair(RUN_S, COMMANDING_BEFORE_KILL_S)
+def test_killing_the_controller_holds_the_arm_and_it_stops(lcm_url):
+    (rc, station, err), (rc_c, _c, _e), listener, wall = _run_pair(
+        lcm_url("udpm"), RUN_S, COMMANDING_BEFORE_KILL_S
+    )
     print(f"\nstation {station}\nheard {listener.seen}, wall {wall:.1f} s")
     assert rc_c == -signal.SIGKILL
     assert station["status"] == "command_lost", (station, err)
@@ -232,8 +214,9 @@ OTHER_START = "--initial=-0.06,0.04,-0.5,-0.1,0.08,-0.25"
 
 
 @pytest.mark.parametrize("start", [SMALL_MOVE, OTHER_START])
-def test_a_pinhole_a_frame_late_converges_between_two_processes(start):
+def test_a_pinhole_a_frame_late_converges_between_two_processes(start, lcm_url):
     (rc, station, err), (rc_c, controller, err_c), listener, wall = _run_pair(
+        lcm_url("udpm"),
         LATENCY_RUN_S,
         station_args=("--command-timeout", str(CONVERGE_COMMAND_TIMEOUT_S)),
         both_args=LATENCY,
