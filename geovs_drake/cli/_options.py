@@ -244,6 +244,18 @@ def add_field(
     )
 
 
+def add_goal(p: argparse.ArgumentParser) -> None:
+    """``--goal``: the goal camera pose X_BC* (``goal``), as a pose."""
+    add_field(
+        p,
+        "--goal",
+        ("goal",),
+        "goal camera pose X_BC* in the target frame [m, rad]",
+        type=pose_arg,
+        metavar="x,y,z,roll,pitch,yaw",
+    )
+
+
 class _VariantField(_ScenarioFlag):
     """Appends ``(flag, apply, value)`` to ``args.variant_fields``, in command-line order."""
 

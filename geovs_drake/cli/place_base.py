@@ -11,11 +11,10 @@ from geovs_drake.cli._options import (
     EXIT_CONVERGED,
     add_command,
     add_config,
-    add_field,
+    add_goal,
     add_json,
     add_variant_flag,
     load_layers,
-    pose_arg,
 )
 from geovs_drake.scenario import CARRIER_VARIANTS, ScenarioConfig, variant_name
 
@@ -43,14 +42,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "(default: the config's arm)",
         metavar="default|panda|PATH",
     )
-    add_field(
-        p,
-        "--goal",
-        ("goal",),
-        "goal camera pose X_BC* in the target frame [m, rad]",
-        type=pose_arg,
-        metavar="x,y,z,roll,pitch,yaw",
-    )
+    add_goal(p)
     add_json(p)
     p.set_defaults(func=run)
 

@@ -15,6 +15,7 @@ from geovs_drake.cli._options import (
     add_command,
     add_config,
     add_field,
+    add_goal,
     add_json,
     add_latency_frames,
     add_variant_field,
@@ -127,14 +128,7 @@ def _add_pose_flags(p: argparse.ArgumentParser) -> None:
         type=twist_arg,
         metavar="wx,wy,wz,vx,vy,vz",
     )
-    add_field(
-        p,
-        "--goal",
-        ("goal",),
-        "goal camera pose X_BC* in the target frame [m, rad]",
-        type=pose_arg,
-        metavar="x,y,z,roll,pitch,yaw",
-    )
+    add_goal(p)
     add_field(p, "--duration", ("duration",), "simulated time [s]", type=float, metavar="T")
 
 
