@@ -4,8 +4,8 @@ T. Hamel and R. Mahony, "Visual servoing of an under-actuated dynamic rigid-body
 an image-based approach", IEEE Trans. Robotics and Automation 18(2), 2002: the anchor's
 law for a quadrotor. Their image feature is the centroid of the target's image on the
 unit sphere, ``q = sum_i p_i`` over unit directions p_i (Sec. III), whose kinematics
-``qdot = -Omega x q - Q V`` have Q = sum_i pi_{p_i} / |P_i| positive definite
-(pi_p = I - p p^T): the depths sit in Q only, and Q > 0 is all the law needs. Expressed
+``qdot = -Omega x q - Q V`` have ``Q = sum_i pi_{p_i} / |P_i|`` positive definite
+(``pi_p = I - p p^T``): the depths sit in Q only, and Q > 0 is all the law needs. Expressed
 in the inertial frame (the attitude measured), ``qdot_W = -Q_W v``: the rotation drops out,
 and ``delta_1 = q_W - q*_W`` with the storage ``1/2 |delta_1|^2`` is passive from v.
 
