@@ -9,6 +9,8 @@ import math
 import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.systems.framework import InputPortSelection, OutputPortSelection
+from pydrake.systems.primitives import Linearize
 
 from geovs_drake.analysis.studies.compare import (
     compared_laws,
@@ -123,6 +125,15 @@ def test_the_loop_at_hover_is_stable_and_its_depth_mode_is_the_closed_forms(dept
     assert np.abs(f(x0)).max() < 1e-9  # hover at the goal is an equilibrium
     h = 1e-6
     A = np.column_stack([(f(x0 + h * e) - f(x0 - h * e)) / (2 * h) for e in np.eye(len(x0))])
+    # Drake's Linearize (AutoDiffXd through the law; `geovs-drake linearize` uses it) agrees.
+    context.SetContinuousState(x0)
+    A_drake = Linearize(
+        diagram,
+        context,
+        input_port_index=InputPortSelection.kNoInput,
+        output_port_index=OutputPortSelection.kNoOutput,
+    ).A()
+    assert np.allclose(A_drake, A, atol=1e-4 * np.abs(A).max())
     eigenvalues = np.linalg.eigvals(A)
     near_zero = np.abs(eigenvalues) < 1e-6
     assert near_zero.sum() == 1

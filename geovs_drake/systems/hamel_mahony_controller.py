@@ -61,7 +61,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem_
 
-from geovs_drake.geometry._ops import NUMPY
+from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.camera import inverse_pose
 from geovs_drake.systems._parameters import STATE_SIZE, image_usable
 from geovs_drake.systems._template import template_system
@@ -99,14 +99,14 @@ def target_rotation(y: np.ndarray) -> np.ndarray:
     """R_CB (3 x 3) from the image alone: the marked point and the arrow, Eq. (23)'s
     rotation (:func:`~geovs_drake.geometry.camera.inverse_pose`, whose rotation needs
     neither depth nor radius)."""
-    r1, r2, r3, _ = inverse_pose(tuple(np.asarray(y, dtype=float)), 1.0, NUMPY)
+    r1, r2, r3, _ = inverse_pose(tuple(y), 1.0, namespace(y[0]))
     return np.column_stack([r1, r2, r3])
 
 
 def _level_frame(heading: np.ndarray) -> np.ndarray:
     """The level rotation whose x axis is ``heading``'s horizontal part."""
-    h = np.array([heading[0], heading[1], 0.0])
-    h = h / np.linalg.norm(h)
+    h = np.array([heading[0], heading[1], 0.0 * heading[0]])
+    h = h / (h @ h) ** 0.5
     return np.column_stack([h, np.cross(_UP, h), _UP])
 
 
@@ -226,7 +226,7 @@ def HamelMahonyController_(T):
             R_level_goal = _level_frame(R_WR_goal[:, 0])
             q_goal = R_level_goal @ self._R_RC @ self._q_goal_C
             delta_1 = R_WC @ spherical_centroid(y) - q_goal
-            c = q_goal / np.linalg.norm(q_goal)
+            c = q_goal / (q_goal @ q_goal) ** 0.5
             W_delta_1 = delta_1 + (self._w - 1.0) * (c @ delta_1) * c
             v_C = x[10:13] + np.cross(x[7:10], R @ self._p_RC)  # the camera's velocity
             F = self._k1 * self._k2 * W_delta_1 - self._mass * self._k2 * v_C
