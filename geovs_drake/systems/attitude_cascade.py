@@ -117,7 +117,7 @@ def lee_wrench(
 ) -> list:
     """(T, tau_x, tau_y, tau_z) before the allocation, for a body in the free-body state
     ``x`` (13) that should push along the thrust vector ``f_d`` [N] (in W, the weight
-    included): ``f_d`` tilt-limited (:func:`_tilt_limited`, ``tan_tilt``, the ``weight``
+    included): ``f_d`` tilt-limited (``_tilt_limited``, ``tan_tilt``, the ``weight``
     m g [N]), R_d with z_d along it and x_d in the plane of ``heading`` and z_d, and Lee,
     Leok & McClamroch's torque with ``gains`` = (k_R, k_Omega) per unit of ``inertia``
     (the principal diagonal [kg m^2]); the thrust is ``f_d . z_B``. Shared by the
