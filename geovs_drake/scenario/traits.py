@@ -35,7 +35,9 @@ class CarrierTraits:
     ``effort_limits``: its dynamic plant clamps torques at effort limits (the effort
     check applies). ``takes``: what it takes on each plant (by the plant's name).
     ``energy_exclusion``: why Appendix C's energy argument does not cover a loop on this
-    carrier, in a phrase (the run's ``energy_guarantee`` is then null with it), or empty."""
+    carrier, in a phrase (the run's ``energy_guarantee`` is then null with it), or empty.
+    ``rotors``: a law may drive its rotors itself (a law whose traits'
+    ``commands`` is ``"rotors"``, Hamel & Mahony's on the quadrotor)."""
 
     camera_in_hand: bool
     joints: bool
@@ -47,6 +49,7 @@ class CarrierTraits:
     effort_limits: bool
     takes: tuple[tuple[str, str], ...]
     energy_exclusion: str = ""
+    rotors: bool = False
 
 
 @dataclass(frozen=True)
@@ -75,7 +78,8 @@ class LawTraits:
     """What a law is. ``navigation``: the navigation function's own law (Eq. 45 or Eqs.
     18-19): its energy bound, its saddle, its model at the goal and the gain fits belong
     to it; ``commands``: what it commands a carrier (``"wrench"`` on a force-driven
-    carrier where ``navigation``, else ``"twist"``); ``plans``: it follows a planned
+    carrier where ``navigation``, ``"rotors"``: the rotor thrusts of a carrier whose
+    traits have ``rotors``, else ``"twist"``); ``plans``: it follows a planned
     image path in time (no constant-twist steady state); ``batch_kernel``: the batch
     engine runs it; ``feature_points``: it servos on image points that must stay in view
     (point IBVS), checked besides D; ``depth_label``: its field that names a variant of

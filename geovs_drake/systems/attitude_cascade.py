@@ -18,7 +18,7 @@ from pydrake.systems.framework import LeafSystem_
 from geovs_drake.systems._parameters import STATE_SIZE
 from geovs_drake.systems._template import template_system
 
-__all__ = ["AttitudeCascade", "AttitudeCascade_", "allocate", "mixer"]
+__all__ = ["AttitudeCascade", "AttitudeCascade_", "allocate", "lee_wrench", "mixer"]
 
 #: The world's up, along which the weight is compensated.
 _UP = np.array([0.0, 0.0, 1.0])
@@ -104,6 +104,36 @@ def _tilt_limited(f: np.ndarray, tan_tilt: float, weight: float) -> np.ndarray:
 
 def _unit(v: np.ndarray) -> np.ndarray:
     return v / (v @ v) ** 0.5
+
+
+def lee_wrench(
+    x: np.ndarray,
+    f_d: np.ndarray,
+    heading: np.ndarray,
+    inertia: np.ndarray,
+    gains: tuple[float, float],
+    tan_tilt: float,
+    weight: float,
+) -> list:
+    """(T, tau_x, tau_y, tau_z) before the allocation, for a body in the free-body state
+    ``x`` (13) that should push along the thrust vector ``f_d`` [N] (in W, the weight
+    included): ``f_d`` tilt-limited (``_tilt_limited``, ``tan_tilt``, the ``weight``
+    m g [N]), R_d with z_d along it and x_d in the plane of ``heading`` and z_d, and Lee,
+    Leok & McClamroch's torque with ``gains`` = (k_R, k_Omega) per unit of ``inertia``
+    (the principal diagonal [kg m^2]); the thrust is ``f_d . z_B``. Shared by the
+    attitude cascade and the laws that drive the rotors themselves (Hamel & Mahony's)."""
+    k_R, k_Omega = gains
+    R = _rotation(x[0:4])
+    Omega = R.T @ x[7:10]  # the body's rate in its own frame
+    f_d = _tilt_limited(f_d, tan_tilt, weight)
+    z_d = _unit(f_d)
+    y_d = _unit(np.cross(z_d, heading))
+    R_d = np.column_stack([np.cross(y_d, z_d), y_d, z_d])
+    E = R_d.T @ R - R.T @ R_d
+    e_R = 0.5 * np.array([E[2, 1], E[0, 2], E[1, 0]])
+    J_Omega = inertia * Omega
+    tau = inertia * (-k_R * e_R - k_Omega * Omega) + np.cross(Omega, J_Omega)
+    return [f_d @ R[:, 2], *tau]
 
 
 _ARM, _MOMENT_RATIO = 0.15, 0.0245
@@ -218,21 +248,15 @@ def AttitudeCascade_(T):
             the torque in the body frame."""
             x = self.body_state_input.Eval(context)
             force = self.generalized_force_input.Eval(context)
-            R = _rotation(x[0:4])
-            Omega = R.T @ x[7:10]  # the body's rate in its own frame
-            f_d = _tilt_limited(
+            return lee_wrench(
+                x,
                 force[3:6] - self._damping * x[10:13] + self._weight,
+                self._heading,
+                self._J,
+                (self._k_R, self._k_Omega),
                 self._tan_tilt,
                 self._weight[2],
             )
-            z_d = _unit(f_d)
-            y_d = _unit(np.cross(z_d, self._heading))
-            R_d = np.column_stack([np.cross(y_d, z_d), y_d, z_d])
-            E = R_d.T @ R - R.T @ R_d
-            e_R = 0.5 * np.array([E[2, 1], E[0, 2], E[1, 0]])
-            J_Omega = self._J * Omega
-            tau = self._J * (-self._k_R * e_R - self._k_Omega * Omega) + np.cross(Omega, J_Omega)
-            return [f_d @ R[:, 2], *tau]
 
         def CalcRotorThrusts(self, context, output) -> None:
             u, _ = allocate(self.wanted_wrench(context), self._M_inv, self._max_thrust)

@@ -19,6 +19,7 @@ from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
 from geovs_drake.loop.carriers.parts import (
     CarrierFactory,
     CarrierParts,
+    RotorDrive,
     leading_pose,
     meshcat_with_camera,
     out_of_view,
@@ -82,6 +83,73 @@ def heading_W(config: ScenarioConfig) -> np.ndarray:
     return x / np.linalg.norm(x)
 
 
+def _rotor_drive(
+    builder: DiagramBuilder, resolved: ResolvedScenario, plant: MultibodyPlant, propellers
+) -> tuple[RotorDrive, list, object]:
+    """What drives the rotors: the attitude cascade from the NF's wrench (its
+    ``connect_force``), or, where the law drives them itself (its traits' ``commands``,
+    ``"rotors"``: Hamel & Mahony's), the law, through the returned :class:`RotorDrive`
+    (``connect_force`` None then). The list holds the driver once connected."""
+    config = resolved.config
+    quad = config.carrier
+    positions, moment_ratios = rotor_layout(quad)
+    model = dict(
+        mass=quad.mass,
+        inertia_diagonal=tuple(quad.inertia_diagonal),
+        gravity=float(-plant.gravity_field().gravity_vector()[2]),
+        attitude_gains=tuple(quad.attitude_gains),
+        mixer_matrix=mixer(positions, moment_ratios),
+        max_thrust=quad.max_rotor_thrust,
+        max_tilt=float(np.radians(quad.max_tilt_deg)),
+    )
+    drivers: list[LeafSystem] = []
+
+    def drive_rotors(builder: DiagramBuilder, driver: LeafSystem) -> None:
+        builder.Connect(plant.get_state_output_port(), driver.body_state_input)
+        builder.Connect(driver.rotor_thrusts_output, propellers.get_command_input_port())
+        drivers.append(driver)
+
+    connect_force = None
+    if resolved.law.traits.commands != "rotors":
+        cascade = builder.AddNamedSystem(
+            "attitude_cascade",
+            AttitudeCascade(
+                heading_W=tuple(heading_W(config)), velocity_damping=quad.velocity_damping, **model
+            ),
+        )
+        drive_rotors(builder, cascade)
+
+        def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
+            # The NF's wrench enters the cascade, which keeps its force (in W).
+            builder.Connect(force.generalized_force_output, cascade.generalized_force_input)
+
+    return RotorDrive(drive_rotors, model), drivers, connect_force
+
+
+def _run_entries(drivers: list):
+    """The run's JSON entries: the share of logged states at which the rotors' driver (the
+    cascade or the law, ``drivers[0]``) gave anything up, and the peak tilt."""
+
+    def run_entries(root: Context, states: np.ndarray) -> dict:
+        # The allocation's verdict at each logged state (the diagram evaluated there).
+        context = root.Clone()
+        saturated = np.empty(len(states))
+        for k, x in enumerate(states):
+            context.SetContinuousState(x)
+            sub = drivers[0].GetMyContextFromRoot(context)
+            saturated[k] = drivers[0].saturated_output.Eval(sub)[0]
+        q = np.asarray(states)[:, QUATERNION]
+        q = q / np.linalg.norm(q, axis=1, keepdims=True)
+        # The body's z axis's height: 1 - 2 (qx^2 + qy^2); its angle from up is the tilt.
+        up = np.clip(1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2), -1.0, 1.0)
+        return {
+            "rotor_saturation_fraction": float(np.mean(saturated)) if len(states) else 0.0,
+            "max_tilt_deg": float(np.degrees(np.max(np.arccos(up)))) if len(states) else 0.0,
+        }
+
+    return run_entries
+
+
 def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool):
     """The quadrotor on the dynamic plant: its free body (gravity on), its propellers, the
     cascade that drives them, and the scene. With ``draws_marks`` (the camera on board
@@ -118,22 +186,7 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
     )
     builder.Connect(propellers.get_output_port(), plant.get_applied_spatial_force_input_port())
     builder.Connect(plant.get_body_poses_output_port(), propellers.get_body_poses_input_port())
-    cascade = builder.AddNamedSystem(
-        "attitude_cascade",
-        AttitudeCascade(
-            mass=quad.mass,
-            inertia_diagonal=tuple(quad.inertia_diagonal),
-            gravity=float(-plant.gravity_field().gravity_vector()[2]),
-            attitude_gains=tuple(quad.attitude_gains),
-            heading_W=tuple(heading_W(config)),
-            mixer_matrix=mixer(positions, moment_ratios),
-            max_thrust=quad.max_rotor_thrust,
-            velocity_damping=quad.velocity_damping,
-            max_tilt=float(np.radians(quad.max_tilt_deg)),
-        ),
-    )
-    builder.Connect(plant.get_state_output_port(), cascade.body_state_input)
-    builder.Connect(cascade.rotor_thrusts_output, propellers.get_command_input_port())
+    rotors, drivers, connect_force = _rotor_drive(builder, resolved, plant, propellers)
 
     # The NF reads the image of a camera on the level body, and its damping that camera's
     # velocity: a tilt then moves nothing the NF sees (LevelView's docstring).
@@ -143,27 +196,6 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
     def view(builder: DiagramBuilder, y):
         builder.Connect(y, level.image_features_input)
         return level.level_image_features_output
-
-    def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
-        # The NF's wrench enters the cascade, which keeps its force (in W).
-        builder.Connect(force.generalized_force_output, cascade.generalized_force_input)
-
-    def run_entries(root: Context, states: np.ndarray) -> dict:
-        # The allocation's verdict at each logged state (the diagram evaluated there).
-        context = root.Clone()
-        saturated = np.empty(len(states))
-        for k, x in enumerate(states):
-            context.SetContinuousState(x)
-            sub = cascade.GetMyContextFromRoot(context)
-            saturated[k] = cascade.saturated_output.Eval(sub)[0]
-        q = np.asarray(states)[:, QUATERNION]
-        q = q / np.linalg.norm(q, axis=1, keepdims=True)
-        # The body's z axis's height: 1 - 2 (qx^2 + qy^2); its angle from up is the tilt.
-        up = np.clip(1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2), -1.0, 1.0)
-        return {
-            "rotor_saturation_fraction": float(np.mean(saturated)) if len(states) else 0.0,
-            "max_tilt_deg": float(np.degrees(np.max(np.arccos(up)))) if len(states) else 0.0,
-        }
 
     return CarrierParts(
         body_pose=pose_head(builder, plant.get_state_output_port()),
@@ -179,8 +211,9 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
         plant=plant,
         scene_graph=scene_graph,
         body=body,
-        run_entries=run_entries,
+        run_entries=_run_entries(drivers),
         view=view,
+        rotors=rotors,
     )
 
 
