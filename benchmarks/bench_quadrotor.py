@@ -10,7 +10,7 @@ alternating free body, quadrotor, quadrotor on RK5), the same with
 a third of the steps), and the diagram's derivative evaluation at a new state (what the
 attitude cascade, the level view and the four propellers add to every step).
 
-    .venv/bin/python benchmarks/bench_quadrotor.py [--repeat 5] [--no-record]
+    .venv/bin/python benchmarks/bench_quadrotor.py [--repeat 5] [--no-record] [--note TEXT]
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--no-record", action="store_true", help="print only")
+    parser.add_argument("--note", default="", help="a word on the run for the record")
     args = parser.parse_args()
     free = ScenarioConfig(duration=DURATION_S)
     quad = ScenarioConfig(carrier=Quadrotor(), initial=LEVEL_START, duration=DURATION_S)
@@ -102,7 +103,7 @@ def main() -> None:
         f"steps over {DURATION_S:g} s: free body {steps['free body']}, quadrotor "
         f"{steps['quadrotor']} (runge_kutta3), {steps['quadrotor RK5']} (runge_kutta5); "
         f"median of {args.repeat} alternating rounds"
-    )
+    ) + (f"; {args.note}" if args.note else "")
     record("bench_quadrotor", "The quadrotor loop against the free body", figures, note)
 
 
