@@ -63,7 +63,8 @@ def cascade(x, f, p) -> tuple:
     o1 = r01 * x[7] + r11 * x[8] + r21 * x[9]
     o2 = r02 * x[7] + r12 * x[8] + r22 * x[9]
     # f_d = f_W - b v_W + m g e_z, its upward part at least a tenth of the weight and its
-    # horizontal part at most tan(max_tilt) times the upward.
+    # horizontal part at most tan(max_tilt) times the upward: the attitude it asks within
+    # the tilt limit (far from the goal the NF's force alone would lay the body on its side).
     f0, f1, f2 = f[0] - p[10] * x[10], f[1] - p[10] * x[11], f[2] - p[10] * x[12] + weight
     up = f2 if f2 > 0.1 * weight else 0.0 * f2 + 0.1 * weight
     horizontal = (f0 * f0 + f1 * f1) ** 0.5
