@@ -63,10 +63,10 @@ from pydrake.systems.framework import LeafSystem_
 
 from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.camera import inverse_pose
+from geovs_drake.geometry.rigid import quaternion_to_rotation
 from geovs_drake.systems._parameters import STATE_SIZE, image_usable
 from geovs_drake.systems._template import template_system
-from geovs_drake.systems.attitude_cascade import _DEFAULT_MIXER, _rotation, allocate, lee_wrench
-from geovs_drake.systems.level_view import level_rotation
+from geovs_drake.systems.attitude_cascade import _DEFAULT_MIXER, allocate, lee_wrench
 
 __all__ = [
     "HamelMahonyController",
@@ -219,8 +219,8 @@ def HamelMahonyController_(T):
 
         def thrust_vector(self, x: np.ndarray, y: np.ndarray) -> tuple:
             """The thrust vector F + m g e_z [N] in W (step 2) and the heading (step 4)."""
-            R = _rotation(x[0:4])
-            R_WC = level_rotation(R)[0] @ self._R_RC  # the level camera C' of y
+            R = np.reshape(quaternion_to_rotation(tuple(x[0:4]), namespace(x[0])), (3, 3))
+            R_WC = _level_frame(R[:, 0]) @ self._R_RC  # the level camera C' of y
             # Step 4: the body's attitude at the goal, as the image shows the target now.
             R_WR_goal = R_WC @ target_rotation(y) @ self._R_CB_goal.T @ self._R_RC.T
             R_level_goal = _level_frame(R_WR_goal[:, 0])
