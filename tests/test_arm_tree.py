@@ -19,13 +19,19 @@ from pydrake.multibody.tree import FixedOffsetFrame, JacobianWrtVariable
 
 from geovs_drake.batch.arm_tree import ArmTreeError, arm_tree
 from geovs_drake.goal.arm import arm_model
-from geovs_drake.scenario import Arm, ScenarioConfig
+from geovs_drake.scenario import Arm, Dynamic, Kinematic, ScenarioConfig
 from geovs_drake.systems.arm_model import CAMERA_FRAME, ArmError, arm_plant
 
 #: The check's tolerance: norm of the difference over the norm of Drake's.
 RELATIVE = 1e-10
 #: Random states per arm (about 0.6 s an arm once the kernels are compiled and cached).
 STATES = 1000
+#: The closed loop's check: its tolerance, states, their spread about the start [rad]
+#: and the fast states' joint speeds [rad/s] (whose torques pass the effort limits).
+RHS_RELATIVE, RHS_STATES, RHS_SPREAD, FAST_SPEED = 1e-9, 20, 0.05, 30.0
+#: The UR5's wrist angle q5 [rad] about its singularity: sigma_min(J_C) about 1e-3, inside
+#: the kinematic arm's singular zone (singularity_damping 0.05).
+WRIST_NEAR_SINGULAR = 0.01
 #: Joint velocities' scale [rad/s] of the random states.
 VELOCITY_SCALE = 2.0
 
@@ -191,3 +197,53 @@ def test_a_tree_the_kernels_cannot_take_is_refused_in_one_line(links, joints, we
         arm_tree(_plant(links, joints, weld_loop))
     assert message in str(error.value) and "\n" not in str(error.value)
     assert isinstance(error.value, ArmError) and isinstance(error.value, ValueError)
+
+
+def _loop_case(name: str, plant) -> tuple:
+    """The arm's Drake loop from its default start, and its compiled parameters."""
+    from geovs_drake.batch.arm_rhs import arm_loop_parameters
+    from geovs_drake.loop import build_loop, resolve
+
+    resolved = resolve(ScenarioConfig(carrier=ARMS[name], plant=plant))
+    return build_loop(resolved, log=False), arm_loop_parameters(resolved)
+
+
+@pytest.mark.parametrize(
+    "name, plant",
+    [
+        pytest.param("ur5", Dynamic(), id="ur5-dynamic"),
+        pytest.param("ur5", Kinematic(), id="ur5-kinematic"),
+        pytest.param("panda", Dynamic(), id="panda-dynamic", marks=NEEDS_PANDA),
+    ],
+)
+def test_the_compiled_arm_loop_is_the_drake_loops_right_hand_side(name, plant):
+    """At random states about the default start, arm_rhs is the diagram's
+    EvalTimeDerivatives to 1e-9 relative: dynamic, fast states too, whose torques ArmCamera
+    asks past the effort limits (the plant clamps them); kinematic, states whose joint
+    rates the velocity limits scale (all about this start) and, on the UR5, states by the
+    wrist's singularity (the pseudo-inverse's singular-zone damping)."""
+    from geovs_drake.batch.arm_rhs import arm_rhs
+
+    loop, parameters = _loop_case(name, plant)
+    diagram = loop.diagram
+    root = diagram.CreateDefaultContext()
+    loop.carrier.set_initial_state(root)
+    x0 = root.get_continuous_state_vector().CopyToVector()
+    assert x0.size == parameters.state_size  # the arm's state is the diagram's only one
+    rng = np.random.default_rng(45)
+    n = parameters.tree.nv
+    clamped = 0
+    for k in range(RHS_STATES):
+        x = x0 + RHS_SPREAD * rng.standard_normal(x0.size)
+        if parameters.dynamic:
+            x[n:] = (FAST_SPEED if k % 2 else 1.0) * rng.standard_normal(n)
+        elif name == "ur5" and k % 2:  # the wrist near its singularity (q5 = 0): the
+            x[4] = WRIST_NEAR_SINGULAR * rng.standard_normal()  # damping's singular zone
+        root.SetContinuousState(x)
+        truth = diagram.EvalTimeDerivatives(root).get_vector().CopyToVector()
+        assert _relative(arm_rhs(parameters, x), truth) < RHS_RELATIVE, (k, x)
+        if parameters.dynamic:
+            arm = diagram.GetSubsystemByName("arm_camera")
+            asked = arm.actuation_output.Eval(arm.GetMyContextFromRoot(root))
+            clamped += int(np.any(np.abs(asked) > parameters.tree.joint[:, 2]))
+    assert clamped > 0 or not parameters.dynamic  # the clamp's branch was taken

@@ -50,6 +50,9 @@ KIND_REVOLUTE, KIND_PRISMATIC = 0, 1
 _R, _P, _S, _V, _A, _F, _I = 0, 9, 12, 18, 24, 30, 36
 #: The workspace's width (columns per body).
 WS_COLUMNS = 49
+#: Jacobi's sweeps at most, and its stop: the squared off-diagonal over the squared
+#: diagonal (double precision's epsilon, squared).
+_JACOBI_SWEEPS, _JACOBI_TOLERANCE = 30, 1e-32
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
 
 
@@ -401,12 +404,17 @@ def min_singular_value(J, G):
             for k in range(J.shape[1]):
                 s += J[r, k] * J[c, k]
             G[r, c] = s
-    for _sweep in range(50):
+    scale = 0.0
+    for r in range(m):
+        scale += G[r, r] * G[r, r]
+    for _sweep in range(_JACOBI_SWEEPS):
         off = 0.0
         for r in range(m):
             for c in range(r + 1, m):
                 off += G[r, c] * G[r, c]
-        if off == 0.0:
+        # Converged where what is left off the diagonal is below the rounding of its
+        # largest entries (quadratic convergence: one sweep more than it takes).
+        if off <= _JACOBI_TOLERANCE * scale:
             break
         for p in range(m - 1):
             for q in range(p + 1, m):

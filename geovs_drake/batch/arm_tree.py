@@ -279,7 +279,8 @@ def _inertia_row(M: SpatialInertia) -> np.ndarray:
 
 def warm_arm_kernels() -> None:
     """Call each arm kernel once on the shipped UR5, so that numba compiles them into
-    its on-disk cache (:mod:`geovs_drake.batch.warm`)."""
+    its on-disk cache (:mod:`geovs_drake.batch.warm`;
+    :func:`~geovs_drake.batch.arm_rhs.warm_arm_loop` adds the closed loop's)."""
     from geovs_drake.systems.arm_model import default_arm_model
 
     tree = arm_tree(default_arm_model())
