@@ -138,7 +138,11 @@ def _joint(name: str, kind: str, parent: str, child: str) -> str:
 
 def _plant(links: list[str], joints: list[str], weld_loop: bool = False) -> MultibodyPlant:
     """A plant of the URDF, its base welded to the world, the camera on the last link."""
-    urdf = '<robot name="r">' + "".join(_LINK.format(n) for n in links) + "".join(joints)
+    urdf = (
+        '<robot name="r" xmlns:drake="http://drake.mit.edu">'
+        + "".join(_LINK.format(n) for n in links)
+        + "".join(joints)
+    )
     plant = MultibodyPlant(time_step=0.0)
     Parser(plant).AddModelsFromString(urdf + "</robot>", "urdf")
     plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(links[0]))
@@ -182,6 +186,13 @@ def test_a_user_tree_with_a_welded_link_is_read():
         ),
         (["a", "b"], [_joint("p", "planar", "a", "b")], False, "joint 'p' is planar"),
         (
+            ["a", "b"],
+            ['<drake:joint name="s" type="ball"><parent link="a"/><child link="b"/></drake:joint>'],
+            False,
+            "joint 's' is ball",
+        ),  # fmt: skip
+        (["a", "b"], [_joint("w", "fixed", "a", "b")], False, "'camera' is on no moving body"),
+        (
             ["a", "b", "c"],
             [_joint("j1", "revolute", "a", "b"), _joint("j2", "revolute", "a", "c")],
             False,
@@ -191,8 +202,10 @@ def test_a_user_tree_with_a_welded_link_is_read():
     ],
 )
 def test_a_tree_the_kernels_cannot_take_is_refused_in_one_line(links, joints, weld_loop, message):
-    """A floating or planar joint, a branch off the camera's chain, a closed chain: an
-    ArmTreeError (an ArmError, a ValueError: the CLI's exit 2) of one line naming it."""
+    """A floating, planar or ball joint, a camera welded to the world, a branch off the
+    camera's chain, a closed chain (a constraint: Drake's Finalize refuses a loop of
+    joints itself): an ArmTreeError (an ArmError, a ValueError: the CLI's exit 2) of one
+    line naming it."""
     with pytest.raises(ArmTreeError) as error:
         arm_tree(_plant(links, joints, weld_loop))
     assert message in str(error.value) and "\n" not in str(error.value)
@@ -214,6 +227,7 @@ def _loop_case(name: str, plant) -> tuple:
         pytest.param("ur5", Dynamic(), id="ur5-dynamic"),
         pytest.param("ur5", Kinematic(), id="ur5-kinematic"),
         pytest.param("panda", Dynamic(), id="panda-dynamic", marks=NEEDS_PANDA),
+        pytest.param("panda", Kinematic(), id="panda-kinematic", marks=NEEDS_PANDA),
     ],
 )
 def test_the_compiled_arm_loop_is_the_drake_loops_right_hand_side(name, plant):

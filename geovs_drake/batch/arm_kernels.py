@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 __all__ = [
@@ -46,14 +45,74 @@ __all__ = [
 #: Joint kinds in the tree's ``kind`` array.
 KIND_REVOLUTE, KIND_PRISMATIC = 0, 1
 # The workspace's columns per body: R_WB (9, row-major), p_WB (3), S (6), then the
-# recursions' V (6), A (6), f (6) and the composite inertia (13).
-_R, _P, _S, _V, _A, _F, _I = 0, 9, 12, 18, 24, 30, 36
+# recursions' V (6), A (6), f (6), the composite inertia (13) and a product (6).
+_R, _P, _S, _V, _A, _F, _I, _X = 0, 9, 12, 18, 24, 30, 36, 49
 #: The workspace's width (columns per body).
-WS_COLUMNS = 49
+WS_COLUMNS = 55
 #: Jacobi's sweeps at most, and its stop: the squared off-diagonal over the squared
 #: diagonal (double precision's epsilon, squared).
 _JACOBI_SWEEPS, _JACOBI_TOLERANCE = 30, 1e-32
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
+
+
+# Small fixed-size algebra on tuples, which numba keeps in registers: the kernels
+# allocate nothing per body (an array each costs more than the body's arithmetic).
+@njit(**_JIT)
+def _load9(a, i, o):
+    return (a[i, o], a[i, o + 1], a[i, o + 2], a[i, o + 3], a[i, o + 4], a[i, o + 5],
+            a[i, o + 6], a[i, o + 7], a[i, o + 8])  # fmt: skip
+
+
+@njit(**_JIT)
+def _load3(a, i, o):
+    return (a[i, o], a[i, o + 1], a[i, o + 2])
+
+
+@njit(**_JIT)
+def _mat_mat(a, b):
+    """a b for 3 x 3 row-major 9-tuples."""
+    return (
+        a[0] * b[0] + a[1] * b[3] + a[2] * b[6],
+        a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
+        a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
+        a[3] * b[0] + a[4] * b[3] + a[5] * b[6],
+        a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
+        a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
+        a[6] * b[0] + a[7] * b[3] + a[8] * b[6],
+        a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
+        a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
+    )
+
+
+@njit(**_JIT)
+def _mat_vec(a, v):
+    """a v for a 3 x 3 row-major 9-tuple and a 3-tuple."""
+    return (
+        a[0] * v[0] + a[1] * v[1] + a[2] * v[2],
+        a[3] * v[0] + a[4] * v[1] + a[5] * v[2],
+        a[6] * v[0] + a[7] * v[1] + a[8] * v[2],
+    )
+
+
+@njit(**_JIT)
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(**_JIT)
+def _joint_motion(kind, qi, ax, ay, az):
+    """X_FM(q) of a revolute (Rodrigues' rotation by q about the unit axis) or prismatic
+    (a shift by q along it) joint: (R_FM as a 9-tuple, the shift along the axis)."""
+    if kind == KIND_REVOLUTE:
+        sn, cs = math.sin(qi), math.cos(qi)
+        t = 1.0 - cs
+        R_FM = (
+            cs + t * ax * ax, t * ax * ay - sn * az, t * ax * az + sn * ay,
+            t * ax * ay + sn * az, cs + t * ay * ay, t * ay * az - sn * ax,
+            t * ax * az - sn * ay, t * ay * az + sn * ax, cs + t * az * az,
+        )  # fmt: skip
+        return R_FM, 0.0
+    return (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0), qi
 
 
 @njit(**_JIT)
@@ -63,137 +122,78 @@ def arm_forward(q, parent, index, kind, frames, axis, ws):
     (prismatic) in ``ws[i, 12:18]``. X_WB = X_WP X_PF X_FM(q) X_MB, ``frames[i]`` =
     [R_PF (9), p_PF (3), R_MB (9), p_MB (3)]; X_FM a rotation about (a translation
     along) the axis, as Drake's RevoluteJoint (PrismaticJoint)."""
-    n = parent.shape[0]
-    R_FM = np.empty(9)
-    for i in range(n):
+    for i in range(parent.shape[0]):
         p = parent[i]
-        qi = q[index[i, 0]]
-        ax, ay, az = axis[i, 0], axis[i, 1], axis[i, 2]
-        # R_WF = R_WP R_PF, p_WF = p_WP + R_WP p_PF (the world for a root joint).
-        R_WF = np.empty(9)
-        p_WF = np.empty(3)
-        for r in range(3):
-            for c in range(3):
-                if p < 0:
-                    R_WF[3 * r + c] = frames[i, 3 * r + c]
-                else:
-                    s = 0.0
-                    for k in range(3):
-                        s += ws[p, _R + 3 * r + k] * frames[i, 3 * k + c]
-                    R_WF[3 * r + c] = s
-            if p < 0:
-                p_WF[r] = frames[i, 9 + r]
-            else:
-                s = ws[p, _P + r]
-                for k in range(3):
-                    s += ws[p, _R + 3 * r + k] * frames[i, 9 + k]
-                p_WF[r] = s
-        # X_FM: Rodrigues' rotation by q about the unit axis, or a shift by q along it.
-        if kind[i] == KIND_REVOLUTE:
-            sn, cs = math.sin(qi), math.cos(qi)
-            t = 1.0 - cs
-            R_FM[0], R_FM[1], R_FM[2] = (
-                cs + t * ax * ax,
-                t * ax * ay - sn * az,
-                t * ax * az + sn * ay,
-            )
-            R_FM[3], R_FM[4], R_FM[5] = (
-                t * ax * ay + sn * az,
-                cs + t * ay * ay,
-                t * ay * az - sn * ax,
-            )
-            R_FM[6], R_FM[7], R_FM[8] = (
-                t * ax * az - sn * ay,
-                t * ay * az + sn * ax,
-                cs + t * az * az,
-            )
-            shift = 0.0
+        R_PF, p_PF = _load9(frames, i, 0), _load3(frames, i, 9)
+        if p < 0:  # a root joint: its parent frame is the world's (the base's weld in X_PF)
+            R_WF, p_WF = R_PF, p_PF
         else:
-            for k in range(9):
-                R_FM[k] = 1.0 if k % 4 == 0 else 0.0
-            shift = qi
-        # p_WM = p_WF + R_WF a q (prismatic); R_WM = R_WF R_FM; a_W = R_WF a.
-        a_W = np.empty(3)
-        p_WM = np.empty(3)
-        R_WM = np.empty(9)
-        for r in range(3):
-            a_W[r] = R_WF[3 * r] * ax + R_WF[3 * r + 1] * ay + R_WF[3 * r + 2] * az
-            p_WM[r] = p_WF[r] + a_W[r] * shift
-            for c in range(3):
-                s = 0.0
-                for k in range(3):
-                    s += R_WF[3 * r + k] * R_FM[3 * k + c]
-                R_WM[3 * r + c] = s
-        for r in range(3):
-            s = p_WM[r]
-            for k in range(3):
-                s += R_WM[3 * r + k] * frames[i, 21 + k]
-            ws[i, _P + r] = s
-            for c in range(3):
-                s = 0.0
-                for k in range(3):
-                    s += R_WM[3 * r + k] * frames[i, 12 + 3 * k + c]
-                ws[i, _R + 3 * r + c] = s
+            R_WP, p_WP = _load9(ws, p, _R), _load3(ws, p, _P)
+            R_WF = _mat_mat(R_WP, R_PF)
+            Rp = _mat_vec(R_WP, p_PF)
+            p_WF = (p_WP[0] + Rp[0], p_WP[1] + Rp[1], p_WP[2] + Rp[2])
+        a = _load3(axis, i, 0)
+        R_FM, shift = _joint_motion(kind[i], q[index[i, 0]], a[0], a[1], a[2])
+        a_W = _mat_vec(R_WF, a)
+        p_WM = (p_WF[0] + a_W[0] * shift, p_WF[1] + a_W[1] * shift, p_WF[2] + a_W[2] * shift)
+        R_WM = _mat_mat(R_WF, R_FM)
+        R_WB = _mat_mat(R_WM, _load9(frames, i, 12))
+        Rp = _mat_vec(R_WM, _load3(frames, i, 21))
+        for k in range(9):
+            ws[i, _R + k] = R_WB[k]
+        for k in range(3):
+            ws[i, _P + k] = p_WM[k] + Rp[k]
         if kind[i] == KIND_REVOLUTE:
+            m = _cross(p_WM, a_W)
             ws[i, _S], ws[i, _S + 1], ws[i, _S + 2] = a_W[0], a_W[1], a_W[2]
-            ws[i, _S + 3] = p_WM[1] * a_W[2] - p_WM[2] * a_W[1]
-            ws[i, _S + 4] = p_WM[2] * a_W[0] - p_WM[0] * a_W[2]
-            ws[i, _S + 5] = p_WM[0] * a_W[1] - p_WM[1] * a_W[0]
+            ws[i, _S + 3], ws[i, _S + 4], ws[i, _S + 5] = m[0], m[1], m[2]
         else:
             ws[i, _S], ws[i, _S + 1], ws[i, _S + 2] = 0.0, 0.0, 0.0
             ws[i, _S + 3], ws[i, _S + 4], ws[i, _S + 5] = a_W[0], a_W[1], a_W[2]
 
 
 @njit(**_JIT)
-def _body_inertia_at_O(i, inertia, ws, out, o):
-    """Body i's spatial inertia about W's origin in W into ``out[o:o+13]`` as (m, h,
+def _body_inertia_at_O(i, inertia, ws):
+    """Body i's spatial inertia about W's origin in W into ``ws[i, _I:_I+13]`` as (m, h,
     I_O): from ``inertia[i]`` = [m, p_BoBcm_B (3), I_BBo_B (9)], I_O = R I_BBo R^T +
-    m ([p_WB]x^T [p_WB]x + [p_WB]x^T [R c]x + [R c]x^T [p_WB]x) (the parallel-axis
-    theorem, shifted from Bo to O; Featherstone Eq. 2.63)."""
+    m ([p]x^T [p]x + [p]x^T [c]x + [c]x^T [p]x), p = p_WB, c = R p_BoBcm (the
+    parallel-axis theorem, shifted from Bo to O; Featherstone Eq. 2.63)."""
     m = inertia[i, 0]
-    c_W = np.empty(3)
+    R = _load9(ws, i, _R)
+    p = _load3(ws, i, _P)
+    c = _mat_vec(R, _load3(inertia, i, 1))
+    ws[i, _I] = m
     for r in range(3):
-        c_W[r] = (
-            ws[i, _R + 3 * r] * inertia[i, 1]
-            + ws[i, _R + 3 * r + 1] * inertia[i, 2]
-            + ws[i, _R + 3 * r + 2] * inertia[i, 3]
-        )
-    p = ws[i, _P : _P + 3]
-    out[o] = m
+        ws[i, _I + 1 + r] = m * (p[r] + c[r])
+    # R I_BBo R^T, then the shift: [x]x^T [y]x = (x . y) 1 - y x^T.
+    RI = _mat_mat(R, _load9(inertia, i, 4))
+    pp = p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
+    pc = p[0] * c[0] + p[1] * c[1] + p[2] * c[2]
     for r in range(3):
-        out[o + 1 + r] = m * (p[r] + c_W[r])
-    # R I_BBo R^T.
-    for r in range(3):
-        for c in range(3):
-            s = 0.0
-            for k in range(3):
-                t = 0.0
-                for l in range(3):
-                    t += inertia[i, 4 + 3 * k + l] * ws[i, _R + 3 * c + l]
-                s += ws[i, _R + 3 * r + k] * t
-            # [x]x^T [y]x = (x . y) 1 - y x^T, summed symmetrically for (p, c) and (c, p).
-            pp = p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
-            pc = p[0] * c_W[0] + p[1] * c_W[1] + p[2] * c_W[2]
-            delta = 1.0 if r == c else 0.0
-            shift = (pp + 2.0 * pc) * delta - p[r] * p[c] - c_W[r] * p[c] - p[r] * c_W[c]
-            out[o + 4 + 3 * r + c] = s + m * shift
+        for col in range(3):
+            s = (
+                RI[3 * r] * R[3 * col]
+                + RI[3 * r + 1] * R[3 * col + 1]
+                + RI[3 * r + 2] * R[3 * col + 2]
+            )
+            delta = pp + 2.0 * pc if r == col else 0.0
+            shift = delta - p[r] * p[col] - c[r] * p[col] - p[r] * c[col]
+            ws[i, _I + 4 + 3 * r + col] = s + m * shift
 
 
 @njit(**_JIT)
-def _inertia_times(I, o, V, out):
-    """out = I V for the spatial inertia (m, h, I_O) at ``I[o:o+13]`` and the motion
-    V = [w; v]: [I_O w + h x v; m v - h x w]."""
-    m = I[o]
-    h0, h1, h2 = I[o + 1], I[o + 2], I[o + 3]
-    w0, w1, w2, v0, v1, v2 = V[0], V[1], V[2], V[3], V[4], V[5]
+def _inertia_times(ws, i, o_I, o_V, o_out):
+    """ws[i, o_out:o_out+6] = I V for the spatial inertia (m, h, I_O) at ``ws[i, o_I:]``
+    and the motion V = [w; v] at ``ws[i, o_V:]``: [I_O w + h x v; m v - h x w]."""
+    m = ws[i, o_I]
+    h = _load3(ws, i, o_I + 1)
+    I_O = _load9(ws, i, o_I + 4)
+    w, v = _load3(ws, i, o_V), _load3(ws, i, o_V + 3)
+    Iw = _mat_vec(I_O, w)
+    hv, hw = _cross(h, v), _cross(h, w)
     for r in range(3):
-        out[r] = I[o + 4 + 3 * r] * w0 + I[o + 5 + 3 * r] * w1 + I[o + 6 + 3 * r] * w2
-    out[0] += h1 * v2 - h2 * v1
-    out[1] += h2 * v0 - h0 * v2
-    out[2] += h0 * v1 - h1 * v0
-    out[3] = m * v0 - (h1 * w2 - h2 * w1)
-    out[4] = m * v1 - (h2 * w0 - h0 * w2)
-    out[5] = m * v2 - (h0 * w1 - h1 * w0)
+        ws[i, o_out + r] = Iw[r] + hv[r]
+        ws[i, o_out + 3 + r] = m * v[r] - hw[r]
 
 
 @njit(**_JIT)
@@ -205,20 +205,19 @@ def mass_matrix(parent, index, inertia, joint, ws, M):
     for each ancestor j of i."""
     n = parent.shape[0]
     for i in range(n):
-        _body_inertia_at_O(i, inertia, ws, ws[i], _I)
-    F = np.empty(6)
-    for i in range(n - 1, -1, -1):
-        _inertia_times(ws[i], _I, ws[i, _S : _S + 6], F)
+        _body_inertia_at_O(i, inertia, ws)
+    for i in range(n - 1, -1, -1):  # children first: I^c_i is whole when i is reached
+        _inertia_times(ws, i, _I, _S, _X)  # F = I^c_i S_i
         vi = index[i, 1]
         s = 0.0
         for k in range(6):
-            s += ws[i, _S + k] * F[k]
+            s += ws[i, _S + k] * ws[i, _X + k]
         M[vi, vi] = s + joint[i, 1]
         j = parent[i]
         while j >= 0:
             s = 0.0
             for k in range(6):
-                s += ws[j, _S + k] * F[k]
+                s += ws[j, _S + k] * ws[i, _X + k]
             M[vi, index[j, 1]] = s
             M[index[j, 1], vi] = s
             j = parent[j]
@@ -237,43 +236,31 @@ def inverse_dynamics(v, parent, index, inertia, gravity, ws, tau):
     tau_i = S_i^T f_i with each subtree's forces summed. ``gravity`` zero gives
     Drake's bias term alone; v zero gives -tau_g alone."""
     n = parent.shape[0]
-    IV = np.empty(6)
     for i in range(n):
-        _body_inertia_at_O(i, inertia, ws, ws[i], _I)
+        _body_inertia_at_O(i, inertia, ws)
         p = parent[i]
         vi = v[index[i, 1]]
         for k in range(6):
-            base_V = 0.0 if p < 0 else ws[p, _V + k]
-            ws[i, _V + k] = base_V + ws[i, _S + k] * vi
-        w0, w1, w2 = ws[i, _V], ws[i, _V + 1], ws[i, _V + 2]
-        u0, u1, u2 = ws[i, _V + 3], ws[i, _V + 4], ws[i, _V + 5]
-        s0, s1, s2 = ws[i, _S], ws[i, _S + 1], ws[i, _S + 2]
-        t0, t1, t2 = ws[i, _S + 3], ws[i, _S + 4], ws[i, _S + 5]
+            ws[i, _V + k] = (0.0 if p < 0 else ws[p, _V + k]) + ws[i, _S + k] * vi
+        w, u = _load3(ws, i, _V), _load3(ws, i, _V + 3)
+        s, t = _load3(ws, i, _S), _load3(ws, i, _S + 3)
         # V x S = [w x s; w x t + u x s] (the motion cross product).
-        cross = (
-            w1 * s2 - w2 * s1,
-            w2 * s0 - w0 * s2,
-            w0 * s1 - w1 * s0,
-            w1 * t2 - w2 * t1 + u1 * s2 - u2 * s1,
-            w2 * t0 - w0 * t2 + u2 * s0 - u0 * s2,
-            w0 * t1 - w1 * t0 + u0 * s1 - u1 * s0,
-        )
-        for k in range(6):
+        w_s, w_t, u_s = _cross(w, s), _cross(w, t), _cross(u, s)
+        for k in range(3):
             if p < 0:
-                base_A = 0.0 if k < 3 else -gravity[k - 3]
+                ws[i, _A + k] = w_s[k] * vi
+                ws[i, _A + 3 + k] = -gravity[k] + (w_t[k] + u_s[k]) * vi
             else:
-                base_A = ws[p, _A + k]
-            ws[i, _A + k] = base_A + cross[k] * vi
-        _inertia_times(ws[i], _I, ws[i, _A : _A + 6], ws[i, _F : _F + 6])
-        _inertia_times(ws[i], _I, ws[i, _V : _V + 6], IV)
+                ws[i, _A + k] = ws[p, _A + k] + w_s[k] * vi
+                ws[i, _A + 3 + k] = ws[p, _A + 3 + k] + (w_t[k] + u_s[k]) * vi
+        _inertia_times(ws, i, _I, _A, _F)
+        _inertia_times(ws, i, _I, _V, _X)
         # V x* (I V) = [w x n + u x f; w x f] for I V = [n; f] (the force cross product).
-        n0, n1, n2, f0, f1, f2 = IV[0], IV[1], IV[2], IV[3], IV[4], IV[5]
-        ws[i, _F] += w1 * n2 - w2 * n1 + u1 * f2 - u2 * f1
-        ws[i, _F + 1] += w2 * n0 - w0 * n2 + u2 * f0 - u0 * f2
-        ws[i, _F + 2] += w0 * n1 - w1 * n0 + u0 * f1 - u1 * f0
-        ws[i, _F + 3] += w1 * f2 - w2 * f1
-        ws[i, _F + 4] += w2 * f0 - w0 * f2
-        ws[i, _F + 5] += w0 * f1 - w1 * f0
+        nn, ff = _load3(ws, i, _X), _load3(ws, i, _X + 3)
+        wn, uf, wf = _cross(w, nn), _cross(u, ff), _cross(w, ff)
+        for k in range(3):
+            ws[i, _F + k] += wn[k] + uf[k]
+            ws[i, _F + 3 + k] += wf[k]
     for i in range(n - 1, -1, -1):
         s = 0.0
         for k in range(6):
