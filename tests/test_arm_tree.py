@@ -261,3 +261,12 @@ def test_the_compiled_arm_loop_is_the_drake_loops_right_hand_side(name, plant):
             asked = arm.actuation_output.Eval(arm.GetMyContextFromRoot(root))
             clamped += int(np.any(np.abs(asked) > parameters.tree.joint[:, 2]))
     assert clamped > 0 or not parameters.dynamic  # the clamp's branch was taken
+
+
+def test_the_compiled_arm_loop_refuses_the_barrier_in_one_line():
+    """The joint-limit barrier is not in the compiled loop: a ValueError of one line
+    naming the field and its value, not a loop that would run without it."""
+    from geovs_drake.batch.arm_rhs import arm_loop_parameters
+
+    with pytest.raises(ValueError, match="joint_barrier_fraction = 0.1$"):
+        arm_loop_parameters(ScenarioConfig(carrier=Arm(joint_barrier_fraction=0.1)))
