@@ -14,9 +14,10 @@ limits, and the camera frame's X_BC on its body. All as plain float64 and int64 
 It refuses, in one line naming the joint (:class:`ArmTreeError`, an
 :class:`~geovs_drake.systems.arm_model.ArmError`: exit 2 from the CLI), what the
 kernels cannot take: a joint that is not revolute, prismatic or welded (a floating,
-ball or planar joint), a closed chain (a body with two parent joints, or the plant's
-constraints: loop welds, a mimic's coupler), a joint off the one chain from the world
-to the camera (a branch), or a camera on no moving body.
+ball or planar joint), a closed chain (the plant's constraints: loop welds, a mimic's
+coupler; a body with two parent joints, which Drake's Finalize refuses first), a joint
+off the one chain from the world to the camera (a branch), or a camera on no moving
+body.
 """
 
 from __future__ import annotations
