@@ -158,8 +158,9 @@ def test_energy_guarantee_on_1000_moving_starts_and_its_other_side():
 def test_the_warm_up_compiles_every_kernel_make_test_would_compile_side_by_side():
     """``python -m geovs_drake.batch.warm`` (make test, before its processes start side by
     side) calls the batch engine's compiled functions and the loop's generated kernels:
-    each numba dispatcher then holds a compiled signature in this process."""
-    from geovs_drake.batch import engine
+    each numba dispatcher then holds a compiled signature in this process (the arm's
+    kernels and its closed loop's too)."""
+    from geovs_drake.batch import arm_kernels, arm_rhs, engine
     from geovs_drake.batch.warm import warm
     from geovs_drake.geometry import kernels
 
@@ -167,6 +168,7 @@ def test_the_warm_up_compiles_every_kernel_make_test_would_compile_side_by_side(
         pytest.skip("numba is not installed: nothing is compiled")
     assert warm() > 0
     assert engine._integrate.signatures
+    assert arm_kernels.mass_matrix.signatures and arm_rhs.arm_loop_rhs.signatures
     from geovs_drake.systems import _quadrotor_kernels as quadrotor
 
     for kernel in (quadrotor.cascade, quadrotor.level_image, quadrotor.level_state):
