@@ -192,8 +192,9 @@ def test_linearize_at_hover_is_stable_and_matches_finite_differences(mount):
     assert np.max(eigenvalues[~near_zero].real) < -1.0
 
 
-def test_a_short_run_from_a_level_start_closes_in_and_stays_in_d():
-    result = simulate(_config(duration=1.5))
+def test_a_short_run_from_the_default_start_closes_in_and_stays_in_d():
+    # The default start's body tilt (115 deg) dropped: initial_attitude level.
+    result = simulate(ScenarioConfig(carrier=Quadrotor(), plant=Dynamic(), duration=1.5))
     s = result.summary()
     assert not result.left_domain and s["min_fov_margin"] > 0
     errors = result.position_errors
@@ -241,8 +242,18 @@ BAD_INPUTS = {
         ["--scenario-text", "carrier: !Quadrotor {mount: down}"],
         ["mount down does not see the target", "90.0 deg off the optical axis"],
     ),
-    "moving-target": (["--target-twist=0,0,0,0.05,0,0"], ["follows no moving target"]),
-    "start-tilted": ([], ["start tilts the quadrotor by 115 deg, past 66.4 deg"]),
+    "turning-target": (
+        ["--target-twist=0,0,0.2,0.05,0,0"],
+        ["translating target only", "turns by up to 0.2 rad"],
+    ),
+    "start-tilted": (
+        ["--scenario-text", "carrier: !Quadrotor {initial_attitude: given}"],
+        ["start tilts the quadrotor by 115 deg, past 66.4 deg"],
+    ),
+    "initial-attitude": (
+        ["--scenario-text", "carrier: !Quadrotor {initial_attitude: upright}"],
+        ["carrier.initial_attitude must be one of level, given", "'upright'"],
+    ),
 }
 
 

@@ -309,6 +309,7 @@ class ScenarioConfig:
                 self.X_BC_initial,
                 self.dynamic,
                 math.radians(self.domain.fov_half_angle_deg),
+                self.target_motion,
             )
         if moving and not self.dynamic:
             raise ValueError(
@@ -318,16 +319,18 @@ class ScenarioConfig:
             )
         if self.moving_target and not self.carrier.traits.moving_target:
             # Eye-to-hand, the target is the body the loop moves: it has no motion of its
-            # own; a carrier in the hand says in its traits whether it follows one (the
-            # quadrotor's cascade is measured behind a still target only).
+            # own; a carrier in the hand says in its traits whether it follows one.
             why = (
                 "its traits say it follows no moving target"
                 if self.carrier.traits.camera_in_hand
                 else "the fixed camera's loop moves the target itself"
             )
+            followers = " or ".join(
+                c.__name__ for c in CARRIER_VARIANTS.values() if c.traits.moving_target
+            )
             raise ValueError(
                 f"target_motion {type(self.target_motion).__name__}() needs a carrier that "
-                f"follows a moving target (carrier FreeRig or Arm): {why}, got carrier "
+                f"follows a moving target (carrier {followers}): {why}, got carrier "
                 f"{type(self.carrier).__name__}()"
             )
         if (

@@ -261,7 +261,9 @@ def _report(loop: Loop, simulator, monitor, wall: float, failure: str | None) ->
             loop.diagram.GetSubsystemByName("target_motion").end_time() if moving else None
         ),
         carrier_entries=(
-            {} if loop.carrier.run_entries is None else loop.carrier.run_entries(root, states)
+            {}
+            if loop.carrier.run_entries is None
+            else loop.carrier.run_entries(root, states, times)
         ),
     )
     # The notes the message carries: the energy's where it does not cover the start

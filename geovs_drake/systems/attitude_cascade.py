@@ -124,6 +124,8 @@ def AttitudeCascade_(T):
             input_ports:
             - generalized_force
             - body_state
+            - feedforward_twist
+            - feedforward_acceleration
             output_ports:
             - rotor_thrusts
             - saturated
@@ -147,8 +149,21 @@ def AttitudeCascade_(T):
         ``saturated`` is 1 where the allocation gave anything up, else 0. The NF's torque
         is not used: three torques go to the attitude, and the heading is the goal's.
 
+        Behind a moving target (translating: the goal's heading is held) the thrust
+        vector follows the target's motion as the loop believes it, as the free rig's
+        law's feed-forward does (:class:`TargetRelativeWrench`):
+        ``f_d = f_W - b (v_W - v_ff) + m a_ff + m g e_z``. ``feedforward_twist`` is the
+        believed target twist carried to the body R, ``Ad_{X_RB} xi_hat`` (6, in R, as
+        :class:`TargetFrame` gives it): v_ff = R_WR times its linear part, the velocity
+        the body needs to move with the target (the cascade's damping acts on the
+        velocity relative to it). ``feedforward_acceleration`` is the believed twist's
+        rate in the target's frame B (6): a_ff = R_WB times its linear part (the
+        target's ``target_rotation`` R_WB held), the acceleration the thrust adds so that
+        the body keeps pace (Newton's law, m a_ff). Either input left unconnected (a
+        still target) reads zero.
+
         The numbers are constructor arguments (the body's mass model, the gains, the
-        mixer), fixed for the loop's life.
+        mixer, the target's rotation), fixed for the loop's life.
         """
 
         def _construct(
@@ -162,6 +177,7 @@ def AttitudeCascade_(T):
             max_thrust: float = 4.75,
             velocity_damping: float = 4.0,
             max_tilt: float = math.radians(10.0),
+            target_rotation: np.ndarray | None = None,
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
@@ -183,8 +199,12 @@ def AttitudeCascade_(T):
                 max_thrust,
                 velocity_damping,
                 max_tilt,
+                target_rotation,
             )
+            # R_WB of a translating target: the believed acceleration's frame.
+            self._R_WT = np.eye(3) if target_rotation is None else np.asarray(target_rotation)
             self._weight = mass * gravity * _UP
+            self._mass = float(mass)
             self._J = np.asarray(inertia_diagonal, dtype=float)
             self._k_R, self._k_Omega = (float(k) for k in attitude_gains)
             self._heading = heading
@@ -196,6 +216,12 @@ def AttitudeCascade_(T):
                 name="generalized_force", size=6
             )
             self.body_state_input = self.DeclareVectorInputPort(name="body_state", size=STATE_SIZE)
+            self.feedforward_twist_input = self.DeclareVectorInputPort(
+                name="feedforward_twist", size=6
+            )
+            self.feedforward_acceleration_input = self.DeclareVectorInputPort(
+                name="feedforward_acceleration", size=6
+            )
             prerequisites = {self.all_input_ports_ticket()}
             self.rotor_thrusts_output = self.DeclareVectorOutputPort(
                 name="rotor_thrusts",
@@ -221,7 +247,10 @@ def AttitudeCascade_(T):
             R = _rotation(x[0:4])
             Omega = R.T @ x[7:10]  # the body's rate in its own frame
             f_d = _tilt_limited(
-                force[3:6] - self._damping * x[10:13] + self._weight,
+                force[3:6]
+                - self._damping * x[10:13]
+                + self._weight
+                + self._feedforward(context, R),
                 self._tan_tilt,
                 self._weight[2],
             )
@@ -233,6 +262,17 @@ def AttitudeCascade_(T):
             J_Omega = self._J * Omega
             tau = self._J * (-self._k_R * e_R - self._k_Omega * Omega) + np.cross(Omega, J_Omega)
             return [f_d @ R[:, 2], *tau]
+
+        def _feedforward(self, context, R: np.ndarray) -> np.ndarray:
+            """``b v_ff + m a_ff`` (3, in W) of a moving target's believed motion (the
+            class docstring), zero where the inputs are unconnected (a still target)."""
+            out = np.zeros(3)
+            if self.feedforward_twist_input.HasValue(context):
+                out = out + self._damping * (R @ self.feedforward_twist_input.Eval(context)[3:6])
+            if self.feedforward_acceleration_input.HasValue(context):
+                rate = self.feedforward_acceleration_input.Eval(context)[3:6]
+                out = out + self._mass * (self._R_WT @ rate)
+            return out
 
         def CalcRotorThrusts(self, context, output) -> None:
             u, _ = allocate(self.wanted_wrench(context), self._M_inv, self._max_thrust)

@@ -4,6 +4,8 @@ Drake's ``Propeller`` systems, whose thrusts the NF's wrench sets through an att
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from pydrake.geometry import Box, Cylinder
 from pydrake.math import RigidTransform
@@ -16,6 +18,7 @@ from pydrake.multibody.plant import (
 from pydrake.multibody.tree import RigidBody, RotationalInertia, SpatialInertia
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
 
+from geovs_drake.loop.carriers.arm import target_drawing
 from geovs_drake.loop.carriers.parts import (
     CarrierFactory,
     CarrierParts,
@@ -82,6 +85,33 @@ def heading_W(config: ScenarioConfig) -> np.ndarray:
     return x / np.linalg.norm(x)
 
 
+def _run_entries(cascade: LeafSystem) -> Callable[[Context, np.ndarray, np.ndarray], dict]:
+    """The quadrotor's JSON entries (``CarrierParts.run_entries``): the share of logged
+    states where the allocation gave anything up, and the peak tilt."""
+
+    def run_entries(root: Context, states: np.ndarray, times: np.ndarray) -> dict:
+        # The allocation's verdict at each logged state (the diagram evaluated there, at
+        # its time: a moving target's pose is the time's; a twist estimator's discrete
+        # state is its last).
+        context = root.Clone()
+        saturated = np.empty(len(states))
+        for k, x in enumerate(states):
+            context.SetTime(float(times[k]))
+            context.SetContinuousState(x)
+            sub = cascade.GetMyContextFromRoot(context)
+            saturated[k] = cascade.saturated_output.Eval(sub)[0]
+        q = np.asarray(states)[:, QUATERNION]
+        q = q / np.linalg.norm(q, axis=1, keepdims=True)
+        # The body's z axis's height: 1 - 2 (qx^2 + qy^2); its angle from up is the tilt.
+        up = np.clip(1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2), -1.0, 1.0)
+        return {
+            "rotor_saturation_fraction": float(np.mean(saturated)) if len(states) else 0.0,
+            "max_tilt_deg": float(np.degrees(np.max(np.arccos(up)))) if len(states) else 0.0,
+        }
+
+    return run_entries
+
+
 def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool):
     """The quadrotor on the dynamic plant: its free body (gravity on), its propellers, the
     cascade that drives them, and the scene. With ``draws_marks`` (the camera on board
@@ -98,10 +128,13 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
     )
     # Gravity stays on (Drake's default field): the cascade holds the weight itself, where
     # the free rig of Appendix C has it cancelled.
-    (add_marked_target_geometry if draws_marks else add_target_geometry)(plant, config)
+    moving = config.moving_target
+    if not moving:  # a moving one is drawn apart, at X_WB(t) (draw_target)
+        (add_marked_target_geometry if draws_marks else add_target_geometry)(plant, config)
     theta = resolved.domain.fov_half_angle
     drawing = _add_body_geometry(plant, body, quad)
-    drawing += add_camera_geometry(plant, body, config.X_RC, theta) + add_goal_ghost(plant, config)
+    drawing += add_camera_geometry(plant, body, config.X_RC, theta)
+    drawing += [] if moving else add_goal_ghost(plant, config)
     plant.Finalize()
     plant.SetDefaultFloatingBaseBodyPose(body, initial_rig_pose(config))
     if draws_marks:
@@ -130,6 +163,8 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
             max_thrust=quad.max_rotor_thrust,
             velocity_damping=quad.velocity_damping,
             max_tilt=float(np.radians(quad.max_tilt_deg)),
+            # A moving target translates (the scenario's check): its rotation is X_WB(0)'s.
+            target_rotation=config.X_WB.rotation().matrix(),
         ),
     )
     builder.Connect(plant.get_state_output_port(), cascade.body_state_input)
@@ -148,23 +183,6 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
         # The NF's wrench enters the cascade, which keeps its force (in W).
         builder.Connect(force.generalized_force_output, cascade.generalized_force_input)
 
-    def run_entries(root: Context, states: np.ndarray) -> dict:
-        # The allocation's verdict at each logged state (the diagram evaluated there).
-        context = root.Clone()
-        saturated = np.empty(len(states))
-        for k, x in enumerate(states):
-            context.SetContinuousState(x)
-            sub = cascade.GetMyContextFromRoot(context)
-            saturated[k] = cascade.saturated_output.Eval(sub)[0]
-        q = np.asarray(states)[:, QUATERNION]
-        q = q / np.linalg.norm(q, axis=1, keepdims=True)
-        # The body's z axis's height: 1 - 2 (qx^2 + qy^2); its angle from up is the tilt.
-        up = np.clip(1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2), -1.0, 1.0)
-        return {
-            "rotor_saturation_fraction": float(np.mean(saturated)) if len(states) else 0.0,
-            "max_tilt_deg": float(np.degrees(np.max(np.arccos(up)))) if len(states) else 0.0,
-        }
-
     return CarrierParts(
         body_pose=pose_head(builder, plant.get_state_output_port()),
         state=plant.get_state_output_port(),
@@ -179,8 +197,13 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
         plant=plant,
         scene_graph=scene_graph,
         body=body,
-        run_entries=run_entries,
+        run_entries=_run_entries(cascade),
         view=view,
+        # Behind a moving target (simulated in the world, loop.targets): the believed
+        # target's velocity and acceleration enter the thrust vector.
+        draw_target=target_drawing(scene_graph, resolved, draws_marks) if moving else None,
+        feedforward_input=cascade.feedforward_twist_input,
+        feedforward_rate_input=cascade.feedforward_acceleration_input,
     )
 
 
