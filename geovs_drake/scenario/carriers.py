@@ -195,7 +195,7 @@ QUADROTOR_MOUNTS: dict[str, tuple[tuple[tuple[float, ...], ...], tuple[float, fl
 
 #: The quadrotor's attitudes at t = 0 (``Quadrotor.initial_attitude``), what each does.
 QUADROTOR_START_ATTITUDES: dict[str, str] = {
-    "level": "the start's camera position and the body's heading, the body level and at rest",
+    "level": "the start's camera position and the body's heading, the body level",
     "given": "the start as given (refused past the tilt the rotors hold the weight at)",
 }
 
@@ -217,7 +217,9 @@ class Quadrotor:
     ``attitude_gains`` = (k_R [1/s^2], k_Omega [1/s]), per unit of inertia
     (:class:`~geovs_drake.systems.AttitudeCascade`), which also damps the body's velocity
     with ``velocity_damping`` [N s/m]. Dynamic plant only; the goal must be a level
-    hover."""
+    hover, and a moving target must translate (the landing platform: its believed
+    velocity and acceleration enter the thrust vector). ``initial_attitude`` says whether
+    the start's body is levelled (``level``) or kept as given."""
 
     mass: float = 0.775
     inertia_diagonal: list[float] = field(default_factory=lambda: [0.0015, 0.0025, 0.0035])
