@@ -250,6 +250,10 @@ BAD_INPUTS = {
         ["--scenario-text", "carrier: !Quadrotor {initial_attitude: given}"],
         ["start tilts the quadrotor by 115 deg, past 66.4 deg"],
     ),
+    "level-start-blind": (
+        ["--initial=0,0.35,-0.45,0.6,0,0"],  # in D as given (34.4 deg of tilt), not level
+        ["start outside D: fov margin", "initial_attitude level", "a tilt of 34.4 deg"],
+    ),
     "initial-attitude": (
         ["--scenario-text", "carrier: !Quadrotor {initial_attitude: upright}"],
         ["carrier.initial_attitude must be one of level, given", "'upright'"],
@@ -260,7 +264,8 @@ BAD_INPUTS = {
 @pytest.mark.parametrize("name", list(BAD_INPUTS))
 def test_each_bad_input_gets_one_line_and_exit_2(name, run_cli):
     argv, needles = BAD_INPUTS[name]
-    start = [] if name == "start-tilted" else ["--initial=0.12,-0.08,-0.8,0,0.3,0"]
+    given = name == "start-tilted" or any(a.startswith("--initial") for a in argv)
+    start = [] if given else ["--initial=0.12,-0.08,-0.8,0,0.3,0"]
     code, out, err = run_cli("simulate", "--carrier", "quadrotor", *start, *argv)
     lines = err.strip().splitlines()
     assert code == 2 and out == "" and len(lines) == 1 and "Traceback" not in err, err
