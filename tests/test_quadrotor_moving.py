@@ -206,3 +206,18 @@ def test_the_default_start_converges_within_30_s_and_stays_in_d():
     result = simulate(ScenarioConfig(carrier=Quadrotor(), plant=Dynamic(), duration=30.0))
     assert result.converged and not result.left_domain
     assert result.convergence_time < 30.0
+
+
+def test_compare_leaves_the_suites_turning_target_out_on_the_quadrotor():
+    # The shipped suite's moving entry is a circle (it turns): the quadrotor refuses it,
+    # so compare's suite for the quadrotor leaves it out (its traits' turning_target).
+    from geovs_drake.analysis.studies.compare import still_entries_for
+    from geovs_drake.scenario import load_suite
+
+    suite = load_suite()
+    (moving,) = [s for s in suite.scenarios if s.moving_target]
+    quad = ScenarioConfig(carrier=Quadrotor(), plant=Dynamic(), target_motion=moving.target_motion)
+    with pytest.raises(ValueError, match="translating target only"):
+        quad.validate()
+    kept = still_entries_for(suite, quad)
+    assert [s.name for s in kept.scenarios] == [s.name for s in suite.scenarios if s is not moving]

@@ -35,7 +35,10 @@ class CarrierTraits:
     ``effort_limits``: its dynamic plant clamps torques at effort limits (the effort
     check applies). ``takes``: what it takes on each plant (by the plant's name).
     ``energy_exclusion``: why Appendix C's energy argument does not cover a loop on this
-    carrier, in a phrase (the run's ``energy_guarantee`` is then null with it), or empty."""
+    carrier, in a phrase (the run's ``energy_guarantee`` is then null with it), or empty.
+    ``turning_target``: where it follows a moving target, it follows one that turns too
+    (False: a translating one only, the quadrotor's, whose cascade holds the goal's
+    heading and a level hover)."""
 
     camera_in_hand: bool
     joints: bool
@@ -47,6 +50,7 @@ class CarrierTraits:
     effort_limits: bool
     takes: tuple[tuple[str, str], ...]
     energy_exclusion: str = ""
+    turning_target: bool = True
 
 
 @dataclass(frozen=True)
