@@ -151,16 +151,16 @@ def AttitudeCascade_(T):
 
         Behind a moving target (translating: the goal's heading is held) the thrust
         vector follows the target's motion as the loop believes it, as the free rig's
-        law's feed-forward does (:class:`TargetRelativeWrench`):
+        law's feed-forward does (:class:`~geovs_drake.systems.TargetRelativeWrench`):
         ``f_d = f_W - b (v_W - v_ff) + m a_ff + m g e_z``. ``feedforward_twist`` is the
         believed target twist carried to the body R, ``Ad_{X_RB} xi_hat`` (6, in R, as
-        :class:`TargetFrame` gives it): v_ff = R_WR times its linear part, the velocity
-        the body needs to move with the target (the cascade's damping acts on the
-        velocity relative to it). ``feedforward_acceleration`` is the believed twist's
-        rate in the target's frame B (6): a_ff = R_WB times its linear part (the
-        target's ``target_rotation`` R_WB held), the acceleration the thrust adds so that
-        the body keeps pace (Newton's law, m a_ff). Either input left unconnected (a
-        still target) reads zero.
+        :class:`~geovs_drake.systems.TargetFrame` gives it): v_ff = R_WR times its
+        linear part, the velocity the body needs to move with the target (the cascade's
+        damping acts on the velocity relative to it). ``feedforward_acceleration`` is
+        the believed twist's rate in the target's frame B (6): a_ff = R_WB times its
+        linear part (the target's ``target_rotation`` R_WB held), the acceleration the
+        thrust adds so that the body keeps pace (Newton's law, m a_ff). Either input
+        left unconnected (a still target) reads zero.
 
         The numbers are constructor arguments (the body's mass model, the gains, the
         mixer, the target's rotation), fixed for the loop's life.
