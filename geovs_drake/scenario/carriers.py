@@ -35,6 +35,8 @@ __all__ = [
     "RigidBodyConfig",
     "carrier_start",
     "check_carrier",
+    "level_start",
+    "target_turn",
 ]
 
 
