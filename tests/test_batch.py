@@ -167,3 +167,7 @@ def test_the_warm_up_compiles_every_kernel_make_test_would_compile_side_by_side(
         pytest.skip("numba is not installed: nothing is compiled")
     assert warm() > 0
     assert engine._integrate.signatures
+    from geovs_drake.systems import _quadrotor_kernels as quadrotor
+
+    for kernel in (quadrotor.cascade, quadrotor.level_image, quadrotor.level_state):
+        assert quadrotor.for_scalar_type(kernel, float).signatures, kernel.__name__

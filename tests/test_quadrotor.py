@@ -250,6 +250,10 @@ BAD_INPUTS = {
         ["--scenario-text", "carrier: !Quadrotor {initial_attitude: given}"],
         ["start tilts the quadrotor by 115 deg, past 66.4 deg"],
     ),
+    "anchor-behind-a-moving-target": (
+        ["--controller", "hamel_mahony", "--target-twist=0,0,0,0.05,0,0"],
+        ["drives a quadrotor's rotors behind a still target only", "Twist()"],
+    ),
     "level-start-blind": (
         ["--initial=0,0.35,-0.45,0.6,0,0"],  # in D as given (34.4 deg of tilt), not level
         ["start outside D: fov margin", "initial_attitude level", "a tilt of 34.4 deg"],

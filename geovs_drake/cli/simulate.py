@@ -79,6 +79,8 @@ _AXIS_HELP: dict[str, tuple[str, dict[str, str]]] = {
             "pbvs": "a baseline commanding the camera's twist, the pose from c^-1(y)",
             "spherical": "a baseline commanding the camera's twist, sphere features",
             "path": "a planned image path followed (Eq. 18)",
+            "hamel_mahony": "Hamel & Mahony's image-based law (2002), the quadrotor's "
+            "rotors driven from the sphere's spherical centroid",
         },
     ),
 }

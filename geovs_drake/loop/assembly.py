@@ -224,7 +224,16 @@ def drive_carrier(
     """Connect the law's command to the carrier; a twist on a force-driven carrier goes
     through ``VelocityTrackingForce`` (F = B (nu_cmd - nu)). With ``disturbed``, a
     ``disturbance`` input is added to the command where the carrier takes it; returns
-    its :data:`DISTURBANCES` key (None without)."""
+    its :data:`DISTURBANCES` key (None without). A law that drives the rotors itself
+    (its traits' ``commands``, ``"rotors"``) goes to the carrier's ``rotors``."""
+    if resolved.law.traits.commands == "rotors":
+        if disturbed:
+            raise ValueError(
+                f"a study's disturbance input needs a wrench or a twist: controller "
+                f"{variant_name(resolved.law)} drives the rotors itself"
+            )
+        carrier.rotors.connect(builder, command)
+        return None
     if not isinstance(command, LeafSystem) and carrier.takes_wrench:
         adapter = builder.AddNamedSystem(
             "velocity_tracking_force",

@@ -16,6 +16,10 @@ carrier with the velocity-tracking force.
   subsystem ``controller``).
 * :class:`~geovs_drake.scenario.PathFollowing`: the planned y_d(t) (``desired_image``)
   followed by Eq. (18).
+* :class:`~geovs_drake.scenario.HamelMahony`: Hamel & Mahony's law (``hamel_mahony``),
+  which drives the quadrotor's rotors itself (the carrier's ``rotors``,
+  :class:`~geovs_drake.loop.carriers.parts.RotorDrive`), from the image the carrier's view
+  gives; the NF's systems stay in the loop (its phi is logged) and drive nothing.
 
 A moving target's feed-forward reaches every law through the target's adapter
 (:mod:`geovs_drake.loop.targets`); a twist law that declares a ``target_twist`` input
@@ -39,8 +43,9 @@ from geovs_drake.loop.carriers import CarrierParts
 from geovs_drake.loop.resolved import ResolvedScenario
 from geovs_drake.loop.targets import connect_law_feedforward
 from geovs_drake.planning import plan_for_scenario
-from geovs_drake.scenario import Ibvs, Nf, PathFollowing, Pbvs, Spherical
+from geovs_drake.scenario import HamelMahony, Ibvs, Nf, PathFollowing, Pbvs, Spherical
 from geovs_drake.systems import (
+    HamelMahonyController,
     IbvsController,
     ImageJacobianForce,
     KinematicController,
@@ -164,6 +169,27 @@ def _path_following(builder: DiagramBuilder, resolved: ResolvedScenario) -> Leaf
     return follower
 
 
+def _hamel_mahony(builder, resolved, y, nav, carrier) -> LawOutput:
+    """Hamel & Mahony's controller on ``y``, with the carrier's body model; the loop
+    builder hands it to ``carrier.rotors`` (the scenario has checked the carrier)."""
+    law = resolved.law
+    if carrier.rotors is None:  # the scenario's check refuses this first
+        raise ValueError("controller hamel_mahony needs a carrier with rotors (quadrotor)")
+    system = builder.AddNamedSystem(
+        "hamel_mahony_controller",
+        HamelMahonyController(
+            goal=resolved.y_goal,
+            X_RC=carrier.X_RC,
+            image_gain=law.image_gain,
+            velocity_gain=law.velocity_gain,
+            depth_balance=law.depth_balance,
+            **carrier.rotors.body,
+        ),
+    )
+    builder.Connect(y, system.image_features_input)
+    return system
+
+
 #: The laws, by their variant (``ScenarioConfig.controller``'s type,
 #: :data:`~geovs_drake.scenario.LawConfig`). A law of one's own is a variant dataclass
 #: and an entry here (:doc:`/adding-a-part`).
@@ -173,4 +199,5 @@ LAWS: dict[type, Law] = {
     Pbvs: _baseline(PbvsController),
     Spherical: _baseline(SphericalFeatureController),
     PathFollowing: twist_law(_path_following),
+    HamelMahony: Law(_hamel_mahony),
 }

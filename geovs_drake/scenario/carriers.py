@@ -271,6 +271,7 @@ class Quadrotor:
             "(underactuated), and Appendix C's energy argument needs the wrench applied"
         ),
         turning_target=False,
+        rotors=True,
     )
 
     @property

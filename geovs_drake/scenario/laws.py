@@ -17,6 +17,7 @@ from geovs_drake.scenario.traits import LawTraits
 
 __all__ = [
     "CONTROLLERS",
+    "HamelMahony",
     "IBVS_DEPTHS",
     "LAW_VARIANTS",
     "Ibvs",
@@ -29,9 +30,10 @@ __all__ = [
 ]
 
 #: The control laws (``ScenarioConfig.controller``): the navigation function
-#: ("nf"), and the baselines point IBVS, PBVS and sphere features
-#: (:mod:`geovs_drake.geometry.baselines`).
-CONTROLLERS = ("nf", "ibvs", "pbvs", "spherical", "path")
+#: ("nf"), the baselines point IBVS, PBVS and sphere features
+#: (:mod:`geovs_drake.geometry.baselines`), the path follower, and Hamel & Mahony's
+#: law for the quadrotor ("hamel_mahony").
+CONTROLLERS = ("nf", "ibvs", "pbvs", "spherical", "path", "hamel_mahony")
 
 
 @dataclass
@@ -109,8 +111,29 @@ class PathFollowing:
     )
 
 
+@dataclass
+class HamelMahony:
+    """Hamel & Mahony's image-based law for an underactuated body (IEEE TRA 18(2),
+    2002), the quadrotor's only (:class:`~geovs_drake.systems.HamelMahonyController`):
+    the sphere's spherical centroid q, the thrust vector ``k_1 k_2 W (q_W - q*_W) - m k_2
+    v + m g e_z`` to the cascade's attitude loop and rotors, the heading from the marked
+    point and the arrow. ``image_gain`` k_1 [N s], ``velocity_gain`` k_2 [1/s] (with the
+    default quadrotor and goal, a double pole at -2 rad/s laterally; their gain condition
+    ``k_2 > (k_1 / m) f / d`` holds by a factor of 4), ``depth_balance`` [-] (1: the
+    depth as stiff as the lateral motion at the goal; 0: the paper's W = I, whose depth
+    converges about 50 times slower)."""
+
+    image_gain: float = 0.4
+    velocity_gain: float = 4.0
+    depth_balance: float = 1.0
+
+    traits: ClassVar[LawTraits] = LawTraits(
+        navigation=False, commands="rotors", plans=False, batch_kernel=False
+    )
+
+
 #: A law's configuration: one of the variants above.
-LawConfig = Nf | Ibvs | Pbvs | Spherical | PathFollowing
+LawConfig = Nf | Ibvs | Pbvs | Spherical | PathFollowing | HamelMahony
 #: The law of each name in :data:`CONTROLLERS` (``path`` is :class:`PathFollowing`).
 LAW_VARIANTS: dict[str, type] = {
     "nf": Nf,
@@ -118,7 +141,19 @@ LAW_VARIANTS: dict[str, type] = {
     "pbvs": Pbvs,
     "spherical": Spherical,
     "path": PathFollowing,
+    "hamel_mahony": HamelMahony,
 }
+
+
+def _check_fields(law: object, fields: tuple[tuple[str, bool, str], ...]) -> None:
+    """Each ``(name, strict, unit)``: the law's field finite and > 0 (strict) or >= 0."""
+    for name, strict, unit in fields:
+        value = getattr(law, name)
+        if not (math.isfinite(value) and (value > 0 if strict else value >= 0)):
+            raise ValueError(
+                f"controller.{name} must be finite and {'>' if strict else '>='} 0{unit}: "
+                f"{name} = {value}"
+            )
 
 
 def check_law(law: object) -> None:
@@ -127,15 +162,21 @@ def check_law(law: object) -> None:
         raise ValueError(
             f"controller.depth must be one of {', '.join(IBVS_DEPTHS)}, got {law.depth!r}"
         )
+    if isinstance(law, HamelMahony):
+        _check_fields(
+            law,
+            (
+                ("image_gain", True, " [N s]"),
+                ("velocity_gain", True, " [1/s]"),
+                ("depth_balance", False, ""),
+            ),
+        )
     if isinstance(law, PathFollowing):
-        for name, strict, unit in (
-            ("duration", True, " [s]"),
-            ("feedback_gain", False, " [1/s]"),
-            ("radius_scale", True, ""),
-        ):
-            value = getattr(law, name)
-            if not (math.isfinite(value) and (value > 0 if strict else value >= 0)):
-                raise ValueError(
-                    f"controller.{name} must be finite and {'>' if strict else '>='} 0{unit}: "
-                    f"{name} = {value}"
-                )
+        _check_fields(
+            law,
+            (
+                ("duration", True, " [s]"),
+                ("feedback_gain", False, " [1/s]"),
+                ("radius_scale", True, ""),
+            ),
+        )

@@ -38,6 +38,7 @@ from geovs_drake.scenario.carriers import (
 )
 from geovs_drake.scenario.laws import (
     LAW_VARIANTS,
+    HamelMahony,
     Ibvs,
     Nf,
     PathFollowing,
@@ -236,8 +237,11 @@ class ScenarioConfig:
     #: The control law, in YAML e.g. ``controller: !Ibvs {depth: mean}``: :class:`Nf`,
     #: the navigation function of this project; :class:`Ibvs` (four points),
     #: :class:`Pbvs` and :class:`Spherical`, baselines that command the camera's twist;
-    #: :class:`PathFollowing`, a planned image path followed (Eq. 18).
-    controller: Nf | Ibvs | Pbvs | Spherical | PathFollowing = field(default_factory=Nf)
+    #: :class:`PathFollowing`, a planned image path followed (Eq. 18); :class:`HamelMahony`,
+    #: Hamel & Mahony's law, which drives a quadrotor's rotors itself.
+    controller: Nf | Ibvs | Pbvs | Spherical | PathFollowing | HamelMahony = field(
+        default_factory=Nf
+    )
     #: How the target moves from ``target``: :class:`Still` (the paper's loop) or
     #: :class:`Twist`, a constant body twist in B, with the loop's feed-forward
     #: (:mod:`geovs_drake.scenario.targets`). In YAML ``target_motion: !Twist {twist: [...]}``.
@@ -310,6 +314,18 @@ class ScenarioConfig:
                 self.dynamic,
                 math.radians(self.domain.fov_half_angle_deg),
                 self.target_motion,
+            )
+        if self.controller.traits.commands == "rotors" and not self.carrier.traits.rotors:
+            raise ValueError(
+                f"controller {variant_name(self.controller)} drives a quadrotor's rotors: "
+                f"it needs carrier quadrotor, got carrier {variant_name(self.carrier)}"
+            )
+        if self.controller.traits.commands == "rotors" and self.moving_target:
+            # Its rotors are its own: no cascade takes the target's believed motion.
+            raise ValueError(
+                f"controller {variant_name(self.controller)} drives a quadrotor's rotors "
+                "behind a still target only (the target's motion is fed forward through the "
+                f"NF's attitude cascade), got target_motion {type(self.target_motion).__name__}()"
             )
         if moving and not self.dynamic:
             raise ValueError(

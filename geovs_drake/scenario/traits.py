@@ -38,7 +38,8 @@ class CarrierTraits:
     carrier, in a phrase (the run's ``energy_guarantee`` is then null with it), or empty.
     ``turning_target``: where it follows a moving target, it follows one that turns too
     (False: a translating one only, the quadrotor's, whose cascade holds the goal's
-    heading and a level hover)."""
+    heading and a level hover). ``rotors``: a law may drive its rotors itself (a law
+    whose traits' ``commands`` is ``"rotors"``, Hamel & Mahony's on the quadrotor)."""
 
     camera_in_hand: bool
     joints: bool
@@ -51,6 +52,7 @@ class CarrierTraits:
     takes: tuple[tuple[str, str], ...]
     energy_exclusion: str = ""
     turning_target: bool = True
+    rotors: bool = False
 
 
 @dataclass(frozen=True)
@@ -79,7 +81,8 @@ class LawTraits:
     """What a law is. ``navigation``: the navigation function's own law (Eq. 45 or Eqs.
     18-19): its energy bound, its saddle, its model at the goal and the gain fits belong
     to it; ``commands``: what it commands a carrier (``"wrench"`` on a force-driven
-    carrier where ``navigation``, else ``"twist"``); ``plans``: it follows a planned
+    carrier where ``navigation``, ``"rotors"``: the rotor thrusts of a carrier whose
+    traits have ``rotors``, else ``"twist"``); ``plans``: it follows a planned
     image path in time (no constant-twist steady state); ``batch_kernel``: the batch
     engine runs it; ``feature_points``: it servos on image points that must stay in view
     (point IBVS), checked besides D; ``depth_label``: its field that names a variant of

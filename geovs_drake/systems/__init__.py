@@ -16,6 +16,7 @@ __getattr__, __dir__, __all__ = attach(
         "fixed_camera_mount": ("FixedCameraMount", "FixedCameraMount_"),
         "frame_predictor": ("FramePredictor", "FramePredictor_"),
         "frame_wait": ("FrameWait", "FrameWait_"),
+        "hamel_mahony_controller": ("HamelMahonyController", "HamelMahonyController_"),
         "ibvs_controller": ("IbvsController", "IbvsController_"),
         "image_jacobian_force": ("ImageJacobianForce", "ImageJacobianForce_"),
         "kinematic_arm": ("KinematicArm", "KinematicArm_"),

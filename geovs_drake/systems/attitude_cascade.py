@@ -16,12 +16,15 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem_
 
 from geovs_drake.systems._parameters import STATE_SIZE
+from geovs_drake.systems._quadrotor_kernels import (
+    allocation,
+    attitude_wrench,
+    cascade,
+    for_scalar_type,
+)
 from geovs_drake.systems._template import template_system
 
-__all__ = ["AttitudeCascade", "AttitudeCascade_", "allocate", "mixer"]
-
-#: The world's up, along which the weight is compensated.
-_UP = np.array([0.0, 0.0, 1.0])
+__all__ = ["AttitudeCascade", "AttitudeCascade_", "allocate", "lee_wrench", "mixer"]
 
 
 def mixer(positions: np.ndarray, moment_ratios: np.ndarray) -> np.ndarray:
@@ -38,72 +41,38 @@ def mixer(positions: np.ndarray, moment_ratios: np.ndarray) -> np.ndarray:
     return M
 
 
-def _largest_step(u0: list, du: list, high: float) -> object:
-    """The largest s in [0, 1] with ``u0 + s du`` within [0, high], for u0 within it."""
-    s = 1.0
-    for a, d in zip(u0, du, strict=True):
-        if d > 0 and a + d > high:
-            candidate = (high - a) / d
-        elif d < 0 and a + d < 0:
-            candidate = -a / d
-        else:
-            continue
-        if candidate < s:
-            s = candidate
-    return s
-
-
 def allocate(wrench: list, M_inv: np.ndarray, max_thrust: float) -> tuple[list, bool]:
     """Rotor thrusts for a wanted ``wrench`` = (T, tau_x, tau_y, tau_z) [N, N m], each
     within [0, ``max_thrust``], giving up authority in a fixed order: the thrust is
     clamped to [0, 4 max_thrust]; then the roll and pitch torques are scaled down
     together until the rotors fit; then the yaw torque (the weakest axis, through the
     rotors' drag, and the one the servo needs least to stay in the air). Returns the
-    thrusts and whether anything was given up (saturated)."""
+    thrusts and whether anything was given up (saturated). The cascade's kernel runs the
+    same function (:mod:`geovs_drake.systems._quadrotor_kernels`)."""
     T, tau_x, tau_y, tau_z = wrench
-    saturated = False
-    if T < 0:
-        T, saturated = 0.0 * T, True
-    elif T > 4 * max_thrust:
-        T, saturated = 0.0 * T + 4 * max_thrust, True
-    base = [M_inv[i, 0] * T for i in range(4)]
-    tilt = [M_inv[i, 1] * tau_x + M_inv[i, 2] * tau_y for i in range(4)]
-    r = _largest_step(base, tilt, max_thrust)
-    u1 = [b + r * d for b, d in zip(base, tilt, strict=True)]
-    yaw = [M_inv[i, 3] * tau_z for i in range(4)]
-    s = _largest_step(u1, yaw, max_thrust)
-    saturated = saturated or r < 1.0 or s < 1.0
-    return [a + s * d for a, d in zip(u1, yaw, strict=True)], saturated
+    *u, saturated = allocation(T, tau_x, tau_y, tau_z, tuple(np.ravel(M_inv)), max_thrust)
+    return u, bool(saturated > 0)
 
 
-def _rotation(q: np.ndarray) -> np.ndarray:
-    """R_WB (3 x 3) of a quaternion (w, x, y, z), normalised first (the integrator's
-    quaternion drifts off the unit sphere between steps; MultibodyPlant normalises too)."""
-    n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]) ** 0.5
-    w, x, y, z = (c / n for c in q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def _tilt_limited(f: np.ndarray, tan_tilt: float, weight: float) -> np.ndarray:
-    """``f`` with its upward part at least a tenth of the weight and its horizontal part
-    at most ``tan_tilt`` times the upward: the attitude it asks for within the tilt limit
-    (far from the goal the NF's force alone would ask the body to lie on its side)."""
-    up = f[2] if f[2] > 0.1 * weight else 0.0 * f[2] + 0.1 * weight
-    horizontal = (f[0] * f[0] + f[1] * f[1]) ** 0.5
-    scale = 1.0
-    if horizontal > tan_tilt * up:
-        scale = tan_tilt * up / horizontal
-    return np.array([f[0] * scale, f[1] * scale, up])
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / (v @ v) ** 0.5
+def lee_wrench(
+    x: np.ndarray,
+    f_d: np.ndarray,
+    heading: np.ndarray,
+    inertia: np.ndarray,
+    gains: tuple[float, float],
+    tan_tilt: float,
+    weight: float,
+) -> list:
+    """(T, tau_x, tau_y, tau_z) before the allocation, for a body in the free-body state
+    ``x`` (13) that should push along the thrust vector ``f_d`` [N] (in W, the weight
+    included): ``f_d`` tilt-limited (``tan_tilt``, the ``weight`` m g [N]), R_d with z_d
+    along it and x_d in the plane of ``heading`` and z_d, and Lee, Leok & McClamroch's
+    torque with ``gains`` = (k_R, k_Omega) per unit of ``inertia`` (the principal diagonal
+    [kg m^2]); the thrust is ``f_d . z_B``. The cascade's own kernel
+    (:mod:`geovs_drake.systems._quadrotor_kernels`, ``attitude_wrench``), for the laws that
+    drive the rotors themselves (Hamel & Mahony's)."""
+    p = (weight, *inertia, *gains, 0.0, 0.0, 0.0, 0.0, 0.0, tan_tilt)
+    return list(attitude_wrench(x, f_d[0], f_d[1], f_d[2], heading[0], heading[1], heading[2], p))
 
 
 _ARM, _MOMENT_RATIO = 0.15, 0.0245
@@ -160,7 +129,8 @@ def AttitudeCascade_(T):
         the believed twist's rate in the target's frame B (6): a_ff = R_WB times its
         linear part (the target's ``target_rotation`` R_WB held), the acceleration the
         thrust adds so that the body keeps pace (Newton's law, m a_ff). Either input
-        left unconnected (a still target) reads zero.
+        left unconnected (a still target) reads zero. Both enter the kernel as a force
+        added to the NF's, ``b v_ff + m a_ff``.
 
         The numbers are constructor arguments (the body's mass model, the gains, the
         mixer, the target's rotation), fixed for the loop's life.
@@ -201,17 +171,27 @@ def AttitudeCascade_(T):
                 max_tilt,
                 target_rotation,
             )
-            # R_WB of a translating target: the believed acceleration's frame.
+            # The feed-forward's numbers (a moving target's): b, m and R_WB of a
+            # translating target, the believed acceleration's frame.
+            self._damping, self._mass = float(velocity_damping), float(mass)
             self._R_WT = np.eye(3) if target_rotation is None else np.asarray(target_rotation)
-            self._weight = mass * gravity * _UP
-            self._mass = float(mass)
-            self._J = np.asarray(inertia_diagonal, dtype=float)
-            self._k_R, self._k_Omega = (float(k) for k in attitude_gains)
-            self._heading = heading
-            self._M_inv = np.linalg.inv(M)
-            self._max_thrust = float(max_thrust)
-            self._damping = float(velocity_damping)
-            self._tan_tilt = math.tan(max_tilt)
+            # The kernel's parameters (_quadrotor_kernels: the cascade's vector), floats for
+            # the compiled path and a tuple of Python floats for AutoDiffXd's.
+            p = np.array(
+                [
+                    mass * gravity,
+                    *inertia_diagonal,
+                    *(float(k) for k in attitude_gains),
+                    *heading,
+                    max_thrust,
+                    velocity_damping,
+                    math.tan(max_tilt),
+                    *np.linalg.inv(M).ravel(),
+                ],
+                dtype=float,
+            )
+            self._p = p if T is float else tuple(p.tolist())
+            self._cascade = for_scalar_type(cascade, T)
             self.generalized_force_input = self.DeclareVectorInputPort(
                 name="generalized_force", size=6
             )
@@ -239,48 +219,47 @@ def AttitudeCascade_(T):
         def _construct_copy(self, other, converter=None):
             Impl._construct(self, *other._defaults, converter=converter)
 
+        def _kernel(self, context) -> tuple:
+            """The kernel's ``(u (4), saturated, T, tau (3))`` at this context."""
+            x = self.body_state_input.Eval(context)
+            f_W = self.generalized_force_input.Eval(context)[3:6]
+            feedforward = self._feedforward(context, x)
+            if feedforward is not None:  # a moving target's
+                f_W = f_W + feedforward
+            return self._cascade(x, f_W, self._p)
+
+        def _feedforward(self, context, x: np.ndarray) -> np.ndarray | None:
+            """``b v_ff + m a_ff`` (3, in W) of a moving target's believed motion (the
+            class docstring): f_d's feed-forward, added to the NF's force; None where
+            neither input is connected (a still target: the kernel's path as it was)."""
+            twist, rate = self.feedforward_twist_input, self.feedforward_acceleration_input
+            out = None
+            if rate.HasValue(context):
+                out = self._mass * (self._R_WT @ rate.Eval(context)[3:6])
+            if not twist.HasValue(context):
+                return out
+            w, a, b, c = x[0:4] / (x[0:4] @ x[0:4]) ** 0.5
+            # R_WR of the body's quaternion: v_ff = R_WR (Ad_{X_RB} xi_hat)'s linear part.
+            R = np.array(
+                [
+                    [1 - 2 * (b * b + c * c), 2 * (a * b - w * c), 2 * (a * c + w * b)],
+                    [2 * (a * b + w * c), 1 - 2 * (a * a + c * c), 2 * (b * c - w * a)],
+                    [2 * (a * c - w * b), 2 * (b * c + w * a), 1 - 2 * (a * a + b * b)],
+                ]
+            )
+            velocity = self._damping * (R @ twist.Eval(context)[3:6])
+            return velocity if out is None else out + velocity
+
         def wanted_wrench(self, context) -> list:
             """(T, tau_x, tau_y, tau_z) before the allocation: the thrust along z_B and
             the torque in the body frame."""
-            x = self.body_state_input.Eval(context)
-            force = self.generalized_force_input.Eval(context)
-            R = _rotation(x[0:4])
-            Omega = R.T @ x[7:10]  # the body's rate in its own frame
-            f_d = _tilt_limited(
-                force[3:6]
-                - self._damping * x[10:13]
-                + self._weight
-                + self._feedforward(context, R),
-                self._tan_tilt,
-                self._weight[2],
-            )
-            z_d = _unit(f_d)
-            y_d = _unit(np.cross(z_d, self._heading))
-            R_d = np.column_stack([np.cross(y_d, z_d), y_d, z_d])
-            E = R_d.T @ R - R.T @ R_d
-            e_R = 0.5 * np.array([E[2, 1], E[0, 2], E[1, 0]])
-            J_Omega = self._J * Omega
-            tau = self._J * (-self._k_R * e_R - self._k_Omega * Omega) + np.cross(Omega, J_Omega)
-            return [f_d @ R[:, 2], *tau]
-
-        def _feedforward(self, context, R: np.ndarray) -> np.ndarray:
-            """``b v_ff + m a_ff`` (3, in W) of a moving target's believed motion (the
-            class docstring), zero where the inputs are unconnected (a still target)."""
-            out = np.zeros(3)
-            if self.feedforward_twist_input.HasValue(context):
-                out = out + self._damping * (R @ self.feedforward_twist_input.Eval(context)[3:6])
-            if self.feedforward_acceleration_input.HasValue(context):
-                rate = self.feedforward_acceleration_input.Eval(context)[3:6]
-                out = out + self._mass * (self._R_WT @ rate)
-            return out
+            return list(self._kernel(context)[5:9])
 
         def CalcRotorThrusts(self, context, output) -> None:
-            u, _ = allocate(self.wanted_wrench(context), self._M_inv, self._max_thrust)
-            output.SetFromVector(u)
+            output.SetFromVector(self._kernel(context)[0:4])
 
         def CalcSaturated(self, context, output) -> None:
-            _, saturated = allocate(self.wanted_wrench(context), self._M_inv, self._max_thrust)
-            output.SetFromVector([1.0 if saturated else 0.0])
+            output.SetFromVector(self._kernel(context)[4:5])
 
     return Impl
 

@@ -17,34 +17,10 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem_
 
 from geovs_drake.systems._parameters import STATE_SIZE
+from geovs_drake.systems._quadrotor_kernels import for_scalar_type, level_image, level_state
 from geovs_drake.systems._template import template_system
 
-__all__ = ["LevelView", "LevelView_", "level_rotation"]
-
-
-def level_rotation(R: np.ndarray) -> tuple[np.ndarray, list]:
-    """The level attitude with ``R``'s heading, Rz(psi) (psi: the body x axis's heading),
-    and its quaternion (w, x, y, z)."""
-    n = (R[0, 0] * R[0, 0] + R[1, 0] * R[1, 0]) ** 0.5
-    c, s = R[0, 0] / n, R[1, 0] / n
-    zero, one = 0.0 * c, 0.0 * c + 1.0
-    R_level = np.array([[c, -s, zero], [s, c, zero], [zero, zero, one]])
-    # (cos psi/2, 0, 0, sin psi/2) up to scale, from whichever form is far from 0.
-    w, z = (1 + c, s) if c > -0.5 else (s, 1 - c)
-    m = (w * w + z * z) ** 0.5
-    return R_level, [w / m, zero, zero, z / m]
-
-
-def _rotation(q) -> np.ndarray:
-    n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]) ** 0.5
-    w, x, y, z = (c / n for c in q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+__all__ = ["LevelView", "LevelView_"]
 
 
 @template_system("LevelView_")
@@ -77,6 +53,12 @@ def LevelView_(T):
             self._X_RC = X_RC
             self._R_RC = X_RC.rotation().matrix()
             self._p_RC = X_RC.translation()
+            # The kernels' parameters: [R_RC (row-major), p_RC] (_quadrotor_kernels), a
+            # tuple of Python floats for AutoDiffXd's path.
+            p = np.concatenate([self._R_RC.ravel(), self._p_RC])
+            self._p = p if T is float else tuple(p.tolist())
+            self._level_image = for_scalar_type(level_image, T)
+            self._level_state = for_scalar_type(level_state, T)
             self.image_features_input = self.DeclareVectorInputPort(name="image_features", size=13)
             self.body_state_input = self.DeclareVectorInputPort(name="body_state", size=STATE_SIZE)
             prerequisites = {self.all_input_ports_ticket()}
@@ -99,26 +81,10 @@ def LevelView_(T):
         def CalcImage(self, context, output) -> None:
             x = self.body_state_input.Eval(context)
             y = self.image_features_input.Eval(context)
-            R = _rotation(x[0:4])
-            R_level, _ = level_rotation(R)
-            # R_C'C = R_RC^T R_level^T R_WR R_RC: the camera's turn away from level.
-            turn = self._R_RC.T @ (R_level.T @ R) @ self._R_RC
-            out = np.empty(13, dtype=y.dtype)
-            for k in (0, 3, 6, 10):
-                out[k : k + 3] = turn @ y[k : k + 3]
-            out[9] = y[9]
-            output.SetFromVector(out)
+            output.SetFromVector(self._level_image(x, y, self._p))
 
         def CalcBodyState(self, context, output) -> None:
-            x = self.body_state_input.Eval(context)
-            R = _rotation(x[0:4])
-            R_level, q_level = level_rotation(R)
-            p_WC = x[4:7] + R @ self._p_RC
-            omega, v = x[7:10], x[10:13]
-            # C's origin moves at v + omega x R p_RC; the virtual body's at the same.
-            v_level = v + np.cross(omega, (R - R_level) @ self._p_RC)
-            out = np.concatenate([q_level, p_WC - R_level @ self._p_RC, omega, v_level])
-            output.SetFromVector(out)
+            output.SetFromVector(self._level_state(self.body_state_input.Eval(context), self._p))
 
     return Impl
 

@@ -20,6 +20,11 @@ leaves the field-of-view cone; Drake's error control failing ends it as
   (point IBVS: its four points; the others: the silhouette and the marked
   point, i.e. the fov margin and nu).
 
+On a carrier whose rotors a law may drive (its traits' ``rotors``: the quadrotor) the
+laws are :data:`ROTOR_LAWS`, the NF through its attitude cascade and Hamel & Mahony's law,
+the suite by default the quadrotor's (``quadrotor_suite.yaml``), and the rows add
+:data:`ROTOR_FIELDS`, the peak tilt and the rotors' saturation.
+
 A scenario whose target moves (``SuiteScenario.target_motion``, issue 32) adds the
 columns :data:`TRACKING_FIELDS` to its rows, and the tables show them only where a
 suite has such a scenario: a suite of still targets writes the tables it always did.
@@ -51,6 +56,7 @@ from geovs_drake.geometry.baselines import (
 from geovs_drake.scenario import (
     PLANT_VARIANTS,
     Dynamic,
+    HamelMahony,
     Ibvs,
     LawConfig,
     Nf,
@@ -59,6 +65,7 @@ from geovs_drake.scenario import (
     ScenarioConfig,
     Spherical,
     SuiteConfig,
+    default_suite_path,
     load_suite,
     variant_name,
 )
@@ -66,11 +73,15 @@ from geovs_drake.simulation import simulate
 
 __all__ = [
     "COMPARED_LAWS",
+    "ROTOR_FIELDS",
+    "ROTOR_LAWS",
     "ROW_FIELDS",
     "TRACKING_FIELDS",
     "CompareResult",
     "Run",
     "compare",
+    "compared_laws",
+    "default_suite",
     "law_label",
     "plot_compare",
     "row_fields",
@@ -92,6 +103,10 @@ COMPARED_LAWS: tuple[LawConfig, ...] = (
     Pbvs(),
     Spherical(),
 )
+
+#: The laws compared on a carrier whose rotors a law may drive: the NF (through the
+#: carrier's attitude cascade) and Hamel & Mahony's law (docs/quadrotor.md).
+ROTOR_LAWS: tuple[LawConfig, ...] = (Nf(), HamelMahony())
 
 ROW_FIELDS = (
     "scenario",
@@ -120,11 +135,37 @@ ROW_FIELDS = (
 TRACKING_FIELDS = ("steady_tracking_error_m",)
 
 
+#: The columns a carrier with rotors adds (its run's JSON entries): the peak tilt [deg] and
+#: the share of logged samples at which the rotor allocation gave anything up.
+ROTOR_FIELDS = ("max_tilt_deg", "rotor_saturation_fraction")
+
+
 def row_fields(rows: Sequence[dict]) -> tuple[str, ...]:
-    """The table's columns: :data:`ROW_FIELDS`, and :data:`TRACKING_FIELDS` where a row
-    has them (a moving target's)."""
-    moving = any(TRACKING_FIELDS[0] in r for r in rows)
-    return ROW_FIELDS + TRACKING_FIELDS if moving else ROW_FIELDS
+    """The table's columns: :data:`ROW_FIELDS`, :data:`TRACKING_FIELDS` where a row has
+    them (a moving target's) and :data:`ROTOR_FIELDS` where a row has them (rotors')."""
+    fields = ROW_FIELDS
+    if any(TRACKING_FIELDS[0] in r for r in rows):
+        fields += TRACKING_FIELDS
+    if any(ROTOR_FIELDS[0] in r for r in rows):
+        fields += ROTOR_FIELDS
+    return fields
+
+
+def compared_laws(base: ScenarioConfig | None = None) -> tuple[LawConfig, ...]:
+    """The laws compared on ``base``'s carrier: :data:`ROTOR_LAWS` where a law may drive
+    its rotors (its traits' ``rotors``), else :data:`COMPARED_LAWS`."""
+    carrier = base.carrier if base is not None else ScenarioConfig().carrier
+    return ROTOR_LAWS if carrier.traits.rotors else COMPARED_LAWS
+
+
+def default_suite(base: ScenarioConfig | None = None) -> Path:
+    """The suite compared on ``base``'s carrier when none is given: the quadrotor's
+    (``quadrotor_suite.yaml``, the starts of docs/quadrotor.md) where a law may drive its
+    rotors, else the package's ``suite.yaml``."""
+    carrier = base.carrier if base is not None else ScenarioConfig().carrier
+    if carrier.traits.rotors:
+        return default_suite_path().with_name("quadrotor_suite.yaml")
+    return default_suite_path()
 
 
 def law_label(law: LawConfig) -> str:
@@ -157,6 +198,8 @@ class CompareResult:
     plant: str
     runs: list[Run] = field(default_factory=list)
     wall_time_s: float = 0.0
+    #: The laws compared (:func:`compared_laws`).
+    laws: tuple[LawConfig, ...] = COMPARED_LAWS
 
     @property
     def rows(self) -> list[dict]:
@@ -171,14 +214,14 @@ def suite_cases(
     base: ScenarioConfig | None = None,
 ) -> list[tuple[str, str, ScenarioConfig]]:
     """``(scenario, law, config)`` for every scenario and law, in table order, on
-    ``plant`` (default: ``base``'s)."""
+    ``plant`` (default: ``base``'s); the laws are :func:`compared_laws`."""
     if plant is not None and type(plant) not in PLANT_VARIANTS.values():
         raise ValueError(f"plant must be Dynamic() or Kinematic(), got {plant!r}")
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be finite and > 0 [s]: duration = {duration}")
     cases = []
     for scenario in suite.scenarios:
-        for law in COMPARED_LAWS:
+        for law in compared_laws(base):
             config = copy.deepcopy(base) if base is not None else ScenarioConfig()
             config.controller = copy.deepcopy(law)
             if plant is not None:
@@ -238,6 +281,9 @@ def run_case(scenario: str, law: str, config: ScenarioConfig) -> Run:
     }
     if config.moving_target:
         row["steady_tracking_error_m"] = result.steady_tracking_error
+    for name in ROTOR_FIELDS:  # a carrier with rotors reports them (its run entries)
+        if name in summary:
+            row[name] = summary[name]
     directions = {"centre": centre, "b": _directions(b)}
     for k, name in enumerate(TARGET_POINT_NAMES):
         directions[name] = _directions(points[:, k, :])
@@ -275,7 +321,7 @@ def run_compare(
     base: ScenarioConfig | None = None,
     on_run: Callable[[Run], None] | None = None,
 ) -> CompareResult:
-    """Every law of :data:`COMPARED_LAWS` on every scenario of ``suite`` on ``plant``
+    """Every law of :func:`compared_laws` on every scenario of ``suite`` on ``plant``
     (default: ``base``'s).
 
     ``workers`` processes (1: in this process; more use multiprocessing's
@@ -298,7 +344,8 @@ def run_compare(
         if on_run:
             on_run(run)
     name = variant_name(cases[0][2].plant) if cases else variant_name(plant or Dynamic())
-    return CompareResult(suite, name, list(runs), time.perf_counter() - start)
+    laws = compared_laws(base)
+    return CompareResult(suite, name, list(runs), time.perf_counter() - start, laws)
 
 
 # --------------------------------------------------------------------------
@@ -330,12 +377,19 @@ _MD_COLUMNS = (
 )
 #: The columns a moving target adds to the markdown table (:data:`TRACKING_FIELDS`).
 _MD_TRACKING_COLUMNS = (("steady tracking error [m]", "steady_tracking_error_m", 3),)
+#: The columns a carrier with rotors adds to the markdown table (:data:`ROTOR_FIELDS`).
+_MD_ROTOR_COLUMNS = (
+    ("peak tilt [deg]", "max_tilt_deg", 3),
+    ("saturated", "rotor_saturation_fraction", 2),
+)
 
 
 def markdown_table(rows: Sequence[dict]) -> str:
     """The rows as a GitHub markdown table (the columns of :data:`_MD_COLUMNS`, and a
     moving target's where a row has them; a still target's row leaves them empty)."""
-    columns = _MD_COLUMNS + (_MD_TRACKING_COLUMNS if row_fields(rows) != ROW_FIELDS else ())
+    fields = row_fields(rows)
+    columns = _MD_COLUMNS + (_MD_TRACKING_COLUMNS if TRACKING_FIELDS[0] in fields else ())
+    columns += _MD_ROTOR_COLUMNS if ROTOR_FIELDS[0] in fields else ()
     lines = [
         "| " + " | ".join(h for h, _, _ in columns) + " |",
         "|" + "---|" * len(columns),
@@ -386,7 +440,7 @@ def write_tables(result: CompareResult, out_dir: str | Path) -> tuple[Path, Path
     ]
     md.write_text(
         f"# geovs-drake compare: {result.plant} plant, {len(result.suite.scenarios)} scenarios "
-        f"x {len(COMPARED_LAWS)} laws, {result.suite.duration:g} s each\n\n"
+        f"x {len(result.laws)} laws, {result.suite.duration:g} s each\n\n"
         + "Time to converge, or how the run ended:\n\n"
         + status_matrix(result.rows)
         + "\nEvery run:\n\n"
@@ -431,7 +485,7 @@ def plot_compare(result: CompareResult, out_dir: str | Path) -> list[Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    laws = [law_label(law) for law in COMPARED_LAWS]
+    laws = [law_label(law) for law in result.laws]
     colours = {law: plt.get_cmap("tab10")(i) for i, law in enumerate(laws)}
     theta = None
     conundrum = result.suite.conundrum or result.suite.scenarios[0].name
@@ -518,7 +572,7 @@ def summarize(result: CompareResult, files: Sequence[Path] = ()) -> dict:
     """The comparison as JSON-ready values: counts per status, per law the scenarios
     it converged on, the rows, the files written."""
     counts: dict[str, int] = {}
-    converged: dict[str, list[str]] = {law_label(law): [] for law in COMPARED_LAWS}
+    converged: dict[str, list[str]] = {law_label(law): [] for law in result.laws}
     for row in result.rows:
         counts[row["status"]] = counts.get(row["status"], 0) + 1
         if row["status"] == "converged":
@@ -548,12 +602,13 @@ def compare(
 ) -> tuple[CompareResult, list[Path]]:
     """The whole command: load the suite, run it, write the tables and the figures.
 
-    ``base``: the scenario the starts are put into, as in :func:`run_compare`.
+    ``base``: the scenario the starts are put into, as in :func:`run_compare`;
+    ``suite_path`` None: :func:`default_suite` for its carrier.
 
     Returns the result and the files written; figures are skipped (not an
     error) when matplotlib is not installed.
     """
-    suite = load_suite(suite_path)
+    suite = load_suite(default_suite(base) if suite_path is None else suite_path)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} exists and is not a directory")

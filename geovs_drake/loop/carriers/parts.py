@@ -30,6 +30,7 @@ from geovs_drake.systems.arm_model import ArmModel
 
 __all__ = [
     "RIG_BODY_NAME",
+    "RotorDrive",
     "TARGET_BODY_NAME",
     "TARGET_RENDER_LABEL",
     "CarrierFactory",
@@ -53,6 +54,19 @@ TARGET_BODY_NAME = "target_sphere"
 TARGET_RENDER_LABEL = 30000
 #: The frame triad drawn at the camera in Meshcat [m].
 _TRIAD_LENGTH, _TRIAD_RADIUS = 0.08, 0.003
+
+
+@dataclass(frozen=True)
+class RotorDrive:
+    """Where a law that drives a carrier's rotors itself (its traits' ``commands`` is
+    ``"rotors"``) plugs in: ``connect(builder, law)`` wires the carrier's state to the
+    law's ``body_state`` input and its ``rotor_thrusts`` output to the rotors (the run's
+    saturation is then read at its ``saturated`` output); ``body`` is the body's model as
+    keyword arguments of such a system (``mass``, ``inertia_diagonal``, ``gravity``,
+    ``attitude_gains``, ``mixer_matrix``, ``max_thrust``, ``max_tilt``)."""
+
+    connect: Callable[[DiagramBuilder, LeafSystem], None]
+    body: dict
 
 
 @dataclass
@@ -127,6 +141,10 @@ class CarrierParts:
     #: it (the quadrotor's image on the level body, :class:`~geovs_drake.systems.LevelView`):
     #: ``view(builder, y)`` returns that port; None: the sensor's y as it is.
     view: Callable[[DiagramBuilder, OutputPort], OutputPort] | None = None
+    #: Where a law drives the rotors itself (the quadrotor under Hamel & Mahony's law,
+    #: :class:`RotorDrive`); None: the carrier has no rotors a law may drive, or drives
+    #: them itself from a wrench or a twist.
+    rotors: RotorDrive | None = None
 
     @property
     def takes_wrench(self) -> bool:

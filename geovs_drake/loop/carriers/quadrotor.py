@@ -22,6 +22,7 @@ from geovs_drake.loop.carriers.arm import target_drawing
 from geovs_drake.loop.carriers.parts import (
     CarrierFactory,
     CarrierParts,
+    RotorDrive,
     leading_pose,
     meshcat_with_camera,
     out_of_view,
@@ -85,9 +86,57 @@ def heading_W(config: ScenarioConfig) -> np.ndarray:
     return x / np.linalg.norm(x)
 
 
-def _run_entries(cascade: LeafSystem) -> Callable[[Context, np.ndarray, np.ndarray], dict]:
-    """The quadrotor's JSON entries (``CarrierParts.run_entries``): the share of logged
-    states where the allocation gave anything up, and the peak tilt."""
+def _rotor_drive(
+    builder: DiagramBuilder, resolved: ResolvedScenario, plant: MultibodyPlant, propellers
+) -> tuple[RotorDrive, list, object, LeafSystem | None]:
+    """What drives the rotors: the attitude cascade from the NF's wrench (its
+    ``connect_force``), or, where the law drives them itself (its traits' ``commands``,
+    ``"rotors"``: Hamel & Mahony's), the law, through the returned :class:`RotorDrive`
+    (``connect_force`` None then). The list holds the driver once connected; the last
+    entry is the cascade (its feed-forward inputs behind a moving target), else None."""
+    config = resolved.config
+    quad = config.carrier
+    positions, moment_ratios = rotor_layout(quad)
+    model = dict(
+        mass=quad.mass,
+        inertia_diagonal=tuple(quad.inertia_diagonal),
+        gravity=float(-plant.gravity_field().gravity_vector()[2]),
+        attitude_gains=tuple(quad.attitude_gains),
+        mixer_matrix=mixer(positions, moment_ratios),
+        max_thrust=quad.max_rotor_thrust,
+        max_tilt=float(np.radians(quad.max_tilt_deg)),
+    )
+    drivers: list[LeafSystem] = []
+
+    def drive_rotors(builder: DiagramBuilder, driver: LeafSystem) -> None:
+        builder.Connect(plant.get_state_output_port(), driver.body_state_input)
+        builder.Connect(driver.rotor_thrusts_output, propellers.get_command_input_port())
+        drivers.append(driver)
+
+    connect_force, cascade = None, None
+    if resolved.law.traits.commands != "rotors":
+        cascade = builder.AddNamedSystem(
+            "attitude_cascade",
+            AttitudeCascade(
+                heading_W=tuple(heading_W(config)),
+                velocity_damping=quad.velocity_damping,
+                # A moving target translates (the scenario's check): X_WB(0)'s rotation.
+                target_rotation=config.X_WB.rotation().matrix(),
+                **model,
+            ),
+        )
+        drive_rotors(builder, cascade)
+
+        def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
+            # The NF's wrench enters the cascade, which keeps its force (in W).
+            builder.Connect(force.generalized_force_output, cascade.generalized_force_input)
+
+    return RotorDrive(drive_rotors, model), drivers, connect_force, cascade
+
+
+def _run_entries(drivers: list) -> Callable[[Context, np.ndarray, np.ndarray], dict]:
+    """The run's JSON entries: the share of logged states at which the rotors' driver (the
+    cascade or the law, ``drivers[0]``) gave anything up, and the peak tilt."""
 
     def run_entries(root: Context, states: np.ndarray, times: np.ndarray) -> dict:
         # The allocation's verdict at each logged state (the diagram evaluated there, at
@@ -98,8 +147,8 @@ def _run_entries(cascade: LeafSystem) -> Callable[[Context, np.ndarray, np.ndarr
         for k, x in enumerate(states):
             context.SetTime(float(times[k]))
             context.SetContinuousState(x)
-            sub = cascade.GetMyContextFromRoot(context)
-            saturated[k] = cascade.saturated_output.Eval(sub)[0]
+            sub = drivers[0].GetMyContextFromRoot(context)
+            saturated[k] = drivers[0].saturated_output.Eval(sub)[0]
         q = np.asarray(states)[:, QUATERNION]
         q = q / np.linalg.norm(q, axis=1, keepdims=True)
         # The body's z axis's height: 1 - 2 (qx^2 + qy^2); its angle from up is the tilt.
@@ -151,24 +200,7 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
     )
     builder.Connect(propellers.get_output_port(), plant.get_applied_spatial_force_input_port())
     builder.Connect(plant.get_body_poses_output_port(), propellers.get_body_poses_input_port())
-    cascade = builder.AddNamedSystem(
-        "attitude_cascade",
-        AttitudeCascade(
-            mass=quad.mass,
-            inertia_diagonal=tuple(quad.inertia_diagonal),
-            gravity=float(-plant.gravity_field().gravity_vector()[2]),
-            attitude_gains=tuple(quad.attitude_gains),
-            heading_W=tuple(heading_W(config)),
-            mixer_matrix=mixer(positions, moment_ratios),
-            max_thrust=quad.max_rotor_thrust,
-            velocity_damping=quad.velocity_damping,
-            max_tilt=float(np.radians(quad.max_tilt_deg)),
-            # A moving target translates (the scenario's check): its rotation is X_WB(0)'s.
-            target_rotation=config.X_WB.rotation().matrix(),
-        ),
-    )
-    builder.Connect(plant.get_state_output_port(), cascade.body_state_input)
-    builder.Connect(cascade.rotor_thrusts_output, propellers.get_command_input_port())
+    rotors, drivers, connect_force, cascade = _rotor_drive(builder, resolved, plant, propellers)
 
     # The NF reads the image of a camera on the level body, and its damping that camera's
     # velocity: a tilt then moves nothing the NF sees (LevelView's docstring).
@@ -178,10 +210,6 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
     def view(builder: DiagramBuilder, y):
         builder.Connect(y, level.image_features_input)
         return level.level_image_features_output
-
-    def connect_force(builder: DiagramBuilder, force: LeafSystem) -> None:
-        # The NF's wrench enters the cascade, which keeps its force (in W).
-        builder.Connect(force.generalized_force_output, cascade.generalized_force_input)
 
     return CarrierParts(
         body_pose=pose_head(builder, plant.get_state_output_port()),
@@ -197,13 +225,16 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
         plant=plant,
         scene_graph=scene_graph,
         body=body,
-        run_entries=_run_entries(cascade),
+        run_entries=_run_entries(drivers),
         view=view,
+        rotors=rotors,
         # Behind a moving target (simulated in the world, loop.targets): the believed
-        # target's velocity and acceleration enter the thrust vector.
+        # target's velocity and acceleration enter the cascade's thrust vector.
         draw_target=target_drawing(scene_graph, resolved, draws_marks) if moving else None,
-        feedforward_input=cascade.feedforward_twist_input,
-        feedforward_rate_input=cascade.feedforward_acceleration_input,
+        feedforward_input=None if cascade is None else cascade.feedforward_twist_input,
+        feedforward_rate_input=(
+            None if cascade is None else cascade.feedforward_acceleration_input
+        ),
     )
 
 
