@@ -192,8 +192,9 @@ def test_linearize_at_hover_is_stable_and_matches_finite_differences(mount):
     assert np.max(eigenvalues[~near_zero].real) < -1.0
 
 
-def test_a_short_run_from_a_level_start_closes_in_and_stays_in_d():
-    result = simulate(_config(duration=1.5))
+def test_a_short_run_from_the_default_start_closes_in_and_stays_in_d():
+    # The default start's body tilt (115 deg) dropped: initial_attitude level.
+    result = simulate(ScenarioConfig(carrier=Quadrotor(), plant=Dynamic(), duration=1.5))
     s = result.summary()
     assert not result.left_domain and s["min_fov_margin"] > 0
     errors = result.position_errors
@@ -241,15 +242,34 @@ BAD_INPUTS = {
         ["--scenario-text", "carrier: !Quadrotor {mount: down}"],
         ["mount down does not see the target", "90.0 deg off the optical axis"],
     ),
-    "moving-target": (["--target-twist=0,0,0,0.05,0,0"], ["follows no moving target"]),
-    "start-tilted": ([], ["start tilts the quadrotor by 115 deg, past 66.4 deg"]),
+    "turning-target": (
+        ["--target-twist=0,0,0.2,0.05,0,0"],
+        ["translating target only", "turns by up to 0.2 rad"],
+    ),
+    "start-tilted": (
+        ["--scenario-text", "carrier: !Quadrotor {initial_attitude: given}"],
+        ["start tilts the quadrotor by 115 deg, past 66.4 deg"],
+    ),
+    "anchor-behind-a-moving-target": (
+        ["--controller", "hamel_mahony", "--target-twist=0,0,0,0.05,0,0"],
+        ["drives a quadrotor's rotors behind a still target only", "Twist()"],
+    ),
+    "level-start-blind": (
+        ["--initial=0,0.35,-0.45,0.6,0,0"],  # in D as given (34.4 deg of tilt), not level
+        ["start outside D: fov margin", "initial_attitude level", "a tilt of 34.4 deg"],
+    ),
+    "initial-attitude": (
+        ["--scenario-text", "carrier: !Quadrotor {initial_attitude: upright}"],
+        ["carrier.initial_attitude must be one of level, given", "'upright'"],
+    ),
 }
 
 
 @pytest.mark.parametrize("name", list(BAD_INPUTS))
 def test_each_bad_input_gets_one_line_and_exit_2(name, run_cli):
     argv, needles = BAD_INPUTS[name]
-    start = [] if name == "start-tilted" else ["--initial=0.12,-0.08,-0.8,0,0.3,0"]
+    given = name == "start-tilted" or any(a.startswith("--initial") for a in argv)
+    start = [] if given else ["--initial=0.12,-0.08,-0.8,0,0.3,0"]
     code, out, err = run_cli("simulate", "--carrier", "quadrotor", *start, *argv)
     lines = err.strip().splitlines()
     assert code == 2 and out == "" and len(lines) == 1 and "Traceback" not in err, err

@@ -378,7 +378,7 @@ def run(args: argparse.Namespace) -> int:
     config = load_layers(args)
     if _without_model(config) and args.at == "goal":
         # Linearised at rest at the goal, the loop never reads the start: its checks (the
-        # quadrotor refuses the default start's tilt) do not apply.
+        # quadrotor with initial_attitude given refuses a start tilted too far) do not apply.
         config.initial = copy.deepcopy(config.goal)
     config.validate()
     from geovs_drake.analysis.linear.linearization import linearize, state_at

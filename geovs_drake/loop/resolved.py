@@ -81,6 +81,9 @@ class ResolvedScenario:
     #: (:class:`~geovs_drake.goal.target_reach.TargetReach`), checked with the effort
     #: check (where asked: a warning line's); else None.
     reach: TargetReach | None = None
+    #: Where the carrier changed the start it was given (the quadrotor's level start,
+    #: ``config.initial`` already the changed one): the run's warning line; else None.
+    start_note: str | None = None
 
     @property
     def controller(self) -> str:

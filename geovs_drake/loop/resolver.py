@@ -4,6 +4,7 @@ The one place where the values a run needs are worked out (the shape of Drake's
 hardware_sim: load, validate, then build from what was resolved)::
 
     config.validate()                     D and the NF's gains, checked and kept
+    the start                             the carrier's (the quadrotor's level one)
     y*, NF on D, its Hessian at y*        the goal (Eq. 33's phi and its chart Hessian)
     gain scale                            the arm's gain_scale (auto: fitted to the
                                           camera, then to the effort limits)
@@ -30,7 +31,8 @@ from geovs_drake.goal.step_limit import goal_A, step_limit
 from geovs_drake.goal.target_reach import target_reach
 from geovs_drake.loop.assembly import assemble_loop, refusal
 from geovs_drake.loop.resolved import ResolvedScenario, exact_twin
-from geovs_drake.scenario import AUTO, NOMINAL_GAIN_SCALES, ScenarioConfig, damping_of
+from geovs_drake.scenario import AUTO, NOMINAL_GAIN_SCALES, PoseConfig, ScenarioConfig, damping_of
+from geovs_drake.scenario.carriers import carrier_start
 
 __all__ = ["resolve"]
 
@@ -55,6 +57,12 @@ def resolve(
         return config
     config = ScenarioConfig() if config is None else config
     domain, gains = config.validate()
+    # The start the carrier takes (the quadrotor's level one), derived here once: the
+    # loop, the start's check in D and the run's errors all read this config's.
+    started = carrier_start(config.carrier, config.X_WB, config.X_BC_initial)
+    if started is not None:
+        config = copy.deepcopy(config)
+        config.initial = PoseConfig.from_rigid_transform(started[0])
     why = refusal(config)  # a part with no registry entry: one line, before anything
     if why is not None:
         raise ValueError(why)
@@ -74,6 +82,7 @@ def resolve(
         gains=gains,
         nf=nf,
         hessian=navigation_hessian(nf, y_goal),
+        start_note=None if started is None else started[1],
     )
     resolved, fit, checked = _fit_gains(base, effort)
     goal = goal_A(resolved)

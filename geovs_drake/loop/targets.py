@@ -13,7 +13,11 @@ X_BC against X_BC*. How a carrier gets there is its entry of :data:`TARGET_FRAME
   its scene; a :class:`~geovs_drake.systems.TargetFrame` shows the loop its camera from
   W', the kinematic arm is commanded the law's twist plus the feed-forward, and the
   dynamic arm adds the torque of the motion that follows the target
-  (:class:`~geovs_drake.systems.ArmCamera`'s ``feedforward_twist``).
+  (:class:`~geovs_drake.systems.ArmCamera`'s ``feedforward_twist``);
+* the quadrotor likewise, in the world where gravity acts: its attitude cascade adds the
+  believed target's velocity (to its damping) and acceleration to the thrust vector
+  (:class:`~geovs_drake.systems.AttitudeCascade`'s ``feedforward_twist`` and
+  ``feedforward_acceleration``).
 
 On the free rig the target's motion enters where physics puts it:
 
@@ -56,7 +60,7 @@ from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, Pa
 
 from geovs_drake.loop.carriers import CarrierParts, world_view_meshcat
 from geovs_drake.loop.resolved import ResolvedScenario
-from geovs_drake.scenario import ESTIMATOR_RATE_HZ, FEEDFORWARD_MODES, Arm, FreeRig
+from geovs_drake.scenario import ESTIMATOR_RATE_HZ, FEEDFORWARD_MODES, Arm, FreeRig, Quadrotor
 from geovs_drake.scenario.targets import target_motion_arguments
 from geovs_drake.systems.target_frame import TargetFrame
 from geovs_drake.systems.target_motion import TargetMotion
@@ -216,7 +220,13 @@ def _in_world(builder, resolved, carrier: CarrierParts, motion) -> TargetParts:
 
 #: How each carrier sees a moving target, by the carrier variant's type: the free rig is
 #: simulated in the target's frame, an arm in the world (its base stands there).
-TARGET_FRAMES: dict[type, Callable[..., TargetParts]] = {FreeRig: _relative, Arm: _in_world}
+#: The quadrotor too: gravity acts in the world, and its cascade takes the believed
+#: target's velocity and acceleration (``feedforward_input``, ``feedforward_rate_input``).
+TARGET_FRAMES: dict[type, Callable[..., TargetParts]] = {
+    FreeRig: _relative,
+    Arm: _in_world,
+    Quadrotor: _in_world,
+}
 
 
 def estimator_timing(resolved: ResolvedScenario) -> tuple[float, int]:
@@ -301,6 +311,8 @@ def connect_feedforward(
     builder.Connect(believed.get_output_port(), target.adapter.twist_estimate_input)
     if target.adapter.HasInputPort("acceleration_estimate"):  # the free rig's wrench
         builder.Connect(rate, target.adapter.GetInputPort("acceleration_estimate"))
+    if target.carrier.feedforward_rate_input is not None:  # the quadrotor's cascade
+        builder.Connect(rate, target.carrier.feedforward_rate_input)
 
 
 def connect_law_feedforward(builder: DiagramBuilder, law: LeafSystem) -> None:

@@ -17,6 +17,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from geovs_drake.scenario.plants import Dynamic, Kinematic
 from geovs_drake.scenario.pose import PoseConfig, check_at_least, finite_numbers
+from geovs_drake.scenario.targets import Trajectory, Twist, target_trajectory
 from geovs_drake.scenario.traits import CarrierTraits
 
 __all__ = [
@@ -29,9 +30,13 @@ __all__ = [
     "FixedCamera",
     "FreeRig",
     "QUADROTOR_MOUNTS",
+    "QUADROTOR_START_ATTITUDES",
     "Quadrotor",
     "RigidBodyConfig",
+    "carrier_start",
     "check_carrier",
+    "level_start",
+    "target_turn",
 ]
 
 
@@ -190,6 +195,12 @@ QUADROTOR_MOUNTS: dict[str, tuple[tuple[tuple[float, ...], ...], tuple[float, fl
     "down": (((0.0, 1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, -1.0)), (0.0, 0.0, -0.03)),
 }
 
+#: The quadrotor's attitudes at t = 0 (``Quadrotor.initial_attitude``), what each does.
+QUADROTOR_START_ATTITUDES: dict[str, str] = {
+    "level": "the start's camera position and the body's heading, the body level",
+    "given": "the start as given (refused past the tilt the rotors hold the weight at)",
+}
+
 #: A goal attitude within this tilt [rad] of level is level: a tenth of the 1 mrad
 #: convergence tolerance, so that the body held level leaves the camera within it.
 LEVEL_TOLERANCE_RAD = 1e-4
@@ -208,7 +219,9 @@ class Quadrotor:
     ``attitude_gains`` = (k_R [1/s^2], k_Omega [1/s]), per unit of inertia
     (:class:`~geovs_drake.systems.AttitudeCascade`), which also damps the body's velocity
     with ``velocity_damping`` [N s/m]. Dynamic plant only; the goal must be a level
-    hover."""
+    hover, and a moving target must translate (the landing platform: its believed
+    velocity and acceleration enter the thrust vector). ``initial_attitude`` says whether
+    the start's body is levelled (``level``) or kept as given."""
 
     mass: float = 0.775
     inertia_diagonal: list[float] = field(default_factory=lambda: [0.0015, 0.0025, 0.0035])
@@ -236,13 +249,19 @@ class Quadrotor:
     #: 0.05 s from (0.05, -0.03, -0.6); at 10 it converged there in 3.6 s, and the
     #: forward camera's starts converge as fast as at 30 (docs/quadrotor.md).
     max_tilt_deg: float = 10.0
+    #: The body's attitude at t = 0 (:data:`QUADROTOR_START_ATTITUDES`): ``level`` keeps
+    #: the start's camera position and the body's heading and drops its roll and pitch (a
+    #: quadrotor hovers level before the servo starts; the resolver derives it,
+    #: :func:`level_start`); ``given`` keeps the start as it is, refused past the tilt the
+    #: rotors can hold the weight at.
+    initial_attitude: str = "level"
 
     traits: ClassVar[CarrierTraits] = CarrierTraits(
         camera_in_hand=True,
         joints=False,
         rigid_body_goal=False,
         goal_model=False,
-        moving_target=False,
+        moving_target=True,
         batch_kernel=False,
         gain_scale=False,
         effort_limits=False,
@@ -251,6 +270,7 @@ class Quadrotor:
             "the attitude cascade turns the NF's wrench into one thrust and an attitude "
             "(underactuated), and Appendix C's energy argument needs the wrench applied"
         ),
+        turning_target=False,
         rotors=True,
     )
 
@@ -392,6 +412,11 @@ def _check_quadrotor(quad: Quadrotor) -> None:
             "carrier.attitude_gains must be 2 numbers > 0 (k_R [1/s^2], k_Omega [1/s]), "
             f"got {quad.attitude_gains!r}"
         )
+    if quad.initial_attitude not in QUADROTOR_START_ATTITUDES:
+        raise ValueError(
+            f"carrier.initial_attitude must be one of {', '.join(QUADROTOR_START_ATTITUDES)}, "
+            f"got {quad.initial_attitude!r}"
+        )
 
 
 def goal_tilt(X_WC_goal: RigidTransform, X_RC: RigidTransform) -> float:
@@ -409,17 +434,31 @@ def check_quadrotor_scenario(
     X_BC_initial: RigidTransform,
     dynamic: bool,
     fov_half_angle: float,
+    target_motion: object = None,
 ) -> None:
     """What the quadrotor asks of the scenario around it, one line each: the dynamic
     plant (its rotors push; a velocity-commanded quadrotor is another carrier), a mount
-    that sees the target from the goal with the body level, a goal held level, and a
-    start whose tilt the rotors can hold the weight at."""
+    that sees the target from the goal with the body level, a goal held level, a target
+    that translates only (``target_motion``; the goal's heading is the cascade's, held),
+    and with ``initial_attitude: given`` a start whose tilt the rotors can hold the
+    weight at (``level`` levels it: :func:`level_start`)."""
     if not dynamic:
         raise ValueError(
             "carrier Quadrotor runs on the dynamic plant only (its rotors push; a "
             "velocity-commanded quadrotor is not this carrier), got plant Kinematic()"
         )
     _check_goal_level(quad, X_WB, X_BC_goal, fov_half_angle)
+    turn = target_turn(target_motion)
+    if turn > 0:
+        # The cascade holds the goal's heading and a level hover: a turning target would
+        # turn the goal's attitude (off level, about any axis but the vertical).
+        raise ValueError(
+            "carrier Quadrotor follows a translating target only (the cascade holds the "
+            f"goal's heading and a level hover): target_motion turns by up to {turn:.4g} "
+            "rad (its twist's angular part, or its trajectory's orientations)"
+        )
+    if quad.initial_attitude == "level":
+        return
     start_tilt = goal_tilt(X_WB @ X_BC_initial, quad.X_RC)
     # Past this tilt the rotors at full thrust no longer hold the weight: the body falls
     # while it levels (the default scenario's start, 115 deg with the forward mount,
@@ -432,6 +471,59 @@ def check_quadrotor_scenario(
             "its weight: start it nearer a level hover (the forward mount: initial rpy "
             "[0, heading, 0], e.g. --initial=0.12,-0.08,-0.8,0,0.3,0)"
         )
+
+
+def target_turn(target_motion: object) -> float:
+    """How far a target's motion turns it: its twist's angular speed [rad/s] (a
+    :class:`~geovs_drake.scenario.Twist`), the largest angle [rad] of its trajectory's
+    orientations from the start's (a :class:`~geovs_drake.scenario.Trajectory`), else 0."""
+    if isinstance(target_motion, Twist):
+        return float(np.linalg.norm(np.asarray(target_motion.twist[0:3], dtype=float)))
+    if not isinstance(target_motion, Trajectory):
+        return 0.0
+    pose = target_trajectory(target_motion)
+    angles = [
+        AngleAxis(pose.GetPose(t).rotation().ToQuaternion()).angle()
+        for t in pose.get_segment_times()
+    ]
+    return float(max(angles))
+
+
+def level_start(
+    quad: Quadrotor, X_WB: RigidTransform, X_BC_initial: RigidTransform
+) -> tuple[RigidTransform, float]:
+    """``initial_attitude: level``'s start: X_BC(0) of the camera on the level body with
+    the start's camera position and the body's heading (its x axis's, as the cascade's
+    heading and :class:`~geovs_drake.systems.LevelView` read it; the y axis's turned by
+    -90 deg where x is vertical), and the tilt [rad] dropped, the angle between the
+    start's body z axis and the world's."""
+    X_WC = X_WB @ X_BC_initial
+    R = (X_WC @ quad.X_RC.inverse()).rotation().matrix()
+    x, y = R[:, 0], R[:, 1]
+    heading = math.atan2(x[1], x[0]) if math.hypot(x[0], x[1]) > 1e-6 else math.atan2(-y[0], y[1])
+    R_level = RotationMatrix.MakeZRotation(heading)
+    # The camera's origin kept: p_WR = p_WC - R_level p_RC.
+    X_WR = RigidTransform(R_level, X_WC.translation() - R_level.matrix() @ quad.X_RC.translation())
+    tilt = math.acos(max(-1.0, min(1.0, float(R[2, 2]))))
+    return X_WB.inverse() @ X_WR @ quad.X_RC, tilt
+
+
+def carrier_start(
+    carrier: object, X_WB: RigidTransform, X_BC_initial: RigidTransform
+) -> tuple[RigidTransform, str] | None:
+    """Where a carrier changes the start it is given: the X_BC(0) it starts at and the
+    run's warning line that says so, or None (the start as given). The quadrotor with
+    ``initial_attitude: level`` and a tilted start: :func:`level_start`."""
+    if not (isinstance(carrier, Quadrotor) and carrier.initial_attitude == "level"):
+        return None
+    X_BC, tilt = level_start(carrier, X_WB, X_BC_initial)
+    if tilt <= 1e-9:  # level already (a leveled start read back through its rpy)
+        return None
+    return X_BC, (
+        f"carrier.initial_attitude level: the quadrotor starts level, its body's roll and "
+        f"pitch at the start dropped (a tilt of {math.degrees(tilt):.3g} deg); the camera's "
+        "position and the body's heading kept (initial_attitude: given keeps the tilt)"
+    )
 
 
 def _check_goal_level(

@@ -313,11 +313,19 @@ class ScenarioConfig:
                 self.X_BC_initial,
                 self.dynamic,
                 math.radians(self.domain.fov_half_angle_deg),
+                self.target_motion,
             )
         if self.controller.traits.commands == "rotors" and not self.carrier.traits.rotors:
             raise ValueError(
                 f"controller {variant_name(self.controller)} drives a quadrotor's rotors: "
                 f"it needs carrier quadrotor, got carrier {variant_name(self.carrier)}"
+            )
+        if self.controller.traits.commands == "rotors" and self.moving_target:
+            # Its rotors are its own: no cascade takes the target's believed motion.
+            raise ValueError(
+                f"controller {variant_name(self.controller)} drives a quadrotor's rotors "
+                "behind a still target only (the target's motion is fed forward through the "
+                f"NF's attitude cascade), got target_motion {type(self.target_motion).__name__}()"
             )
         if moving and not self.dynamic:
             raise ValueError(
@@ -327,16 +335,18 @@ class ScenarioConfig:
             )
         if self.moving_target and not self.carrier.traits.moving_target:
             # Eye-to-hand, the target is the body the loop moves: it has no motion of its
-            # own; a carrier in the hand says in its traits whether it follows one (the
-            # quadrotor's cascade is measured behind a still target only).
+            # own; a carrier in the hand says in its traits whether it follows one.
             why = (
                 "its traits say it follows no moving target"
                 if self.carrier.traits.camera_in_hand
                 else "the fixed camera's loop moves the target itself"
             )
+            followers = " or ".join(
+                c.__name__ for c in CARRIER_VARIANTS.values() if c.traits.moving_target
+            )
             raise ValueError(
                 f"target_motion {type(self.target_motion).__name__}() needs a carrier that "
-                f"follows a moving target (carrier FreeRig or Arm): {why}, got carrier "
+                f"follows a moving target (carrier {followers}): {why}, got carrier "
                 f"{type(self.carrier).__name__}()"
             )
         if (

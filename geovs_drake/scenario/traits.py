@@ -36,8 +36,10 @@ class CarrierTraits:
     check applies). ``takes``: what it takes on each plant (by the plant's name).
     ``energy_exclusion``: why Appendix C's energy argument does not cover a loop on this
     carrier, in a phrase (the run's ``energy_guarantee`` is then null with it), or empty.
-    ``rotors``: a law may drive its rotors itself (a law whose traits'
-    ``commands`` is ``"rotors"``, Hamel & Mahony's on the quadrotor)."""
+    ``turning_target``: where it follows a moving target, it follows one that turns too
+    (False: a translating one only, the quadrotor's, whose cascade holds the goal's
+    heading and a level hover). ``rotors``: a law may drive its rotors itself (a law
+    whose traits' ``commands`` is ``"rotors"``, Hamel & Mahony's on the quadrotor)."""
 
     camera_in_hand: bool
     joints: bool
@@ -49,6 +51,7 @@ class CarrierTraits:
     effort_limits: bool
     takes: tuple[tuple[str, str], ...]
     energy_exclusion: str = ""
+    turning_target: bool = True
     rotors: bool = False
 
 

@@ -231,14 +231,15 @@ STEADY_SHARE = 0.25
 def run_warnings(resolved: ResolvedScenario) -> tuple[str, ...]:
     """The lines a run's user reads before it starts, from what the resolver found: the
     step limit's (a stiff loop, a step beyond the bound), the camera fit's (gains too
-    close to instability) and the effort check's (torques past a limit); none where
-    each has nothing to say."""
+    close to instability), the effort check's (torques past a limit) and the carrier's
+    changed start (the quadrotor's level one); none where each has nothing to say."""
     config = resolved.config
     lines = (
         resolved.step_limit.warning(config.simulator.integration_scheme),
         None if resolved.camera_fit is None else resolved.camera_fit.warning(),
         None if resolved.effort is None else resolved.effort.warning(),
         None if resolved.reach is None else resolved.reach.warning(),
+        resolved.start_note,
     )
     return tuple(line for line in lines if line is not None)
 

@@ -58,14 +58,20 @@ def check_start(config: ScenarioConfig | ResolvedScenario) -> None:
 
 
 def _check_start(resolved: ResolvedScenario) -> None:
+    # Where the carrier changed the start (the quadrotor's level one), the line says so.
+    changed = (
+        "" if resolved.start_note is None else f" (the start as changed: {resolved.start_note})"
+    )
     try:
         y0 = resolved.config.initial_features()
     except ValueError as e:
-        raise StartOutsideDomain(f"start outside D: {e}") from e
+        raise StartOutsideDomain(f"start outside D: {e}{changed}") from e
     margins = resolved.domain.margins(y0)
     for name, value in zip(MARGIN_NAMES, margins, strict=True):
         if float(value) < 0:
-            raise StartOutsideDomain(f"start outside D: {name} margin = {float(value):.4g} < 0")
+            raise StartOutsideDomain(
+                f"start outside D: {name} margin = {float(value):.4g} < 0{changed}"
+            )
 
 
 def arm_trace(loop: Loop, root, states: np.ndarray) -> ArmTrace:
@@ -261,7 +267,9 @@ def _report(loop: Loop, simulator, monitor, wall: float, failure: str | None) ->
             loop.diagram.GetSubsystemByName("target_motion").end_time() if moving else None
         ),
         carrier_entries=(
-            {} if loop.carrier.run_entries is None else loop.carrier.run_entries(root, states)
+            {}
+            if loop.carrier.run_entries is None
+            else loop.carrier.run_entries(root, states, times)
         ),
     )
     # The notes the message carries: the energy's where it does not cover the start

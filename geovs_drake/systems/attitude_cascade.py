@@ -93,6 +93,8 @@ def AttitudeCascade_(T):
             input_ports:
             - generalized_force
             - body_state
+            - feedforward_twist
+            - feedforward_acceleration
             output_ports:
             - rotor_thrusts
             - saturated
@@ -116,8 +118,22 @@ def AttitudeCascade_(T):
         ``saturated`` is 1 where the allocation gave anything up, else 0. The NF's torque
         is not used: three torques go to the attitude, and the heading is the goal's.
 
+        Behind a moving target (translating: the goal's heading is held) the thrust
+        vector follows the target's motion as the loop believes it, as the free rig's
+        law's feed-forward does (:class:`~geovs_drake.systems.TargetRelativeWrench`):
+        ``f_d = f_W - b (v_W - v_ff) + m a_ff + m g e_z``. ``feedforward_twist`` is the
+        believed target twist carried to the body R, ``Ad_{X_RB} xi_hat`` (6, in R, as
+        :class:`~geovs_drake.systems.TargetFrame` gives it): v_ff = R_WR times its
+        linear part, the velocity the body needs to move with the target (the cascade's
+        damping acts on the velocity relative to it). ``feedforward_acceleration`` is
+        the believed twist's rate in the target's frame B (6): a_ff = R_WB times its
+        linear part (the target's ``target_rotation`` R_WB held), the acceleration the
+        thrust adds so that the body keeps pace (Newton's law, m a_ff). Either input
+        left unconnected (a still target) reads zero. Both enter the kernel as a force
+        added to the NF's, ``b v_ff + m a_ff``.
+
         The numbers are constructor arguments (the body's mass model, the gains, the
-        mixer), fixed for the loop's life.
+        mixer, the target's rotation), fixed for the loop's life.
         """
 
         def _construct(
@@ -131,6 +147,7 @@ def AttitudeCascade_(T):
             max_thrust: float = 4.75,
             velocity_damping: float = 4.0,
             max_tilt: float = math.radians(10.0),
+            target_rotation: np.ndarray | None = None,
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
@@ -152,7 +169,12 @@ def AttitudeCascade_(T):
                 max_thrust,
                 velocity_damping,
                 max_tilt,
+                target_rotation,
             )
+            # The feed-forward's numbers (a moving target's): b, m and R_WB of a
+            # translating target, the believed acceleration's frame.
+            self._damping, self._mass = float(velocity_damping), float(mass)
+            self._R_WT = np.eye(3) if target_rotation is None else np.asarray(target_rotation)
             # The kernel's parameters (_quadrotor_kernels: the cascade's vector), floats for
             # the compiled path and a tuple of Python floats for AutoDiffXd's.
             p = np.array(
@@ -174,6 +196,12 @@ def AttitudeCascade_(T):
                 name="generalized_force", size=6
             )
             self.body_state_input = self.DeclareVectorInputPort(name="body_state", size=STATE_SIZE)
+            self.feedforward_twist_input = self.DeclareVectorInputPort(
+                name="feedforward_twist", size=6
+            )
+            self.feedforward_acceleration_input = self.DeclareVectorInputPort(
+                name="feedforward_acceleration", size=6
+            )
             prerequisites = {self.all_input_ports_ticket()}
             self.rotor_thrusts_output = self.DeclareVectorOutputPort(
                 name="rotor_thrusts",
@@ -195,7 +223,32 @@ def AttitudeCascade_(T):
             """The kernel's ``(u (4), saturated, T, tau (3))`` at this context."""
             x = self.body_state_input.Eval(context)
             f_W = self.generalized_force_input.Eval(context)[3:6]
+            feedforward = self._feedforward(context, x)
+            if feedforward is not None:  # a moving target's
+                f_W = f_W + feedforward
             return self._cascade(x, f_W, self._p)
+
+        def _feedforward(self, context, x: np.ndarray) -> np.ndarray | None:
+            """``b v_ff + m a_ff`` (3, in W) of a moving target's believed motion (the
+            class docstring): f_d's feed-forward, added to the NF's force; None where
+            neither input is connected (a still target: the kernel's path as it was)."""
+            twist, rate = self.feedforward_twist_input, self.feedforward_acceleration_input
+            out = None
+            if rate.HasValue(context):
+                out = self._mass * (self._R_WT @ rate.Eval(context)[3:6])
+            if not twist.HasValue(context):
+                return out
+            w, a, b, c = x[0:4] / (x[0:4] @ x[0:4]) ** 0.5
+            # R_WR of the body's quaternion: v_ff = R_WR (Ad_{X_RB} xi_hat)'s linear part.
+            R = np.array(
+                [
+                    [1 - 2 * (b * b + c * c), 2 * (a * b - w * c), 2 * (a * c + w * b)],
+                    [2 * (a * b + w * c), 1 - 2 * (a * a + c * c), 2 * (b * c - w * a)],
+                    [2 * (a * c - w * b), 2 * (b * c + w * a), 1 - 2 * (a * a + b * b)],
+                ]
+            )
+            velocity = self._damping * (R @ twist.Eval(context)[3:6])
+            return velocity if out is None else out + velocity
 
         def wanted_wrench(self, context) -> list:
             """(T, tau_x, tau_y, tau_z) before the allocation: the thrust along z_B and

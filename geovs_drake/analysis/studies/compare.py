@@ -299,10 +299,14 @@ def still_entries_for(suite: SuiteConfig, base: ScenarioConfig | None) -> SuiteC
     entries elsewhere: the fixed camera cannot run a moving target
     (:meth:`ScenarioConfig.validate` says why), and the moving entry's target (a 0.25 m
     circle at 0.2 rad/s about the free rig's goal) is not one an arm's workspace holds
-    (an arm tracks the slow circle of docs/moving-target.md), so that the shipped suite's
-    moving entry does not refuse or spoil the whole comparison there."""
+    (an arm tracks the slow circle of docs/moving-target.md), nor one a carrier that
+    follows translating targets only takes (the quadrotor: its traits'
+    ``turning_target``), so that the shipped suite's moving entry does not refuse or
+    spoil the whole comparison there."""
     carrier = base.carrier if base is not None else ScenarioConfig().carrier
-    if carrier.traits.moving_target and not carrier.traits.joints:  # no workspace to leave
+    traits = carrier.traits
+    # No workspace to leave, and the suite's moving entry (a circle) turns.
+    if traits.moving_target and traits.turning_target and not traits.joints:
         return suite
     kept = [entry for entry in suite.scenarios if not entry.moving_target]
     conundrum = suite.conundrum if suite.conundrum in {e.name for e in kept} else ""

@@ -53,7 +53,7 @@ from geovs_drake.visualization import (
     add_target_geometry,
 )
 
-__all__ = ["ENTRIES", "add_arm_scene", "world_view_meshcat"]
+__all__ = ["ENTRIES", "add_arm_scene", "target_drawing", "world_view_meshcat"]
 
 
 def _arm_forward(model: ArmModel) -> Callable[[np.ndarray, object], tuple]:
@@ -106,7 +106,7 @@ def add_arm_scene(
     builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool, dynamic: bool
 ) -> tuple[ArmModel, MultibodyPlant, SceneGraph, RigidBody, RigidTransform]:
     """A continuous MultibodyPlant (gravity on) with the arm and the target fixed at X_WB
-    (a moving target is drawn apart, :func:`_target_drawing`); returns ``(model, plant,
+    (a moving target is drawn apart, :func:`target_drawing`); returns ``(model, plant,
     scene_graph, link, X_LinkC)``, the camera on ``link`` at ``X_LinkC`` (the loop's arm
     carriers, and the LCM station's simulated Panda).
 
@@ -125,7 +125,7 @@ def add_arm_scene(
     instance, camera = add_arm(plant, model)
     X_LinkC = camera.GetFixedPoseInBodyFrame()
     drawing = add_camera_geometry(plant, camera.body(), X_LinkC, resolved.domain.fov_half_angle)
-    if not config.moving_target:  # a moving one: _target_drawing, at its pose X_WB(t)
+    if not config.moving_target:  # a moving one: target_drawing, at its pose X_WB(t)
         (add_marked_target_geometry if draws_marks else add_target_geometry)(plant, config)
         drawing += add_goal_ghost(plant, config)
     plant.Finalize()
@@ -142,7 +142,7 @@ def add_arm_scene(
     return model, plant, scene_graph, camera.body(), X_LinkC
 
 
-def _target_drawing(
+def target_drawing(
     scene_graph: SceneGraph, resolved: ResolvedScenario, draws_marks: bool
 ) -> Callable[[DiagramBuilder, OutputPort], None]:
     """A moving target drawn in a carrier's scene at X_WB(t): a plant with no dynamics of
@@ -225,7 +225,7 @@ def _arm_parts(
         arm=model,
         limit_check=_joint_limits(model),
         draw_target=(
-            _target_drawing(scene_graph, resolved, draws_marks) if config.moving_target else None
+            target_drawing(scene_graph, resolved, draws_marks) if config.moving_target else None
         ),
         **drive,
     )

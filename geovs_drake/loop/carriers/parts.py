@@ -129,10 +129,14 @@ class CarrierParts:
     #: believed motion asks of it (6, in C: the dynamic arm adds the torque of the joint
     #: motion that follows it), else None.
     feedforward_input: InputPort | None = None
+    #: Where a carrier takes the believed target twist's rate (6, in the target's frame:
+    #: the quadrotor's cascade adds the acceleration it asks), else None.
+    feedforward_rate_input: InputPort | None = None
     #: The carrier's own entries in the run's JSON summary (the quadrotor's rotor
-    #: saturation), ``run_entries(root, states)`` from the run's root context and its
-    #: logged continuous states (N, n); None where it has none.
-    run_entries: Callable[[Context, np.ndarray], dict] | None = None
+    #: saturation), ``run_entries(root, states, times)`` from the run's root context and
+    #: its logged continuous states (N, n) at the times (N,) (a moving target's pose
+    #: depends on them); None where it has none.
+    run_entries: Callable[[Context, np.ndarray, np.ndarray], dict] | None = None
     #: What the NF and the law read instead of the sensor's y, where the carrier turns
     #: it (the quadrotor's image on the level body, :class:`~geovs_drake.systems.LevelView`):
     #: ``view(builder, y)`` returns that port; None: the sensor's y as it is.

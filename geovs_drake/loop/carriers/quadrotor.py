@@ -4,6 +4,8 @@ Drake's ``Propeller`` systems, whose thrusts the NF's wrench sets through an att
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from pydrake.geometry import Box, Cylinder
 from pydrake.math import RigidTransform
@@ -16,6 +18,7 @@ from pydrake.multibody.plant import (
 from pydrake.multibody.tree import RigidBody, RotationalInertia, SpatialInertia
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
 
+from geovs_drake.loop.carriers.arm import target_drawing
 from geovs_drake.loop.carriers.parts import (
     CarrierFactory,
     CarrierParts,
@@ -85,11 +88,12 @@ def heading_W(config: ScenarioConfig) -> np.ndarray:
 
 def _rotor_drive(
     builder: DiagramBuilder, resolved: ResolvedScenario, plant: MultibodyPlant, propellers
-) -> tuple[RotorDrive, list, object]:
+) -> tuple[RotorDrive, list, object, LeafSystem | None]:
     """What drives the rotors: the attitude cascade from the NF's wrench (its
     ``connect_force``), or, where the law drives them itself (its traits' ``commands``,
     ``"rotors"``: Hamel & Mahony's), the law, through the returned :class:`RotorDrive`
-    (``connect_force`` None then). The list holds the driver once connected."""
+    (``connect_force`` None then). The list holds the driver once connected; the last
+    entry is the cascade (its feed-forward inputs behind a moving target), else None."""
     config = resolved.config
     quad = config.carrier
     positions, moment_ratios = rotor_layout(quad)
@@ -109,12 +113,16 @@ def _rotor_drive(
         builder.Connect(driver.rotor_thrusts_output, propellers.get_command_input_port())
         drivers.append(driver)
 
-    connect_force = None
+    connect_force, cascade = None, None
     if resolved.law.traits.commands != "rotors":
         cascade = builder.AddNamedSystem(
             "attitude_cascade",
             AttitudeCascade(
-                heading_W=tuple(heading_W(config)), velocity_damping=quad.velocity_damping, **model
+                heading_W=tuple(heading_W(config)),
+                velocity_damping=quad.velocity_damping,
+                # A moving target translates (the scenario's check): X_WB(0)'s rotation.
+                target_rotation=config.X_WB.rotation().matrix(),
+                **model,
             ),
         )
         drive_rotors(builder, cascade)
@@ -123,18 +131,21 @@ def _rotor_drive(
             # The NF's wrench enters the cascade, which keeps its force (in W).
             builder.Connect(force.generalized_force_output, cascade.generalized_force_input)
 
-    return RotorDrive(drive_rotors, model), drivers, connect_force
+    return RotorDrive(drive_rotors, model), drivers, connect_force, cascade
 
 
-def _run_entries(drivers: list):
+def _run_entries(drivers: list) -> Callable[[Context, np.ndarray, np.ndarray], dict]:
     """The run's JSON entries: the share of logged states at which the rotors' driver (the
     cascade or the law, ``drivers[0]``) gave anything up, and the peak tilt."""
 
-    def run_entries(root: Context, states: np.ndarray) -> dict:
-        # The allocation's verdict at each logged state (the diagram evaluated there).
+    def run_entries(root: Context, states: np.ndarray, times: np.ndarray) -> dict:
+        # The allocation's verdict at each logged state (the diagram evaluated there, at
+        # its time: a moving target's pose is the time's; a twist estimator's discrete
+        # state is its last).
         context = root.Clone()
         saturated = np.empty(len(states))
         for k, x in enumerate(states):
+            context.SetTime(float(times[k]))
             context.SetContinuousState(x)
             sub = drivers[0].GetMyContextFromRoot(context)
             saturated[k] = drivers[0].saturated_output.Eval(sub)[0]
@@ -166,10 +177,13 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
     )
     # Gravity stays on (Drake's default field): the cascade holds the weight itself, where
     # the free rig of Appendix C has it cancelled.
-    (add_marked_target_geometry if draws_marks else add_target_geometry)(plant, config)
+    moving = config.moving_target
+    if not moving:  # a moving one is drawn apart, at X_WB(t) (draw_target)
+        (add_marked_target_geometry if draws_marks else add_target_geometry)(plant, config)
     theta = resolved.domain.fov_half_angle
     drawing = _add_body_geometry(plant, body, quad)
-    drawing += add_camera_geometry(plant, body, config.X_RC, theta) + add_goal_ghost(plant, config)
+    drawing += add_camera_geometry(plant, body, config.X_RC, theta)
+    drawing += [] if moving else add_goal_ghost(plant, config)
     plant.Finalize()
     plant.SetDefaultFloatingBaseBodyPose(body, initial_rig_pose(config))
     if draws_marks:
@@ -186,7 +200,7 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
     )
     builder.Connect(propellers.get_output_port(), plant.get_applied_spatial_force_input_port())
     builder.Connect(plant.get_body_poses_output_port(), propellers.get_body_poses_input_port())
-    rotors, drivers, connect_force = _rotor_drive(builder, resolved, plant, propellers)
+    rotors, drivers, connect_force, cascade = _rotor_drive(builder, resolved, plant, propellers)
 
     # The NF reads the image of a camera on the level body, and its damping that camera's
     # velocity: a tilt then moves nothing the NF sees (LevelView's docstring).
@@ -214,6 +228,13 @@ def _quadrotor(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks:
         run_entries=_run_entries(drivers),
         view=view,
         rotors=rotors,
+        # Behind a moving target (simulated in the world, loop.targets): the believed
+        # target's velocity and acceleration enter the cascade's thrust vector.
+        draw_target=target_drawing(scene_graph, resolved, draws_marks) if moving else None,
+        feedforward_input=None if cascade is None else cascade.feedforward_twist_input,
+        feedforward_rate_input=(
+            None if cascade is None else cascade.feedforward_acceleration_input
+        ),
     )
 
 
