@@ -275,3 +275,21 @@ def test_each_bad_input_gets_one_line_and_exit_2(name, run_cli):
     assert code == 2 and out == "" and len(lines) == 1 and "Traceback" not in err, err
     for needle in needles:
         assert needle in lines[0], (needle, lines[0])
+
+
+def test_an_unset_integrator_is_the_carriers_and_a_given_one_is_kept() -> None:
+    # The resolver fills simulator.integration_scheme from the carrier's traits where the
+    # scenario leaves it unset (RK5 on the quadrotor, RK3 elsewhere); a user's is kept, and
+    # the simulator the monitor builds runs the filled-in one.
+    from geovs_drake.loop.build import build_loop
+    from geovs_drake.simulation.monitor import make_simulator
+
+    assert ScenarioConfig().simulator.integration_scheme is None
+    assert resolve(ScenarioConfig()).config.simulator.integration_scheme == "runge_kutta3"
+    quad = resolve(ScenarioConfig(carrier=Quadrotor()))
+    assert quad.config.simulator.integration_scheme == "runge_kutta5"
+    given = ScenarioConfig(carrier=Quadrotor())
+    given.simulator.integration_scheme = "runge_kutta3"
+    assert resolve(given).config.simulator.integration_scheme == "runge_kutta3"
+    simulator = make_simulator(build_loop(quad))[0]
+    assert type(simulator.get_integrator()).__name__.startswith("RungeKutta5Integrator")

@@ -63,6 +63,9 @@ def resolve(
     if started is not None:
         config = copy.deepcopy(config)
         config.initial = PoseConfig.from_rigid_transform(started[0])
+    if config.simulator.integration_scheme is None:  # unset: the carrier's integrator
+        config = copy.deepcopy(config)
+        config.simulator.integration_scheme = config.carrier.traits.integration_scheme
     why = refusal(config)  # a part with no registry entry: one line, before anything
     if why is not None:
         raise ValueError(why)

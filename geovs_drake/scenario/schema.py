@@ -169,13 +169,15 @@ DEFAULT_MAX_STEP = 0.05
 @dataclass
 class SimulatorSettings:
     """The simulator: Drake's ``SimulatorConfig`` fields, the same names in YAML, with the
-    project's defaults (RK3 at accuracy 1e-6). ``max_step_size`` [s] left unset (None,
+    project's defaults (accuracy 1e-6). ``integration_scheme`` left unset (None, ``null``
+    in YAML) is the carrier's (its traits': RK3, the quadrotor's RK5), filled in by the
+    resolver; a name is the user's and is used as given. ``max_step_size`` [s] left unset (None,
     ``null`` in YAML) is automatic: the goal's stability bound, at most
     :data:`DEFAULT_MAX_STEP` (:func:`geovs_drake.goal.step_limit.step_limit`); a
     value is the user's and is used as given. :meth:`to_drake` gives Drake's struct for
     ``ApplySimulatorConfig``."""
 
-    integration_scheme: str = "runge_kutta3"
+    integration_scheme: str | None = None
     max_step_size: float | None = None
     accuracy: float = 1e-6
     use_error_control: bool = True
@@ -280,7 +282,8 @@ class ScenarioConfig:
                     f"control.{name} must be 6 finite {kind}, got {getattr(self.control, name)!r}"
                 )
         schemes = GetIntegrationSchemes()
-        if self.simulator.integration_scheme not in schemes:
+        scheme = self.simulator.integration_scheme
+        if scheme is not None and scheme not in schemes:
             raise ValueError(
                 f"simulator.integration_scheme {self.simulator.integration_scheme!r} is not "
                 f"one Drake knows ({', '.join(schemes)})"

@@ -39,7 +39,9 @@ class CarrierTraits:
     ``turning_target``: where it follows a moving target, it follows one that turns too
     (False: a translating one only, the quadrotor's, whose cascade holds the goal's
     heading and a level hover). ``rotors``: a law may drive its rotors itself (a law
-    whose traits' ``commands`` is ``"rotors"``, Hamel & Mahony's on the quadrotor)."""
+    whose traits' ``commands`` is ``"rotors"``, Hamel & Mahony's on the quadrotor).
+    ``integration_scheme``: Drake's integrator for a loop on this carrier where the
+    scenario leaves ``simulator.integration_scheme`` unset (the resolver fills it)."""
 
     camera_in_hand: bool
     joints: bool
@@ -53,6 +55,7 @@ class CarrierTraits:
     energy_exclusion: str = ""
     turning_target: bool = True
     rotors: bool = False
+    integration_scheme: str = "runge_kutta3"
 
 
 @dataclass(frozen=True)
