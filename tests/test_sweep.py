@@ -116,7 +116,14 @@ def test_rows_do_not_depend_on_workers_or_chunks(tmp_path):
     before = _children()
     sizes: list[int] = []
     cluster = sweep.run_sweep(
-        config, starts, 3.0, workers=2, chunk=7, out=tmp_path / "b", on_part=sizes.append
+        config,
+        starts,
+        3.0,
+        workers=2,
+        chunk=7,
+        out=tmp_path / "b",
+        on_part=sizes.append,
+        local_cluster=True,  # 40 starts run in this process by default
     )
     pd.testing.assert_frame_equal(cluster.table, reference.table)
     assert sorted(sizes) == [5, 7, 7, 7, 7, 7]
@@ -131,6 +138,35 @@ def test_rows_do_not_depend_on_workers_or_chunks(tmp_path):
     frame = frame.sort_values("start").reset_index(drop=True)
     # (dask's string columns carry NaN, pandas' NA, for a missing value: none here.)
     pd.testing.assert_frame_equal(frame, reference.table, check_dtype=False)
+
+
+def test_a_sweep_below_the_cluster_size_runs_here_on_workers_threads(monkeypatch):
+    """Below LOCAL_CLUSTER_MIN_STARTS no Dask cluster starts (its start costs more than it
+    saves, docs/performance.md): the parts run in this process on --workers numba
+    threads, rows identical to one thread's; numba's own count is restored."""
+    import numba
+
+    def no_cluster(*args):
+        raise AssertionError("a LocalCluster was started")
+
+    monkeypatch.setattr(sweep.run, "_connect", no_cluster)
+    threads: list[int] = []
+    run_part = sweep.run.run_part
+
+    def counting(*args):
+        threads.append(numba.get_num_threads())
+        return run_part(*args)
+
+    monkeypatch.setattr(sweep.run, "run_part", counting)
+    before = numba.get_num_threads()
+    config = ScenarioConfig()
+    starts = sweep.SampledStarts(6, seed=2, velocity="bounded")
+    two = sweep.run_sweep(config, starts, 1.0, workers=2, chunk=3)
+    one = sweep.run_sweep(config, starts, 1.0, workers=1, chunk=3)
+    assert threads == [min(2, numba.config.NUMBA_NUM_THREADS)] * 2 + [1] * 2
+    assert numba.get_num_threads() == before
+    pd.testing.assert_frame_equal(two.table, one.table)
+    assert 6 < sweep.LOCAL_CLUSTER_MIN_STARTS
 
 
 def test_the_merged_summary_is_the_summary_of_the_rows():
@@ -330,6 +366,9 @@ def test_the_csv_limit_the_help_names_is_the_one_enforced(run_cli):
     run = run_cli("sweep", "--help")
     assert run.code == 0 and "10^5 starts" in " ".join(run.out.split())
     assert sweep.CSV_LIMIT == 10**5
+    # So is the size from which a local Dask cluster starts.
+    assert "cluster, started for 100000 starts" in " ".join(run.out.split())
+    assert sweep.LOCAL_CLUSTER_MIN_STARTS == 100_000
 
 
 def test_cli_resume_of_another_sweep_exits_2_and_leaves_the_folder_as_it_was(tmp_path, run_cli):

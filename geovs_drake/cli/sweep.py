@@ -92,13 +92,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="batch: the compiled batch engine; drake: Drake's Simulator start by start, "
         "slow, for cross-checks (default: batch)",
     )
-    add_workers(p, 2, "worker processes of the local Dask cluster", "2; ignored with --scheduler")
+    add_workers(
+        p,
+        2,
+        "worker processes of the local Dask cluster, started for 100000 starts or more or "
+        "with --local-cluster; below that, numba threads in this process",
+        "2; ignored with --scheduler",
+    )
     p.add_argument(
         "--scheduler",
         metavar="ADDRESS",
         default=None,
         help="address of a running Dask scheduler, e.g. tcp://host:8786 "
         "(default: none, a local cluster of --workers processes)",
+    )
+    p.add_argument(
+        "--local-cluster",
+        action="store_true",
+        help="run the parts on a local Dask cluster of --workers processes whatever the "
+        "number of starts (default: off, the cluster from 100000 starts up)",
     )
     p.add_argument(
         "--chunk", type=int, default=1000, metavar="C", help="starts per task (default: 1000)"
@@ -173,6 +185,8 @@ def run(args: argparse.Namespace) -> int:
             resume=args.resume,
             on_part=progress.update,
             warn=lambda line: print(f"geovs-drake: {line}", file=sys.stderr),
+            # A cluster of one process would only add its start: 1 runs here.
+            local_cluster=True if args.local_cluster and args.workers > 1 else None,
         )
     except sweep.SweepInterrupted as e:
         result, code = e.result, EXIT_INTERRUPTED

@@ -1,4 +1,12 @@
-"""The sweep's client: cut the starts into parts, hand them to Dask, merge the summaries.
+"""The sweep's client: cut the starts into parts, run them (here or on Dask), merge the summaries.
+
+Where the parts run: on the Dask scheduler given (``scheduler``), or on a LocalCluster
+of ``workers`` processes for a sweep of :data:`LOCAL_CLUSTER_MIN_STARTS` starts or more,
+or else in this process, on ``workers`` numba threads (the engine's ``prange``). Below
+that size a LocalCluster does not pay on one machine: its start (about 3 s: processes,
+imports, numba's cache loaded in each) and its transfers cost more than they save
+(measured on 2 cores, free body, 10 s per start: 10^4 starts 16.1 s on the cluster
+against 7.2 s in process, 3 x 10^4 starts 36.5 s against 25.6 s; docs/performance.md).
 
 The client holds no rows. It submits at most a window of parts at a time
 (:data:`WINDOW_PER_WORKER` per worker thread), so the scheduler's queue does
@@ -47,6 +55,7 @@ __all__ = [
     "CSV_LIMIT",
     "ENGINES",
     "LOCAL_CLUSTER_CONFIG",
+    "LOCAL_CLUSTER_MIN_STARTS",
     "SCHEDULER_TIMEOUT_S",
     "WINDOW_PER_WORKER",
     "SweepInterrupted",
@@ -69,6 +78,13 @@ CSV_LIMIT = 100_000
 #: statistical profiler sampling every worker's stack every 10 ms, which costs the
 #: compiled engine CPU for a dashboard nobody watches here.
 LOCAL_CLUSTER_CONFIG = {"distributed.worker.profile.enabled": False}
+#: Without ``scheduler``, a sweep of this many starts or more runs on a LocalCluster of
+#: ``workers`` processes; a smaller one in this process on ``workers`` numba threads (the
+#: module docstring's measurements: in process it was faster at every size measured, up
+#: to 3 x 10^4; at 10^5 the cluster's overhead over the engine alone was 16 %, recorded
+#: in benchmarks/results/bench_sweep_overhead.json, and its processes keep a crash in
+#: one part to that worker).
+LOCAL_CLUSTER_MIN_STARTS = 100_000
 #: The record of what a sweep in a folder is, for ``resume``.
 MANIFEST = "sweep.json"
 #: The fields of the record that must match for ``resume``.
@@ -312,9 +328,18 @@ def _connect(scheduler: str | None, workers: int):
         raise
 
 
-def _in_process(todo: list[tuple[Part, str]]) -> Iterator[tuple[dict, object]]:
-    for part, name in todo:
-        yield run_part(part, name)
+def _in_process(todo: list[tuple[Part, str]], threads: int) -> Iterator[tuple[dict, object]]:
+    """The parts run here one after the other, each on ``threads`` numba threads (at
+    most numba's pool); numba's thread count is restored afterwards."""
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    try:
+        for part, name in todo:
+            yield run_part(part, name)
+    finally:
+        numba.set_num_threads(before)
 
 
 def _on_dask(client, todo: list[tuple[Part, str]]) -> Iterator[tuple[dict, object]]:
@@ -338,15 +363,22 @@ def _on_dask(client, todo: list[tuple[Part, str]]) -> Iterator[tuple[dict, objec
 
 
 def _check_starts_and_extras(
-    config: ScenarioConfig, source, workers: int, scheduler: str | None
+    config: ScenarioConfig,
+    source,
+    n: int,
+    workers: int,
+    scheduler: str | None,
+    local_cluster: bool | None,
 ) -> bool:
     """SweepError for starts the loop cannot take; MissingExtra for a package the sweep
-    needs and lacks. Whether it runs on Dask."""
+    needs and lacks. Whether it runs on Dask (module docstring)."""
     if isinstance(source, SampledStarts):
         source.check(config)
     elif not config.dynamic and np.any(source[1] != 0):
         raise SweepError("initial twists apply to the dynamic plant only (kinematic: at rest)")
-    use_dask = workers > 1 or scheduler is not None
+    if local_cluster is None:
+        local_cluster = workers > 1 and n >= LOCAL_CLUSTER_MIN_STARTS
+    use_dask = scheduler is not None or bool(local_cluster)
     if use_dask:
         require("distributed", "sweep", "run_sweep on Dask", package="dask[distributed]")
     require("pyarrow", "sweep", "run_sweep")  # the parts' Parquet files, with or without Dask
@@ -418,7 +450,7 @@ def _run_parts(
             client, cluster = _connect(scheduler, workers)
         if out is not None and not resume:
             _start_folder(out, manifest)
-        results = _on_dask(client, todo) if client is not None else _in_process(todo)
+        results = _on_dask(client, todo) if client is not None else _in_process(todo, workers)
         for data, table in results:
             summary.merge(SweepSummary.from_json(data))
             if table is not None:
@@ -447,8 +479,9 @@ def run_sweep(
     resume: bool = False,
     on_part: Callable[[int], None] | None = None,
     warn: Callable[[str], None] | None = None,
+    local_cluster: bool | None = None,
 ) -> SweepResult:
-    """Run ``config``'s loop (``config.plant``) from each start, in parts on Dask.
+    """Run ``config``'s loop (``config.plant``) from each start, in parts, here or on Dask.
 
     Args:
         config: the scenario; its ``initial``, ``initial_velocity`` and ``duration``
@@ -460,8 +493,8 @@ def run_sweep(
         engine: ``"batch"`` (:func:`~geovs_drake.batch.run_batch` per part) or
             ``"drake"`` (:func:`~geovs_drake.simulation.simulate` per start; slow,
             for cross-checks).
-        workers: processes of the LocalCluster (ignored with ``scheduler``). With
-            1 and no scheduler the parts run in this process, without Dask.
+        workers: processes of the LocalCluster, or numba threads when the parts run
+            in this process (ignored with ``scheduler``).
         scheduler: the address of a running Dask scheduler, e.g. ``"tcp://host:8786"``;
             its workers need this package installed, and ``out`` must be a folder
             they can all write (a shared filesystem).
@@ -473,6 +506,9 @@ def run_sweep(
             first for each part found finished).
         warn: called with one line for each damaged part that runs again (default:
             :mod:`warnings`).
+        local_cluster: without ``scheduler``, True runs the parts on a LocalCluster of
+            ``workers`` processes, False in this process; None (default) picks the
+            cluster for ``workers`` > 1 and :data:`LOCAL_CLUSTER_MIN_STARTS` starts or more.
 
     Raises :class:`~.starts.SweepError` for bad settings, a folder that holds another
     sweep or an unreachable scheduler; :class:`SweepInterrupted` (with the finished
@@ -488,7 +524,7 @@ def run_sweep(
     config = resolved.fitted_config
     n, source = _check_settings(starts, duration, engine, workers, chunk)
     dynamic = config.dynamic
-    use_dask = _check_starts_and_extras(config, source, workers, scheduler)
+    use_dask = _check_starts_and_extras(config, source, n, workers, scheduler, local_cluster)
     text = yaml_dump_typed(config)
     out = None if out is None else Path(out)
     if resume and out is None:
