@@ -10,6 +10,7 @@ themselves, read back from the Parquet files with pandas.
 import copy
 import json
 import os
+import re
 
 import numpy as np
 import pandas as pd
@@ -272,9 +273,16 @@ def test_cli_end_to_end(tmp_path, run_cli):
     code, out, err = run_cli(
         "sweep",
         *("--starts", "6", "--duration", "2", "--workers", "1", "--chunk", "4"),
-        *("--seed", "3", "--out", str(out_dir), "--json", "--csv"),
+        *("--seed", "3", "--out", str(out_dir), "--json", "--csv", "--timings"),
     )
     assert code == 0, err
+    # --timings: one line of the phases; the parts' phase holds the sweep's own wall
+    # time (summary.json), the first part came before the parts ended.
+    *progress, timings = err.strip().splitlines()
+    line, first = timings.split("timings: ")[1].split("; the first part ")
+    phases = {k.strip(): float(v) for k, v in re.findall(r"([a-z -]+) ([0-9.]+) s", line)}
+    assert list(phases)[-3:] == ["set-up", "parts", "summary and plots"]
+    phases["first part"] = float(first.split(" s after")[0])
     summary = json.loads(out)
     assert out.count("\n") == 1
     assert summary == json.loads((out_dir / "summary.json").read_text())
@@ -285,6 +293,8 @@ def test_cli_end_to_end(tmp_path, run_cli):
     assert summary["guarantee"]["left_domain"] == 0
     assert (summary["seed"], summary["chunk"], summary["duration"]) == (3, 4, 2.0)
     assert summary["wall_time_s"] > 0
+    assert phases["parts"] >= summary["wall_time_s"]
+    assert phases["first part"] <= phases["set-up"] + phases["parts"]
     rows = pd.read_parquet(out_dir / "results").sort_values("start")
     assert rows["start"].tolist() == list(range(6))
     # The rows' starts are sample_starts' with the same seed, to the last digit.
@@ -297,7 +307,7 @@ def test_cli_end_to_end(tmp_path, run_cli):
     assert (record["seed"], record["starts"], record["chunk"], record["parts"]) == (3, 6, 4, 2)
     assert (out_dir / "t_converged.png").is_file() and (out_dir / "starts.png").is_file()
     assert not [p for p in out_dir.rglob(".*")]  # no temporary file left
-    assert len(err.strip().splitlines()) <= 2  # sparse progress lines, no bar off a TTY
+    assert len(progress) <= 2  # sparse progress lines, no bar off a TTY
 
     # --resume of a finished sweep runs nothing and reports the same figures.
     code, out, err = run_cli(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 
 from geovs_drake.cli._options import (
@@ -134,6 +135,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="also write DIR/results.csv, sorted by start, for a sweep small enough to be "
         "useful as text (above the limit, 10^5 starts or about 56 MB, exit 2) (default: off)",
     )
+    p.add_argument(
+        "--timings",
+        action="store_true",
+        help="also one line on stderr: where the command's wall time went (start-up and "
+        "imports, set-up, first part, all parts, summary and plots) (default: off)",
+    )
     add_json(p, "the summary as one JSON line")
     p.set_defaults(func=run)
 
@@ -163,14 +170,59 @@ def _checked_config(args: argparse.Namespace):
     return config
 
 
+class _Clock:
+    """The command's phases: seconds since :meth:`mark`'s previous call, by name."""
+
+    def __init__(self) -> None:
+        self.start = self.last = time.perf_counter()
+        self.phases: dict[str, float] = {}
+        self.first_part: float | None = None
+
+    def mark(self, phase: str) -> None:
+        now = time.perf_counter()
+        self.phases[phase] = now - self.last
+        self.last = now
+
+    def part(self) -> None:
+        if self.first_part is None:
+            self.first_part = time.perf_counter() - self.start
+
+    def line(self) -> str:
+        """The ``--timings`` line; the start-up (interpreter, imports) where psutil can
+        read the process's start."""
+        try:
+            import psutil
+
+            before = f"start-up {self.start - _process_start(psutil):.2f} s, "
+        except ImportError:
+            before = ""
+        phases = ", ".join(f"{k} {v:.2f} s" for k, v in self.phases.items())
+        first = ""
+        if self.first_part is not None:
+            first = f"; the first part {self.first_part:.2f} s after the start-up"
+        return f"geovs-drake sweep: timings: {before}{phases}{first}"
+
+
+def _process_start(psutil) -> float:
+    """This process's start on :func:`time.perf_counter`'s clock."""
+    return time.perf_counter() - (time.time() - psutil.Process().create_time())
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``sweep``; the exit code."""
+    clock = _Clock()
     from geovs_drake.analysis import sweep
 
     config = _checked_config(args)
     velocity = args.velocity or ("bounded" if config.dynamic else "none")
     out = Path(args.out)
     progress = Progress(args.starts, "starts", "geovs-drake sweep")
+
+    def on_part(count: int) -> None:
+        clock.part()
+        progress.update(count)
+
+    clock.mark("set-up")
     code = 0
     try:
         result = sweep.run_sweep(
@@ -183,7 +235,7 @@ def run(args: argparse.Namespace) -> int:
             chunk=args.chunk,
             out=out,
             resume=args.resume,
-            on_part=progress.update,
+            on_part=on_part,
             warn=lambda line: print(f"geovs-drake: {line}", file=sys.stderr),
             # A cluster of one process would only add its start: 1 runs here.
             local_cluster=True if args.local_cluster and args.workers > 1 else None,
@@ -192,6 +244,7 @@ def run(args: argparse.Namespace) -> int:
         result, code = e.result, EXIT_INTERRUPTED
     finally:
         progress.close()
+    clock.mark("parts")
     summary = result.report()
     _write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     finished = result.summary.finished
@@ -203,6 +256,9 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:  # the parts and the summary are written already
         print("geovs-drake: interrupted while plotting: plots skipped", file=sys.stderr)
         code = EXIT_INTERRUPTED
+    clock.mark("summary and plots")
+    if args.timings:
+        print(clock.line(), file=sys.stderr)
     if args.json:
         print(json.dumps(summary))
     else:
