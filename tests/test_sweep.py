@@ -142,13 +142,17 @@ def test_rows_do_not_depend_on_workers_or_chunks(tmp_path):
 
 
 def test_a_sweep_below_the_cluster_size_runs_here_on_workers_threads(monkeypatch):
-    """Below LOCAL_CLUSTER_MIN_STARTS no Dask cluster starts (its start costs more than it
-    saves, docs/performance.md): the parts run in this process on --workers numba
-    threads, rows identical to one thread's; numba's own count is restored."""
+    """Below LOCAL_CLUSTER_MIN_STARTS the batch engine starts no Dask cluster (its start
+    costs more than it saves, docs/performance.md): the parts run in this process on
+    --workers numba threads, rows identical to one thread's; numba's own count is
+    restored. The Drake engine still starts one."""
     import numba
 
+    class Started(Exception):
+        pass
+
     def no_cluster(*args):
-        raise AssertionError("a LocalCluster was started")
+        raise Started
 
     monkeypatch.setattr(sweep.run, "_connect", no_cluster)
     threads: list[int] = []
@@ -168,6 +172,9 @@ def test_a_sweep_below_the_cluster_size_runs_here_on_workers_threads(monkeypatch
     assert numba.get_num_threads() == before
     pd.testing.assert_frame_equal(two.table, one.table)
     assert 6 < sweep.LOCAL_CLUSTER_MIN_STARTS
+    # Drake's engine runs a start on one core: its workers stay processes.
+    with pytest.raises(Started):
+        sweep.run_sweep(config, starts, 1.0, engine="drake", workers=2)
 
 
 def test_the_merged_summary_is_the_summary_of_the_rows():

@@ -93,26 +93,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="batch: the compiled batch engine; drake: Drake's Simulator start by start, "
         "slow, for cross-checks (default: batch)",
     )
-    add_workers(
-        p,
-        2,
-        "worker processes of the local Dask cluster, started for 100000 starts or more or "
-        "with --local-cluster; below that, numba threads in this process",
-        "2; ignored with --scheduler",
-    )
-    p.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        default=None,
-        help="address of a running Dask scheduler, e.g. tcp://host:8786 "
-        "(default: none, a local cluster of --workers processes)",
-    )
-    p.add_argument(
-        "--local-cluster",
-        action="store_true",
-        help="run the parts on a local Dask cluster of --workers processes whatever the "
-        "number of starts (default: off, the cluster from 100000 starts up)",
-    )
+    _add_where_options(p)
     p.add_argument(
         "--chunk", type=int, default=1000, metavar="C", help="starts per task (default: 1000)"
     )
@@ -135,14 +116,43 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="also write DIR/results.csv, sorted by start, for a sweep small enough to be "
         "useful as text (above the limit, 10^5 starts or about 56 MB, exit 2) (default: off)",
     )
+    _add_speed_options(p)
+    add_json(p, "the summary as one JSON line")
+    p.set_defaults(func=run)
+
+
+def _add_where_options(p: argparse.ArgumentParser) -> None:
+    """``--workers``, ``--scheduler`` and ``--local-cluster``: where the parts run."""
+    add_workers(
+        p,
+        2,
+        "worker processes of the local Dask cluster, started for 100000 starts or more, "
+        "--engine drake or --local-cluster; otherwise numba threads in this process",
+        "2; ignored with --scheduler",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="address of a running Dask scheduler, e.g. tcp://host:8786 "
+        "(default: none: this process or a local cluster, as --workers says)",
+    )
+    p.add_argument(
+        "--local-cluster",
+        action="store_true",
+        help="run the parts on a local Dask cluster of --workers processes whatever the "
+        "number of starts (default: off, the batch engine's cluster from 100000 starts up)",
+    )
+
+
+def _add_speed_options(p: argparse.ArgumentParser) -> None:
+    """``--timings``."""
     p.add_argument(
         "--timings",
         action="store_true",
         help="also one line on stderr: where the command's wall time went (start-up and "
         "imports, set-up, first part, all parts, summary and plots) (default: off)",
     )
-    add_json(p, "the summary as one JSON line")
-    p.set_defaults(func=run)
 
 
 def _checked_config(args: argparse.Namespace):

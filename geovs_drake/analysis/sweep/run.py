@@ -1,8 +1,9 @@
 """The sweep's client: cut the starts into parts, run them (here or on Dask), merge the summaries.
 
 Where the parts run: on the Dask scheduler given (``scheduler``), or on a LocalCluster
-of ``workers`` processes for a sweep of :data:`LOCAL_CLUSTER_MIN_STARTS` starts or more,
-or else in this process, on ``workers`` numba threads (the engine's ``prange``). Below
+of ``workers`` processes for a sweep of :data:`LOCAL_CLUSTER_MIN_STARTS` starts or more
+or an engine not in :data:`THREADED_ENGINES` (Drake's), or else in this process, on
+``workers`` numba threads (the batch engine's ``prange``). Below
 that size a LocalCluster does not pay on one machine: its start (about 3 s: processes,
 imports, numba's cache loaded in each) and its transfers cost more than they save
 (measured on 2 cores, free body, 10 s per start: 10^4 starts 16.1 s on the cluster
@@ -57,6 +58,7 @@ __all__ = [
     "LOCAL_CLUSTER_CONFIG",
     "LOCAL_CLUSTER_MIN_STARTS",
     "SCHEDULER_TIMEOUT_S",
+    "THREADED_ENGINES",
     "WINDOW_PER_WORKER",
     "SweepInterrupted",
     "SweepResult",
@@ -85,6 +87,10 @@ LOCAL_CLUSTER_CONFIG = {"distributed.worker.profile.enabled": False}
 #: in benchmarks/results/bench_sweep_overhead.json, and its processes keep a crash in
 #: one part to that worker).
 LOCAL_CLUSTER_MIN_STARTS = 100_000
+#: The engines whose parts run on numba's threads (``prange``), the only ones that run
+#: in this process below :data:`LOCAL_CLUSTER_MIN_STARTS`: the Drake engine simulates one
+#: start at a time on one core, so its ``workers`` stay processes of a LocalCluster.
+THREADED_ENGINES = ("batch",)
 #: The record of what a sweep in a folder is, for ``resume``.
 MANIFEST = "sweep.json"
 #: The fields of the record that must match for ``resume``.
@@ -366,6 +372,7 @@ def _check_starts_and_extras(
     config: ScenarioConfig,
     source,
     n: int,
+    engine: str,
     workers: int,
     scheduler: str | None,
     local_cluster: bool | None,
@@ -377,7 +384,9 @@ def _check_starts_and_extras(
     elif not config.dynamic and np.any(source[1] != 0):
         raise SweepError("initial twists apply to the dynamic plant only (kinematic: at rest)")
     if local_cluster is None:
-        local_cluster = workers > 1 and n >= LOCAL_CLUSTER_MIN_STARTS
+        # Drake's Simulator runs one start at a time on one core: its workers are processes.
+        threaded = engine in THREADED_ENGINES
+        local_cluster = workers > 1 and (not threaded or n >= LOCAL_CLUSTER_MIN_STARTS)
     use_dask = scheduler is not None or bool(local_cluster)
     if use_dask:
         require("distributed", "sweep", "run_sweep on Dask", package="dask[distributed]")
@@ -425,6 +434,17 @@ def _parts(
         )
         names.append(part_name(index, count))
     return parts, names
+
+
+def _resumed(out: Path, parts: list[Part], names: list[str], warn, summary, on_part) -> dict:
+    """For ``resume``: the finished parts' summaries (:func:`_finished_parts`), merged
+    into ``summary`` and counted by ``on_part``."""
+    done = _finished_parts(out, parts, names, warn or warnings.warn)
+    for data in done.values():
+        summary.merge(SweepSummary.from_json(data))
+        if on_part is not None:
+            on_part(int(data["finished"]))
+    return done
 
 
 def _run_parts(
@@ -506,9 +526,8 @@ def run_sweep(
             first for each part found finished).
         warn: called with one line for each damaged part that runs again (default:
             :mod:`warnings`).
-        local_cluster: without ``scheduler``, True runs the parts on a LocalCluster of
-            ``workers`` processes, False in this process; None (default) picks the
-            cluster for ``workers`` > 1 and :data:`LOCAL_CLUSTER_MIN_STARTS` starts or more.
+        local_cluster: without ``scheduler``: True, a LocalCluster of ``workers``
+            processes; False, this process; None (default), the module docstring's rule.
 
     Raises :class:`~.starts.SweepError` for bad settings, a folder that holds another
     sweep or an unreachable scheduler; :class:`SweepInterrupted` (with the finished
@@ -524,7 +543,9 @@ def run_sweep(
     config = resolved.fitted_config
     n, source = _check_settings(starts, duration, engine, workers, chunk)
     dynamic = config.dynamic
-    use_dask = _check_starts_and_extras(config, source, n, workers, scheduler, local_cluster)
+    use_dask = _check_starts_and_extras(
+        config, source, n, engine, workers, scheduler, local_cluster
+    )
     text = yaml_dump_typed(config)
     out = None if out is None else Path(out)
     if resume and out is None:
@@ -536,13 +557,7 @@ def run_sweep(
     common = dict(duration=float(duration), engine=engine, parameters=parameters)
     parts, names = _parts(text, n, chunk, source, out, use_dask, common)
     summary = SweepSummary.empty(config, duration)
-    done: dict[int, dict] = {}
-    if resume:
-        done = _finished_parts(out, parts, names, warn or warnings.warn)
-    for data in done.values():
-        summary.merge(SweepSummary.from_json(data))
-        if on_part is not None:
-            on_part(int(data["finished"]))
+    done = _resumed(out, parts, names, warn, summary, on_part) if resume else {}
     todo = [(p, name) for p, name in zip(parts, names, strict=True) if p.index not in done]
     start = time.perf_counter()
     tables, interrupted = _run_parts(
