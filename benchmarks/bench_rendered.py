@@ -18,6 +18,16 @@ Reported:
   rendered loop's share spent rendering and extracting.
 
     .venv/bin/python benchmarks/bench_rendered.py [--duration 6] [--repeat 3]
+    .venv/bin/python benchmarks/bench_rendered.py --station [--duration 1] [--repeat 3]
+
+``--station`` (issue 44, item 7; its own record, ``bench_rendered_station.json``): the
+simulated Panda station (``geovs-drake station``'s diagram on ``memq://``, unpaced, the
+arm held at rest: no controller) over ``--duration`` simulated seconds, alternating,
+medians of ``--repeat``: with the rendered camera, with the arm perceived as its 39
+collision shapes one by one (as before the capsules), and with the pinhole camera (the
+baseline: the same station without a renderer); then, at the station's start, what one
+frame costs: the colour image (what the station sends), the label image (what the
+controller's self-filter draws) and the colour image made into its LCM message.
 """
 
 from __future__ import annotations
@@ -105,11 +115,107 @@ def rtf(config: ScenarioConfig, repeat: int) -> tuple[float, object]:
     return max(factors), result
 
 
+def _station(sensor: str, capsules: bool = True):
+    """(the station, its Simulator initialized): memq://, unpaced."""
+    from geovs_drake.hardware import images
+    from geovs_drake.hardware.run import _simulator, load_setup, open_lcm
+    from geovs_drake.hardware.station import build_station
+
+    setup = load_setup(
+        None,
+        [("bench", f"{{sensor: !{sensor} {{}}}}")],
+        {"lcm_url": "memq://", "real_time_rate": 0.0},
+    )
+    original = images._capsules
+    if not capsules:  # every collision shape perceived on its own, as before
+        images._capsules = lambda inspector, shapes: ([], set())
+    try:
+        station = build_station(setup.resolved, setup.hardware, open_lcm("memq://"))
+    finally:
+        images._capsules = original
+    simulator = _simulator(station.diagram, setup, station.set_initial_state)
+    simulator.Initialize()
+    return station, simulator
+
+
+def _station_rtf(sensor: str, duration: float, capsules: bool = True) -> float:
+    _, simulator = _station(sensor, capsules)
+    start = time.perf_counter()
+    simulator.AdvanceTo(duration)
+    return duration / (time.perf_counter() - start)
+
+
+def _frame_costs(repeat: int) -> dict[str, float]:
+    """ms per frame at the station's start: colour, label, colour + its LCM message."""
+    station, simulator = _station("Rendered")
+    root = simulator.get_mutable_context()
+    camera = station.camera
+    to_lcm = station.diagram.GetSubsystemByName("image_to_lcm")
+    camera_context = camera.GetMyContextFromRoot(root)
+    lcm_context = to_lcm.GetMyContextFromRoot(root)
+    plant_context = station.plant.GetMyMutableContextFromRoot(root)
+    q = station.plant.GetPositions(plant_context).copy()
+    k = [0]
+
+    def moved() -> None:  # a new configuration: the cached image is out of date
+        k[0] += 1
+        station.plant.SetPositions(plant_context, q + 1e-9 * (k[0] % 2))
+
+    def colour() -> None:
+        moved()
+        camera.color_image_output_port().Eval(camera_context)
+
+    def label() -> None:
+        moved()
+        camera.label_image_output_port().Eval(camera_context)
+
+    def message() -> None:
+        colour()
+        to_lcm.image_array_t_msg_output_port().EvalAbstract(lcm_context)
+
+    return {name: 1e3 * best(fn, 20, repeat) for name, fn in
+            (("colour", colour), ("label", label), ("message", message))}  # fmt: skip
+
+
+def station_main(args: argparse.Namespace) -> None:
+    rates: dict[str, list[float]] = {"rendered": [], "shapes": [], "pinhole": []}
+    for _ in range(args.repeat):
+        rates["rendered"].append(_station_rtf("Rendered", args.duration))
+        rates["shapes"].append(_station_rtf("Rendered", args.duration, capsules=False))
+        rates["pinhole"].append(_station_rtf("Pinhole", args.duration))
+    rendered, shapes, pinhole = (float(np.median(rates[k])) for k in rates)
+    costs = _frame_costs(args.repeat)
+    print(
+        f"station, unpaced, {args.duration:g} s, median of {args.repeat}: rendered "
+        f"{rendered:.2f}x real time, the arm as 39 shapes {shapes:.2f}x, pinhole "
+        f"{pinhole:.2f}x; per frame: colour {costs['colour']:.1f} ms, label "
+        f"{costs['label']:.1f} ms, colour + LCM message {costs['message']:.1f} ms"
+    )
+    name = f"the rendered Panda station, unpaced, arm at rest, {args.duration:g} s"
+    figures = [
+        Figure(name, rendered, "x real time", "the pinhole station, same run", pinhole,
+               target=">= 1x"),
+        Figure(f"{name}, the arm as its 39 collision shapes (before the capsules)", shapes,
+               "x real time", "the station with the arm as 13 capsules", rendered),
+        Figure("the station's colour frame (320x240)", costs["colour"], "ms",
+               "the label image of the same frame", costs["label"]),
+        Figure("the colour frame and its LCM message", costs["message"], "ms",
+               "the colour frame alone", costs["colour"]),
+    ]  # fmt: skip
+    record("bench_rendered_station", "The rendered station: real time and frames", figures)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--duration", type=float, default=6.0)
+    parser.add_argument("--duration", type=float, default=None)
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--station", action="store_true")
     args = parser.parse_args()
+    if args.station:
+        args.duration = args.duration or 1.0
+        station_main(args)
+        return
+    args.duration = args.duration or 6.0
     config = ScenarioConfig(duration=args.duration)
 
     # Frames along the rendered run from the default start (what the loop sees).

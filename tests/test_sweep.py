@@ -10,6 +10,7 @@ themselves, read back from the Parquet files with pandas.
 import copy
 import json
 import os
+import re
 
 import numpy as np
 import pandas as pd
@@ -116,7 +117,14 @@ def test_rows_do_not_depend_on_workers_or_chunks(tmp_path):
     before = _children()
     sizes: list[int] = []
     cluster = sweep.run_sweep(
-        config, starts, 3.0, workers=2, chunk=7, out=tmp_path / "b", on_part=sizes.append
+        config,
+        starts,
+        3.0,
+        workers=2,
+        chunk=7,
+        out=tmp_path / "b",
+        on_part=sizes.append,
+        local_cluster=True,  # 40 starts run in this process by default
     )
     pd.testing.assert_frame_equal(cluster.table, reference.table)
     assert sorted(sizes) == [5, 7, 7, 7, 7, 7]
@@ -131,6 +139,42 @@ def test_rows_do_not_depend_on_workers_or_chunks(tmp_path):
     frame = frame.sort_values("start").reset_index(drop=True)
     # (dask's string columns carry NaN, pandas' NA, for a missing value: none here.)
     pd.testing.assert_frame_equal(frame, reference.table, check_dtype=False)
+
+
+def test_a_sweep_below_the_cluster_size_runs_here_on_workers_threads(monkeypatch):
+    """Below LOCAL_CLUSTER_MIN_STARTS the batch engine starts no Dask cluster (its start
+    costs more than it saves, docs/performance.md): the parts run in this process on
+    --workers numba threads, rows identical to one thread's; numba's own count is
+    restored. The Drake engine still starts one."""
+    import numba
+
+    class Started(Exception):
+        pass
+
+    def no_cluster(*args):
+        raise Started
+
+    monkeypatch.setattr(sweep.run, "_connect", no_cluster)
+    threads: list[int] = []
+    run_part = sweep.run.run_part
+
+    def counting(*args):
+        threads.append(numba.get_num_threads())
+        return run_part(*args)
+
+    monkeypatch.setattr(sweep.run, "run_part", counting)
+    before = numba.get_num_threads()
+    config = ScenarioConfig()
+    starts = sweep.SampledStarts(6, seed=2, velocity="bounded")
+    two = sweep.run_sweep(config, starts, 1.0, workers=2, chunk=3)
+    one = sweep.run_sweep(config, starts, 1.0, workers=1, chunk=3)
+    assert threads == [min(2, numba.config.NUMBA_NUM_THREADS)] * 2 + [1] * 2
+    assert numba.get_num_threads() == before
+    pd.testing.assert_frame_equal(two.table, one.table)
+    assert 6 < sweep.LOCAL_CLUSTER_MIN_STARTS
+    # Drake's engine runs a start on one core: its workers stay processes.
+    with pytest.raises(Started):
+        sweep.run_sweep(config, starts, 1.0, engine="drake", workers=2)
 
 
 def test_the_merged_summary_is_the_summary_of_the_rows():
@@ -236,9 +280,16 @@ def test_cli_end_to_end(tmp_path, run_cli):
     code, out, err = run_cli(
         "sweep",
         *("--starts", "6", "--duration", "2", "--workers", "1", "--chunk", "4"),
-        *("--seed", "3", "--out", str(out_dir), "--json", "--csv"),
+        *("--seed", "3", "--out", str(out_dir), "--json", "--csv", "--timings"),
     )
     assert code == 0, err
+    # --timings: one line of the phases; the parts' phase holds the sweep's own wall
+    # time (summary.json), the first part came before the parts ended.
+    *progress, timings = err.strip().splitlines()
+    line, first = timings.split("timings: ")[1].split("; the first part ")
+    phases = {k.strip(): float(v) for k, v in re.findall(r"([a-z -]+) ([0-9.]+) s", line)}
+    assert list(phases)[-3:] == ["set-up", "parts", "summary and plots"]
+    phases["first part"] = float(first.split(" s after")[0])
     summary = json.loads(out)
     assert out.count("\n") == 1
     assert summary == json.loads((out_dir / "summary.json").read_text())
@@ -249,6 +300,8 @@ def test_cli_end_to_end(tmp_path, run_cli):
     assert summary["guarantee"]["left_domain"] == 0
     assert (summary["seed"], summary["chunk"], summary["duration"]) == (3, 4, 2.0)
     assert summary["wall_time_s"] > 0
+    assert phases["parts"] >= summary["wall_time_s"]
+    assert phases["first part"] <= phases["set-up"] + phases["parts"]
     rows = pd.read_parquet(out_dir / "results").sort_values("start")
     assert rows["start"].tolist() == list(range(6))
     # The rows' starts are sample_starts' with the same seed, to the last digit.
@@ -261,7 +314,7 @@ def test_cli_end_to_end(tmp_path, run_cli):
     assert (record["seed"], record["starts"], record["chunk"], record["parts"]) == (3, 6, 4, 2)
     assert (out_dir / "t_converged.png").is_file() and (out_dir / "starts.png").is_file()
     assert not [p for p in out_dir.rglob(".*")]  # no temporary file left
-    assert len(err.strip().splitlines()) <= 2  # sparse progress lines, no bar off a TTY
+    assert len(progress) <= 2  # sparse progress lines, no bar off a TTY
 
     # --resume of a finished sweep runs nothing and reports the same figures.
     code, out, err = run_cli(
@@ -330,6 +383,9 @@ def test_the_csv_limit_the_help_names_is_the_one_enforced(run_cli):
     run = run_cli("sweep", "--help")
     assert run.code == 0 and "10^5 starts" in " ".join(run.out.split())
     assert sweep.CSV_LIMIT == 10**5
+    # So is the size from which a local Dask cluster starts.
+    assert "cluster, started for 100000 starts" in " ".join(run.out.split())
+    assert sweep.LOCAL_CLUSTER_MIN_STARTS == 100_000
 
 
 def test_cli_resume_of_another_sweep_exits_2_and_leaves_the_folder_as_it_was(tmp_path, run_cli):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 
 from geovs_drake.cli._options import (
@@ -92,14 +93,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="batch: the compiled batch engine; drake: Drake's Simulator start by start, "
         "slow, for cross-checks (default: batch)",
     )
-    add_workers(p, 2, "worker processes of the local Dask cluster", "2; ignored with --scheduler")
-    p.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        default=None,
-        help="address of a running Dask scheduler, e.g. tcp://host:8786 "
-        "(default: none, a local cluster of --workers processes)",
-    )
+    _add_where_options(p)
     p.add_argument(
         "--chunk", type=int, default=1000, metavar="C", help="starts per task (default: 1000)"
     )
@@ -122,8 +116,43 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="also write DIR/results.csv, sorted by start, for a sweep small enough to be "
         "useful as text (above the limit, 10^5 starts or about 56 MB, exit 2) (default: off)",
     )
+    _add_speed_options(p)
     add_json(p, "the summary as one JSON line")
     p.set_defaults(func=run)
+
+
+def _add_where_options(p: argparse.ArgumentParser) -> None:
+    """``--workers``, ``--scheduler`` and ``--local-cluster``: where the parts run."""
+    add_workers(
+        p,
+        2,
+        "worker processes of the local Dask cluster, started for 100000 starts or more, "
+        "--engine drake or --local-cluster; otherwise numba threads in this process",
+        "2; ignored with --scheduler",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="address of a running Dask scheduler, e.g. tcp://host:8786 "
+        "(default: none: this process or a local cluster, as --workers says)",
+    )
+    p.add_argument(
+        "--local-cluster",
+        action="store_true",
+        help="run the parts on a local Dask cluster of --workers processes whatever the "
+        "number of starts (default: off, the batch engine's cluster from 100000 starts up)",
+    )
+
+
+def _add_speed_options(p: argparse.ArgumentParser) -> None:
+    """``--timings``."""
+    p.add_argument(
+        "--timings",
+        action="store_true",
+        help="also one line on stderr: where the command's wall time went (start-up and "
+        "imports, set-up, first part, all parts, summary and plots) (default: off)",
+    )
 
 
 def _checked_config(args: argparse.Namespace):
@@ -151,14 +180,59 @@ def _checked_config(args: argparse.Namespace):
     return config
 
 
+class _Clock:
+    """The command's phases: seconds since :meth:`mark`'s previous call, by name."""
+
+    def __init__(self) -> None:
+        self.start = self.last = time.perf_counter()
+        self.phases: dict[str, float] = {}
+        self.first_part: float | None = None
+
+    def mark(self, phase: str) -> None:
+        now = time.perf_counter()
+        self.phases[phase] = now - self.last
+        self.last = now
+
+    def part(self) -> None:
+        if self.first_part is None:
+            self.first_part = time.perf_counter() - self.start
+
+    def line(self) -> str:
+        """The ``--timings`` line; the start-up (interpreter, imports) where psutil can
+        read the process's start."""
+        try:
+            import psutil
+
+            before = f"start-up {self.start - _process_start(psutil):.2f} s, "
+        except ImportError:
+            before = ""
+        phases = ", ".join(f"{k} {v:.2f} s" for k, v in self.phases.items())
+        first = ""
+        if self.first_part is not None:
+            first = f"; the first part {self.first_part:.2f} s after the start-up"
+        return f"geovs-drake sweep: timings: {before}{phases}{first}"
+
+
+def _process_start(psutil) -> float:
+    """This process's start on :func:`time.perf_counter`'s clock."""
+    return time.perf_counter() - (time.time() - psutil.Process().create_time())
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``sweep``; the exit code."""
+    clock = _Clock()
     from geovs_drake.analysis import sweep
 
     config = _checked_config(args)
     velocity = args.velocity or ("bounded" if config.dynamic else "none")
     out = Path(args.out)
     progress = Progress(args.starts, "starts", "geovs-drake sweep")
+
+    def on_part(count: int) -> None:
+        clock.part()
+        progress.update(count)
+
+    clock.mark("set-up")
     code = 0
     try:
         result = sweep.run_sweep(
@@ -171,13 +245,16 @@ def run(args: argparse.Namespace) -> int:
             chunk=args.chunk,
             out=out,
             resume=args.resume,
-            on_part=progress.update,
+            on_part=on_part,
             warn=lambda line: print(f"geovs-drake: {line}", file=sys.stderr),
+            # A cluster of one process would only add its start: 1 runs here.
+            local_cluster=True if args.local_cluster and args.workers > 1 else None,
         )
     except sweep.SweepInterrupted as e:
         result, code = e.result, EXIT_INTERRUPTED
     finally:
         progress.close()
+    clock.mark("parts")
     summary = result.report()
     _write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     finished = result.summary.finished
@@ -189,6 +266,9 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:  # the parts and the summary are written already
         print("geovs-drake: interrupted while plotting: plots skipped", file=sys.stderr)
         code = EXIT_INTERRUPTED
+    clock.mark("summary and plots")
+    if args.timings:
+        print(clock.line(), file=sys.stderr)
     if args.json:
         print(json.dumps(summary))
     else:

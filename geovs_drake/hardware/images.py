@@ -35,10 +35,14 @@ import numpy as np
 from drake import lcmt_image_array
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
+    Capsule,
+    Cylinder,
+    GeometryInstance,
     PerceptionProperties,
     RenderLabel,
     Rgba,
     SceneGraph,
+    Sphere,
 )
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
@@ -81,6 +85,7 @@ from geovs_drake.systems.arm_model import ArmModel, add_arm
 from geovs_drake.systems.feature_extractor import extract_features
 
 __all__ = [
+    "CAPSULE_END_TOLERANCE",
     "COLOR_FRAME_NAME",
     "IMAGE_HISTORY",
     "ImageFeatureFrames",
@@ -117,24 +122,81 @@ def check_rendered_over_lcm(drop_every_frame: int = 0) -> None:
 ARM_COLOUR = (0.3, 0.3, 0.3, 1.0)
 
 
+#: How far a sphere's centre may lie from its cylinder's end, as a fraction of the
+#: cylinder's length, and still close it into a capsule [1]: the Panda's files give the
+#: hand's cylinder a roll of 1.57, not pi/2, which moves its ends by 6e-5 m.
+CAPSULE_END_TOLERANCE = 0.01
+
+
 def perceive_collision_shapes(plant: MultibodyPlant, scene_graph: SceneGraph, instance) -> int:
     """Give the arm's collision shapes (``instance``'s) the perception role, labelled
     with their body's index as MultibodyPlant labels a body: why, the Panda's visual
     meshes are .dae files, which RenderEngineVtk ignores, so without this the camera
     never sees the arm; its collision spheres and capsules enclose the links (a robot
-    self-filter's usual padded model). Returns how many shapes were given it."""
+    self-filter's usual padded model). Returns how many perceived shapes were made.
+
+    A cylinder closed by two spheres of its radius at its ends (the Panda's capsules,
+    three collision shapes each) is perceived as one ``Capsule``, the same solid: every
+    perceived geometry costs the renderer a pose update at every geometry query of the
+    plant (each derivative evaluation, whether a frame is drawn or not), which with the
+    39 shapes cost the station 1.5 s per simulated second (docs/performance.md)."""
     inspector = scene_graph.model_inspector()
     count = 0
     for index in plant.GetBodyIndices(instance):
-        for geometry_id in plant.GetCollisionGeometriesForBody(plant.get_body(index)):
-            if inspector.GetPerceptionProperties(geometry_id) is not None:
-                continue
-            properties = PerceptionProperties()
-            properties.AddProperty("label", "id", RenderLabel(int(index)))
-            properties.AddProperty("phong", "diffuse", Rgba(*ARM_COLOUR))
-            scene_graph.AssignRole(plant.get_source_id(), geometry_id, properties)
-            count += 1
+        body = plant.get_body(index)
+        shapes = [
+            g
+            for g in plant.GetCollisionGeometriesForBody(body)
+            if inspector.GetPerceptionProperties(g) is None
+        ]
+        capsules, closed = _capsules(inspector, shapes)
+        frame = plant.GetBodyFrameIdOrThrow(index)
+        for k, (X_FG, radius, length) in enumerate(capsules):
+            instance_ = GeometryInstance(X_FG, Capsule(radius, length), f"{body.name()}_capsule{k}")
+            new = scene_graph.RegisterGeometry(plant.get_source_id(), frame, instance_)
+            scene_graph.AssignRole(plant.get_source_id(), new, _arm_perception(index))
+        for geometry_id in shapes:
+            if geometry_id not in closed:
+                scene_graph.AssignRole(plant.get_source_id(), geometry_id, _arm_perception(index))
+        count += len(capsules) + len(shapes) - len(closed)
     return count
+
+
+def _arm_perception(index) -> PerceptionProperties:
+    properties = PerceptionProperties()
+    properties.AddProperty("label", "id", RenderLabel(int(index)))
+    properties.AddProperty("phong", "diffuse", Rgba(*ARM_COLOUR))
+    return properties
+
+
+def _capsules(inspector, shapes: list) -> tuple[list[tuple[RigidTransform, float, float]], set]:
+    """The capsules among one frame's ``shapes``: (X_FG of the cylinder, radius, length)
+    for each cylinder with a sphere of its radius at each end; and the ids they replace."""
+    spheres = [g for g in shapes if isinstance(inspector.GetShape(g), Sphere)]
+    capsules, closed = [], set()
+    for g in shapes:
+        shape = inspector.GetShape(g)
+        if not isinstance(shape, Cylinder):
+            continue
+        radius, length = shape.radius(), shape.length()
+        X_FG = inspector.GetPoseInFrame(g)
+        ends = [X_FG @ np.array([0.0, 0.0, sign * length / 2]) for sign in (1, -1)]
+        caps = []
+        for end in ends:
+            for s in spheres:
+                p = inspector.GetPoseInFrame(s).translation()
+                if (
+                    s not in closed
+                    and s not in caps
+                    and abs(inspector.GetShape(s).radius() - radius) <= 1e-12
+                    and np.linalg.norm(p - end) <= CAPSULE_END_TOLERANCE * length
+                ):
+                    caps.append(s)
+                    break
+        if len(caps) == 2:
+            capsules.append((X_FG, radius, length))
+            closed.update([g, *caps])
+    return capsules, closed
 
 
 def _rgbd(

@@ -32,6 +32,7 @@ from geovs_drake.analysis.sweep.parts import ROW_FIELDS
 from geovs_drake.analysis.sweep.run import (
     CSV_LIMIT,
     ENGINES,
+    LOCAL_CLUSTER_MIN_STARTS,
     SCHEDULER_TIMEOUT_S,
     SweepInterrupted,
     SweepResult,
@@ -60,6 +61,7 @@ __all__ = [
     "ABOVE_RANGE",
     "ARM_STATUSES",
     "CSV_LIMIT",
+    "LOCAL_CLUSTER_MIN_STARTS",
     "ENERGY_FACTOR",
     "ENGINES",
     "ROW_FIELDS",

@@ -1,4 +1,13 @@
-"""The sweep's client: cut the starts into parts, hand them to Dask, merge the summaries.
+"""The sweep's client: cut the starts into parts, run them (here or on Dask), merge the summaries.
+
+Where the parts run: on the Dask scheduler given (``scheduler``), or on a LocalCluster
+of ``workers`` processes for a sweep of :data:`LOCAL_CLUSTER_MIN_STARTS` starts or more
+or an engine not in :data:`THREADED_ENGINES` (Drake's), or else in this process, on
+``workers`` numba threads (the batch engine's ``prange``). Below
+that size a LocalCluster does not pay on one machine: its start (about 3 s: processes,
+imports, numba's cache loaded in each) and its transfers cost more than they save
+(measured on 2 cores, free body, 10 s per start: 10^4 starts 16.1 s on the cluster
+against 7.2 s in process, 3 x 10^4 starts 36.5 s against 25.6 s; docs/performance.md).
 
 The client holds no rows. It submits at most a window of parts at a time
 (:data:`WINDOW_PER_WORKER` per worker thread), so the scheduler's queue does
@@ -47,7 +56,9 @@ __all__ = [
     "CSV_LIMIT",
     "ENGINES",
     "LOCAL_CLUSTER_CONFIG",
+    "LOCAL_CLUSTER_MIN_STARTS",
     "SCHEDULER_TIMEOUT_S",
+    "THREADED_ENGINES",
     "WINDOW_PER_WORKER",
     "SweepInterrupted",
     "SweepResult",
@@ -69,6 +80,17 @@ CSV_LIMIT = 100_000
 #: statistical profiler sampling every worker's stack every 10 ms, which costs the
 #: compiled engine CPU for a dashboard nobody watches here.
 LOCAL_CLUSTER_CONFIG = {"distributed.worker.profile.enabled": False}
+#: Without ``scheduler``, a sweep of this many starts or more runs on a LocalCluster of
+#: ``workers`` processes; a smaller one in this process on ``workers`` numba threads (the
+#: module docstring's measurements: in process it was faster at every size measured, up
+#: to 3 x 10^4; at 10^5 the cluster's overhead over the engine alone was 16 %, recorded
+#: in benchmarks/results/bench_sweep_overhead.json, and its processes keep a crash in
+#: one part to that worker).
+LOCAL_CLUSTER_MIN_STARTS = 100_000
+#: The engines whose parts run on numba's threads (``prange``), the only ones that run
+#: in this process below :data:`LOCAL_CLUSTER_MIN_STARTS`: the Drake engine simulates one
+#: start at a time on one core, so its ``workers`` stay processes of a LocalCluster.
+THREADED_ENGINES = ("batch",)
 #: The record of what a sweep in a folder is, for ``resume``.
 MANIFEST = "sweep.json"
 #: The fields of the record that must match for ``resume``.
@@ -312,9 +334,18 @@ def _connect(scheduler: str | None, workers: int):
         raise
 
 
-def _in_process(todo: list[tuple[Part, str]]) -> Iterator[tuple[dict, object]]:
-    for part, name in todo:
-        yield run_part(part, name)
+def _in_process(todo: list[tuple[Part, str]], threads: int) -> Iterator[tuple[dict, object]]:
+    """The parts run here one after the other, each on ``threads`` numba threads (at
+    most numba's pool); numba's thread count is restored afterwards."""
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    try:
+        for part, name in todo:
+            yield run_part(part, name)
+    finally:
+        numba.set_num_threads(before)
 
 
 def _on_dask(client, todo: list[tuple[Part, str]]) -> Iterator[tuple[dict, object]]:
@@ -338,15 +369,25 @@ def _on_dask(client, todo: list[tuple[Part, str]]) -> Iterator[tuple[dict, objec
 
 
 def _check_starts_and_extras(
-    config: ScenarioConfig, source, workers: int, scheduler: str | None
+    config: ScenarioConfig,
+    source,
+    n: int,
+    engine: str,
+    workers: int,
+    scheduler: str | None,
+    local_cluster: bool | None,
 ) -> bool:
     """SweepError for starts the loop cannot take; MissingExtra for a package the sweep
-    needs and lacks. Whether it runs on Dask."""
+    needs and lacks. Whether it runs on Dask (module docstring)."""
     if isinstance(source, SampledStarts):
         source.check(config)
     elif not config.dynamic and np.any(source[1] != 0):
         raise SweepError("initial twists apply to the dynamic plant only (kinematic: at rest)")
-    use_dask = workers > 1 or scheduler is not None
+    if local_cluster is None:
+        # Drake's Simulator runs one start at a time on one core: its workers are processes.
+        threaded = engine in THREADED_ENGINES
+        local_cluster = workers > 1 and (not threaded or n >= LOCAL_CLUSTER_MIN_STARTS)
+    use_dask = scheduler is not None or bool(local_cluster)
     if use_dask:
         require("distributed", "sweep", "run_sweep on Dask", package="dask[distributed]")
     require("pyarrow", "sweep", "run_sweep")  # the parts' Parquet files, with or without Dask
@@ -395,6 +436,17 @@ def _parts(
     return parts, names
 
 
+def _resumed(out: Path, parts: list[Part], names: list[str], warn, summary, on_part) -> dict:
+    """For ``resume``: the finished parts' summaries (:func:`_finished_parts`), merged
+    into ``summary`` and counted by ``on_part``."""
+    done = _finished_parts(out, parts, names, warn or warnings.warn)
+    for data in done.values():
+        summary.merge(SweepSummary.from_json(data))
+        if on_part is not None:
+            on_part(int(data["finished"]))
+    return done
+
+
 def _run_parts(
     todo: list,
     summary: SweepSummary,
@@ -418,7 +470,7 @@ def _run_parts(
             client, cluster = _connect(scheduler, workers)
         if out is not None and not resume:
             _start_folder(out, manifest)
-        results = _on_dask(client, todo) if client is not None else _in_process(todo)
+        results = _on_dask(client, todo) if client is not None else _in_process(todo, workers)
         for data, table in results:
             summary.merge(SweepSummary.from_json(data))
             if table is not None:
@@ -447,8 +499,9 @@ def run_sweep(
     resume: bool = False,
     on_part: Callable[[int], None] | None = None,
     warn: Callable[[str], None] | None = None,
+    local_cluster: bool | None = None,
 ) -> SweepResult:
-    """Run ``config``'s loop (``config.plant``) from each start, in parts on Dask.
+    """Run ``config``'s loop (``config.plant``) from each start, in parts, here or on Dask.
 
     Args:
         config: the scenario; its ``initial``, ``initial_velocity`` and ``duration``
@@ -460,8 +513,8 @@ def run_sweep(
         engine: ``"batch"`` (:func:`~geovs_drake.batch.run_batch` per part) or
             ``"drake"`` (:func:`~geovs_drake.simulation.simulate` per start; slow,
             for cross-checks).
-        workers: processes of the LocalCluster (ignored with ``scheduler``). With
-            1 and no scheduler the parts run in this process, without Dask.
+        workers: processes of the LocalCluster, or numba threads when the parts run
+            in this process (ignored with ``scheduler``).
         scheduler: the address of a running Dask scheduler, e.g. ``"tcp://host:8786"``;
             its workers need this package installed, and ``out`` must be a folder
             they can all write (a shared filesystem).
@@ -473,6 +526,8 @@ def run_sweep(
             first for each part found finished).
         warn: called with one line for each damaged part that runs again (default:
             :mod:`warnings`).
+        local_cluster: without ``scheduler``: True, a LocalCluster of ``workers``
+            processes; False, this process; None (default), the module docstring's rule.
 
     Raises :class:`~.starts.SweepError` for bad settings, a folder that holds another
     sweep or an unreachable scheduler; :class:`SweepInterrupted` (with the finished
@@ -488,7 +543,9 @@ def run_sweep(
     config = resolved.fitted_config
     n, source = _check_settings(starts, duration, engine, workers, chunk)
     dynamic = config.dynamic
-    use_dask = _check_starts_and_extras(config, source, workers, scheduler)
+    use_dask = _check_starts_and_extras(
+        config, source, n, engine, workers, scheduler, local_cluster
+    )
     text = yaml_dump_typed(config)
     out = None if out is None else Path(out)
     if resume and out is None:
@@ -500,13 +557,7 @@ def run_sweep(
     common = dict(duration=float(duration), engine=engine, parameters=parameters)
     parts, names = _parts(text, n, chunk, source, out, use_dask, common)
     summary = SweepSummary.empty(config, duration)
-    done: dict[int, dict] = {}
-    if resume:
-        done = _finished_parts(out, parts, names, warn or warnings.warn)
-    for data in done.values():
-        summary.merge(SweepSummary.from_json(data))
-        if on_part is not None:
-            on_part(int(data["finished"]))
+    done = _resumed(out, parts, names, warn, summary, on_part) if resume else {}
     todo = [(p, name) for p, name in zip(parts, names, strict=True) if p.index not in done]
     start = time.perf_counter()
     tables, interrupted = _run_parts(
