@@ -7,8 +7,9 @@ ratio to the free body's (the machine is shared and noisy: the ratios are the fi
 to compare): the real-time factor (the median of ``--repeat`` rounds, the runs
 alternating free body, quadrotor, quadrotor on RK5), the same with
 ``simulator.integration_scheme: runge_kutta5`` (the quadrotor's default; docs/quadrotor.md:
-the same results in a third of the steps), and the diagram's derivative evaluation at a new state (what the
-attitude cascade, the level view and the four propellers add to every step).
+the same results in a third of the steps), and the diagram's derivative evaluation at a
+new state (what the attitude cascade, the level view and the four propellers add to every
+step).
 
     .venv/bin/python benchmarks/bench_quadrotor.py [--repeat 5] [--no-record] [--note TEXT]
 """
