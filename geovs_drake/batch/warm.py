@@ -20,9 +20,10 @@ import time
 
 import numpy as np
 
+from geovs_drake.batch.arm_engine import warm_arm_engine
 from geovs_drake.batch.arm_rhs import warm_arm_loop
 from geovs_drake.batch.engine import run_batch
-from geovs_drake.scenario import Dynamic, Kinematic, ScenarioConfig
+from geovs_drake.scenario import Dynamic, Kinematic, Pinhole, ScenarioConfig
 from geovs_drake.simulation import simulate
 
 __all__ = ["warm"]
@@ -39,7 +40,10 @@ def warm() -> float:
         config = ScenarioConfig(plant=plant, duration=WARM_DURATION_S)
         simulate(config)
         run_batch(config, np.stack([config.X_BC_initial.GetAsMatrix4()] * 2))
+        config.sensor = Pinhole()  # the sampled camera's integrator (batch.sampled)
+        run_batch(config, np.stack([config.X_BC_initial.GetAsMatrix4()] * 2))
     warm_arm_loop()
+    warm_arm_engine()
     return time.perf_counter() - start
 
 
