@@ -36,6 +36,7 @@ from geovs_drake.batch.arm_tree import ArmTree, arm_tree, warm_arm_kernels
 from geovs_drake.geometry import kernels
 
 __all__ = [
+    "SCRATCH_ROWS",
     "ArmLoopParameters",
     "arm_loop_parameters",
     "arm_loop_rhs",
@@ -59,6 +60,9 @@ _TWIST = 6
 # the dynamics' vectors, then the camera state, p_WC and the null-space solve, the
 # twist or wrench in W, the torque, R_WC (9) and zero velocities.
 _ROW_STATE, _ROW_NULL, _ROW_TWIST, _ROW_TAU, _ROW_R, _ROW_ZERO, _ROWS = 2, 3, 4, 5, 6, 7, 8
+#: The rows of the scratch ``vec`` a caller of :func:`arm_loop_rhs` allocates (numba checks
+#: no bounds: fewer rows would be written past their end).
+SCRATCH_ROWS = _ROWS
 
 
 @dataclass(frozen=True)

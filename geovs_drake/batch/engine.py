@@ -50,14 +50,20 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit, prange
 
+from geovs_drake.batch._checks import state_status as _state_status
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
 from geovs_drake.loop.state import initial_body_states
 from geovs_drake.scenario import ScenarioConfig, variant_name
-from geovs_drake.simulation.result import CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD
+from geovs_drake.simulation.result import (
+    CONVERGENCE_POSITION_M,
+    CONVERGENCE_ROTATION_RAD,
+    convergence_tolerance,
+)
 from geovs_drake.systems.spherical_camera import CAMERA_OFFSET
 
 if TYPE_CHECKING:  # the record only: the workers import no loop
+    from geovs_drake.batch.sampled import SampledCamera
     from geovs_drake.loop.resolved import ResolvedScenario
 
 __all__ = [
@@ -102,6 +108,11 @@ class LoopParameters:
     #: The error control's step limit [s]: the Drake loop's, decided in one place
     #: (:func:`~geovs_drake.goal.step_limit.step_limit`).
     max_step_size: float
+    #: The pinhole camera's clock and measurement (:mod:`.sampled`); None: the exact y.
+    sampled: SampledCamera | None = None
+    #: Within these (position [m], rotation [rad]) a start counts as converged: a
+    #: camera's are coarser (:func:`~geovs_drake.simulation.result.convergence_tolerance`).
+    tolerance: tuple[float, float] = (CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD)
 
 
 def loop_parameters(config: ScenarioConfig | ResolvedScenario) -> LoopParameters:
@@ -109,7 +120,8 @@ def loop_parameters(config: ScenarioConfig | ResolvedScenario) -> LoopParameters
     resolved once (:func:`~geovs_drake.loop.resolver`).
 
     The engine runs the parts whose entries declare a batch kernel (the NF on the free
-    rig with the exact sensor): another raises ValueError.
+    rig with the exact sensor), and a camera model that draws nothing (the pinhole,
+    sampled: :mod:`.sampled`): another raises ValueError.
     """
     # Here, not at the top: a sweep's workers get these parameters from the client and
     # run the kernels without importing the Drake systems (geovs_drake._lazy).
@@ -128,9 +140,10 @@ def loop_parameters(config: ScenarioConfig | ResolvedScenario) -> LoopParameters
             f"{type(config.carrier).__name__} (use the Drake engine, sweep --engine drake, "
             "or simulate())"
         )
-    if not config.sensor.traits.batch_kernel:
+    traits = config.sensor.traits
+    if not (traits.batch_kernel or (traits.camera and not traits.renders)):
         raise ValueError(
-            f"the batch engine reads the exact y = c(H); sensor "
+            f"the batch engine reads the exact y = c(H) or a pinhole camera; sensor "
             f"{type(config.sensor).__name__} runs through simulate()"
         )
     dynamic = config.dynamic
@@ -145,6 +158,11 @@ def loop_parameters(config: ScenarioConfig | ResolvedScenario) -> LoopParameters
     camera = params("spherical_camera")
     X_WC_goal = config.X_WB @ config.X_BC_goal
     goal = np.concatenate([X_WC_goal.rotation().matrix().ravel(), X_WC_goal.translation()])
+    sampled = None
+    if not traits.batch_kernel:
+        from geovs_drake.batch.sampled import camera_parameters
+
+        sampled = camera_parameters(resolved, diagram, root, camera[CAMERA_OFFSET])
     return LoopParameters(
         plant=variant_name(config.plant),
         dynamic=dynamic,
@@ -155,6 +173,8 @@ def loop_parameters(config: ScenarioConfig | ResolvedScenario) -> LoopParameters
         pose_error=np.concatenate([camera[CAMERA_OFFSET], goal]),
         potential_gain=config.control.potential_gain if dynamic else 1.0,
         max_step_size=resolved.step_limit.max_step_size,
+        sampled=sampled,
+        tolerance=convergence_tolerance(resolved),
     )
 
 
@@ -230,23 +250,6 @@ def _rhs(kinematic, x, out, p_cam, p_nav, p_ctrl, p_body):
     for j in range(_FREE_STATE):
         out[j] = body[j]
     return cam[_NU], cam[_M0:_M1], nav[_PHI], body[_KINETIC]
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _state_status(x, nu, margins, phi):
-    """1 if x lies in D (with finite values), else 2 left_domain, 3 lost_visibility,
-    4 non_finite: the checks of the safe-domain monitor, on one state."""
-    for j in range(x.shape[0]):
-        if not math.isfinite(x[j]):
-            return 4
-    if not nu > 0:
-        return 3
-    worst = min(margins[0], margins[1], margins[2], margins[3])
-    if not (math.isfinite(worst) and math.isfinite(phi)):
-        return 4
-    if worst < 0:
-        return 2
-    return 1
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
@@ -387,6 +390,7 @@ def run_batch(
     step: float | None = None,
     accuracy: float | None = None,
     parameters: LoopParameters | None = None,
+    seeds: np.ndarray | None = None,
 ) -> BatchResult:
     """Integrate ``config``'s loop from N starts at once (module docstring).
 
@@ -400,6 +404,8 @@ def run_batch(
         accuracy: the error control's tolerance, ``config.simulator.accuracy``
             by default (with ``step`` it is ignored).
         parameters: :func:`loop_parameters` of ``config``, to skip building its diagram.
+        seeds: a pinhole camera's noise seed per start (N,), ``sensor.seed + i`` by
+            default (:mod:`.sampled`); unused with the exact sensor.
     """
     duration = config.duration if duration is None else duration
     if not (math.isfinite(duration) and duration > 0):
@@ -416,22 +422,29 @@ def run_batch(
     # Shampine's third-order solution has RK3's stability polynomial.
     max_step = p.max_step_size if step is None else step
     h0 = min(DEFAULT_STEP, max_step) if step is None else step
-    out = _integrate(
-        not p.dynamic,
-        X0,
-        p.camera,
-        p.navigation,
-        p.controller,
-        p.body,
-        p.pose_error,
-        float(p.potential_gain),
-        float(h0),
-        float(max_step),
-        -1.0 if step is not None else float(accuracy),
-        float(duration),
-        CONVERGENCE_POSITION_M**2,
-        8.0 * math.sin(0.5 * CONVERGENCE_ROTATION_RAD) ** 2,
-    )
+    tol_p2 = p.tolerance[0] ** 2
+    tol_r2 = 8.0 * math.sin(0.5 * p.tolerance[1]) ** 2
+    names = STATUS_NAMES
+    if p.sampled is not None:
+        from geovs_drake.batch.sampled import run_sampled
+
+        n = len(X0)
+        seeds = p.sampled.seed + np.arange(n) if seeds is None else np.asarray(seeds)
+        if seeds.shape != (n,):
+            raise ValueError(f"seeds must have one entry per start ({n}): shape {seeds.shape}")
+        settings = dict(
+            h0=float(h0),
+            max_step=float(max_step),
+            accuracy=-1.0 if step is not None else float(accuracy),
+            duration=float(duration),
+            tol_p2=tol_p2,
+            tol_r2=tol_r2,
+            seeds=seeds,
+        )
+        out = run_sampled(not p.dynamic, X0, p, p.sampled, settings)
+        names = (*STATUS_NAMES, "feature_lost")
+    else:
+        out = _exact(p, X0, h0, max_step, step, accuracy, duration, tol_p2, tol_r2)
     status, t_stop, t_conv, err_p, err_r, min_m, L0, max_ratio, max_rise, steps, final = out
     return BatchResult(
         plant=p.plant,
@@ -449,4 +462,25 @@ def run_batch(
         max_lyapunov_rise=max_rise,
         steps=steps,
         final_states=final,
+        names=names,
+    )
+
+
+def _exact(p, X0, h0, max_step, step, accuracy, duration, tol_p2, tol_r2) -> tuple:
+    """The exact sensor's run: :func:`_integrate` on ``p``'s vectors."""
+    return _integrate(
+        not p.dynamic,
+        X0,
+        p.camera,
+        p.navigation,
+        p.controller,
+        p.body,
+        p.pose_error,
+        float(p.potential_gain),
+        float(h0),
+        float(max_step),
+        -1.0 if step is not None else float(accuracy),
+        float(duration),
+        tol_p2,
+        tol_r2,
     )

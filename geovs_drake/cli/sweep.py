@@ -49,8 +49,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "what carries the camera",
         {
             "free": "the paper's free rig",
-            "arm": "the camera on the arm shipped in the package (with --engine drake: each "
-            "start's joints by IK, its twist carried to the joints at the same E0 / k_p)",
+            "arm": "the camera on the arm shipped in the package (each start's joints by "
+            "IK, its twist carried to the joints at the same E0 / k_p; the batch engine "
+            "runs it with the exact sensor, a camera on it with --engine drake)",
         },
         names=("free", "arm"),
     )
@@ -63,7 +64,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
             "pinhole": "the camera at its rate, on exact image points",
             "rendered": "the camera at its rate, its frames rendered",
         },
-        after=" (a camera with --engine drake: the batch engine reads the exact y; a "
+        after=" (the batch engine runs the pinhole on the free rig, the rendered camera "
+        "with --engine drake; a "
         "scenario's sensor: !Pinhole {...} sets its rate, latency and errors)",
     )
     add_latency_frames(p)

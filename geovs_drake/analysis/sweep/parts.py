@@ -31,7 +31,7 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from geovs_drake._optional import require
 from geovs_drake.analysis.sweep.starts import sample_starts
 from geovs_drake.analysis.sweep.summary import SweepSummary, run_ends
-from geovs_drake.batch import STATUS_NAMES, LoopParameters, loop_parameters, run_batch
+from geovs_drake.batch import LoopParameters, loop_parameters, run_batch
 from geovs_drake.geometry.domain import SafeDomain
 from geovs_drake.loop.resolved import free_twin
 from geovs_drake.loop.state import poses_in_target
@@ -189,6 +189,8 @@ def _batch_columns(
     config: ScenarioConfig, p: LoopParameters, X_BC, twists, duration: float
 ) -> dict[str, np.ndarray]:
     """The result columns of the batch engine's run."""
+    if config.carrier.traits.joints:
+        return _arm_batch_columns(config, p, X_BC, twists, duration)
     dynamic = p.dynamic
     r = run_batch(config, X_BC, twists if dynamic else None, duration=duration, parameters=p)
     finite = np.all(np.isfinite(r.final_states), axis=1)
@@ -196,7 +198,7 @@ def _batch_columns(
     if np.any(finite):
         final[finite] = poses_in_target(config, r.final_states[finite])
     return {
-        "status": np.array(STATUS_NAMES, dtype=object)[r.status_code],
+        "status": r.status.astype(object),  # the pinhole's feature_lost among them
         "t_converged": r.t_converged,
         "final_position_error_m": r.final_position_error_m,
         "final_rotation_error_rad": r.final_rotation_error_rad,
@@ -209,6 +211,78 @@ def _batch_columns(
         **_pose_columns(final, "final_"),
         **{k: np.full(len(X_BC), math.nan) for k in _ARM_END},  # no arm in the batch engine
     }
+
+
+def _arm_batch_columns(
+    config: ScenarioConfig, p: LoopParameters, X_BC, twists, duration: float
+) -> dict[str, np.ndarray]:
+    """The arm's columns from the batch engine (:mod:`geovs_drake.batch.arm_engine`):
+    the same starts as the Drake engine's (:class:`_ArmStarts`: IK, the branch, the
+    twist to the joints), the unreachable ones a row with their status."""
+    from geovs_drake.batch.arm_engine import run_arm_batch
+    from geovs_drake.batch.arm_rhs import arm_loop_parameters, arm_rhs
+    from geovs_drake.loop.resolver import resolve
+    from geovs_drake.simulation.result import convergence_tolerance
+
+    config = copy.deepcopy(config)
+    config.duration = duration
+    resolved = resolve(config)
+    arm_p = arm_loop_parameters(resolved)
+    starts = _ArmStarts.of(config, p)
+    nv = arm_p.tree.nv
+    n = len(X_BC)
+    q0, v0 = np.zeros((n, nv)), np.zeros((n, nv))
+    reached = np.zeros(n, bool)
+    for i, (X, twist) in enumerate(zip(X_BC, twists, strict=True)):
+        c = copy.deepcopy(config)
+        c.initial = PoseConfig.from_rigid_transform(RigidTransform(X))
+        joints = starts.joints(c, X, twist if config.dynamic else np.zeros(6))
+        if joints is not None:
+            reached[i], q0[i] = True, joints[0]
+            v0[i] = 0.0 if joints[1] is None else joints[1]
+    rows = {k: np.full(n, math.nan) for k in ROW_FIELDS[ROW_FIELDS.index("status") + 1 : -1]}
+    rows["status"] = np.full(n, "unreachable", dtype=object)
+    rows["monotone"] = np.ones(n, bool)
+    if np.any(reached):
+        goal = (resolved.config.X_WB @ resolved.config.X_BC_goal).GetAsMatrix4()
+        r = run_arm_batch(
+            arm_p, goal, q0[reached], v0[reached], duration, config.simulator.accuracy,
+            convergence_tolerance(resolved),
+        )  # fmt: skip
+        k_p = arm_p.potential_gain
+        X_BW = np.linalg.inv(resolved.config.X_WB.GetAsMatrix4())
+        final = np.full((len(r.final_states), 4, 4), math.nan)
+        speed = np.full(len(final), math.nan)
+        for j, x in enumerate(r.final_states):
+            if np.all(np.isfinite(x)):
+                R, t = arm_p.tree.camera_pose(x[:nv])
+                final[j] = X_BW @ np.block([[R, t.reshape(3, 1)], [np.zeros((1, 3)), 1.0]])
+                speed[j] = np.max(np.abs(x[nv:] if arm_p.dynamic else arm_rhs(arm_p, x)))
+        columns = {
+            "status": r.status.astype(object),
+            "t_converged": r.t_converged,
+            "final_position_error_m": r.final_position_error_m,
+            "final_rotation_error_rad": r.final_rotation_error_rad,
+            "min_fov_margin": r.min_margins[:, 0],
+            "min_lambda_margin": np.minimum(r.min_margins[:, 1], r.min_margins[:, 2]),
+            "min_occlusion_margin": r.min_margins[:, 3],
+            "initial_energy_ratio": r.initial_lyapunov / k_p,
+            "max_energy_ratio": r.max_lyapunov_ratio,
+            "monotone": r.monotone,
+            **_pose_columns(final, "final_"),
+            "final_joint_speed": speed,
+            "final_joint_barrier": np.zeros(len(final)),  # the batch arm has no barrier
+            "final_joint_margin": _final_joint_margin(arm_p.tree, r.final_states[:, :nv]),
+        }
+        for k, v in columns.items():
+            rows[k][reached] = v
+    return rows
+
+
+def _final_joint_margin(tree, q: np.ndarray) -> np.ndarray:
+    """The least distance of each row's joints from their limits [rad]."""
+    lower, upper = tree.joint[:, 3], tree.joint[:, 4]
+    return np.min(np.minimum(q - lower, upper - q), axis=1)
 
 
 def _drake_columns(
@@ -269,6 +343,19 @@ class _ArmStarts:
 
     def row(self, config: ScenarioConfig, X: np.ndarray, twist) -> dict:
         """:func:`_drake_row` on the arm: IK for the joints, the twist to joint velocities."""
+        joints = self.joints(config, X, twist)
+        if joints is None:
+            return _stopped_row("unreachable")
+        q, v = joints
+        config.initial_velocity = [0.0] * 6
+        if v is not None:
+            config.carrier.initial_joint_velocity = [float(x) for x in v]
+        return _drake_row(config)
+
+    def joints(self, config: ScenarioConfig, X: np.ndarray, twist) -> tuple | None:
+        """The start X_BC's joints ``(q, v)`` (v None at rest or on the kinematic arm):
+        IK on the branch the NF's way to the goal carries along, the twist carried to the
+        joints at the same E0 / k_p; None where the arm cannot reach it."""
         from geovs_drake.analysis.sweep.starts import kinetic_energy
         from geovs_drake.goal.arm import (
             Unreachable,
@@ -282,17 +369,16 @@ class _ArmStarts:
         try:
             q = solve_joints(self.model, X_WC)
         except Unreachable:
-            return _stopped_row("unreachable")
+            return None
         # The start's whole turns from the joints carried along the NF's way to the goal.
         path = chart_path(config, self.domain, RigidTransform(X))
         q = start_branch(self.model, q, X_WC, config.X_WB @ config.X_BC_goal, path)
-        config.initial_velocity = [0.0] * 6
+        v = None
         if config.dynamic and np.any(np.asarray(twist) != 0):
             twist = np.asarray(twist, dtype=float)
             free = kinetic_energy(self.free, self.parameters, X[None], twist[None])[0]
             v = joint_velocity_for(self.model, q, twist, free * self.gain_ratio)
-            config.carrier.initial_joint_velocity = [float(x) for x in v]
-        return _drake_row(config)
+        return np.asarray(q, dtype=float), v
 
 
 def _drake_row(config: ScenarioConfig) -> dict:

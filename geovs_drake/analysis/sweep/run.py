@@ -400,10 +400,24 @@ def _shipped_parameters(config: ScenarioConfig, engine: str):
     the free rig's kernels on the exact y (the same domain, goal and NF), which the batch
     engine also runs. SweepError for a loop the batch engine does not run."""
     try:
-        drawn_by = config if engine == "batch" else exact_twin(free_twin(config))
+        arm = engine == "batch" and config.carrier.traits.joints
+        if arm:
+            _check_arm_batch(config)
+        drawn_by = config if engine == "batch" and not arm else exact_twin(free_twin(config))
         return loop_parameters(drawn_by)
     except ValueError as e:
         raise SweepError(str(e)) from e
+
+
+def _check_arm_batch(config: ScenarioConfig) -> None:
+    """ValueError, with the remedy, for an arm's loop the batch engine does not run (a
+    camera on the arm, a moving target, the joint barrier): refused before any part."""
+    from geovs_drake.batch.arm_rhs import arm_loop_parameters
+
+    try:
+        arm_loop_parameters(config)
+    except ValueError as e:
+        raise ValueError(f"{e} (run it with --engine drake)") from e
 
 
 def _parts(

@@ -1,0 +1,1 @@
+"""Generated kernels of the batch engine (:mod:`geovs_drake.batch._codegen`)."""
