@@ -82,6 +82,7 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=30.0)
     parser.add_argument("--camera-duration", type=float, default=10.0)
     parser.add_argument("--cameras", nargs="+", choices=list(CAMERAS), default=list(CAMERAS))
+    parser.add_argument("--note", default="", help="a line for the record (the machine's state)")
     args = parser.parse_args()
     figures = []
     try:
@@ -121,7 +122,7 @@ def main() -> None:
                 )
             )
     figures += camera_figures(args.repeat, args.camera_duration, args.cameras)
-    record("bench_arm", "The arm loops against the free body, and with cameras", figures)
+    record("bench_arm", "The arm loops against the free body, and with cameras", figures, args.note)
 
 
 #: Issue 44's targets on the camera section's rows, by the sensor (all plants).
