@@ -397,6 +397,37 @@ def test_the_singular_zone_s_damping_is_the_singularity_robust_inverse():
         assert (sigma < m) == (q is near)
 
 
+def test_the_kinematic_arms_compiled_shortcuts_agree_with_numpys_svd_and_max():
+    """The kinematic arm skips the SVD where a Cholesky factor shows sigma_min(J_C) > m:
+    never where numpy's SVD says sigma_min < m, on the UR5's J_C at wrist 2 from 1 rad
+    down through the singularity and m on both sides of sigma_min; and its velocity
+    ratio is numpy's max |qdot| / limit, NaN included."""
+    from geovs_drake.systems.kinematic_arm import _clear_of_singular_zone, _largest_ratio
+
+    model = arm_model(_arm(Kinematic()))
+    plant = arm_plant(model)
+    pc = plant.CreateDefaultContext()
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+    q = solve_joints(model, _arm(Kinematic()).X_WB @ _arm(Kinematic()).X_BC_goal)
+    skipped = 0
+    for wrist in np.concatenate([np.geomspace(1.0, 1e-8, 40), [0.0, -1e-3]]):
+        q[4] = wrist
+        plant.SetPositions(pc, q)
+        J = camera_jacobian(plant, pc, camera)
+        sigma = np.linalg.svd(J, compute_uv=False)[-1]
+        for m in sigma * np.array([0.5, 0.999, 1 - 1e-9, 1.0, 1 + 1e-9, 1.001, 2.0]):
+            clear = _clear_of_singular_zone(J, m * m)
+            assert not clear or sigma >= m, (wrist, sigma, m)
+            skipped += clear
+    assert skipped >= 40  # m well below a sigma_min not in rounding: skipped (not vacuous)
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        v, b = rng.normal(size=6), rng.uniform(0.5, 3.0, 6)
+        assert _largest_ratio(v, b) == np.max(np.abs(v) / b)
+    v[2] = np.nan
+    assert np.isnan(_largest_ratio(v, b))
+
+
 def test_the_kinematic_arm_crosses_the_wrist_singularity_from_the_default_start():
     """From the default start the path passes sigma_min(J_C) < 0.01: with the singular
     zone damped (the default, m = 0.05) the arm converges; with the plain pseudo-inverse

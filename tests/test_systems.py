@@ -372,3 +372,36 @@ def test_the_camera_reads_its_pose_from_body_pose_or_a_free_bodys_state_alike():
     )
     with pytest.raises(ValueError, match="connect \\(or fix\\) body_pose or body_state"):
         camera.image_features_output.Eval(camera.CreateDefaultContext())
+
+
+def test_the_controllers_fast_image_check_passes_only_what_image_violation_passes():
+    """The NF controller's compiled check of y in I (Eq. 9) may send a y on to the full
+    check, never pass one image_violation refuses: near each of I's boundaries (the
+    silhouette, lambda in (0, 1), Q a rotation, s a unit vector, finite) both are asked,
+    and the images of generic visible poses pass it."""
+    from geovs_drake.geometry.camera import image_violation
+    from geovs_drake.sampling import random_visible_poses
+    from geovs_drake.systems.navigation_controller import _surely_in_image
+
+    rng = np.random.default_rng(20261128)
+    poses = np.concatenate(
+        [
+            random_visible_poses(rng, 60, RHO, (1.001, 100.0)),
+            random_visible_poses(rng, 60, RHO, (1.001, 100.0), (1e-9, 1e-6)),
+        ]
+    )
+    images = [camera_map(RigidTransform(X), RHO).to_vector() for X in poses]
+    assert sum(_surely_in_image(y) for y in images[:60]) >= 57  # not vacuous
+    tried, refused = 0, 0
+    for y in images:
+        for k in range(13):
+            for delta in (0.0, 1e-12, -1e-12, 1e-9, -1e-9, 1e-6, 0.5, -1.0, np.nan):
+                z = y.copy()
+                z[k] += delta
+                if k == 9 and delta == -1.0:
+                    z[k] = 1.0  # lambda on the open interval's ends
+                tried += 1
+                truth = image_violation(tuple(z.tolist())) is None
+                refused += not truth
+                assert truth or not _surely_in_image(z), (k, delta, z)
+    assert refused > tried // 4  # the boundaries were reached

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pydrake.math as pm
+from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 
 from geovs_drake.geometry.joint_barrier import joint_barrier, per_joint
@@ -39,6 +40,8 @@ _TWIST = 6
 #: circle of docs/moving-target.md) the motion that follows the target asks unbounded
 #: joint rates; damped, it fades there and the NF carries the camera.
 FEEDFORWARD_MU = 0.01
+#: The camera frame's origin, where J_C's velocities are taken (camera_jacobian's point).
+_ORIGIN = np.zeros(3)
 #: The joint step [rad] of the central difference that gives J_C's rate (its error is
 #: of the step squared, below 1e-10 relative).
 _JACOBIAN_STEP = 1e-5
@@ -151,8 +154,12 @@ def ArmCamera_(T):
             self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
             self._world = self._plant.world_frame()
             float_plant = arm_plant(model)
+            # B^T tau as an index (B a permutation): actuator j drives velocity _actuated[j].
             self._B = actuation_permutation(float_plant)
+            self._actuated = np.argmax(self._B, axis=0)
+            self._identity = bool(np.array_equal(self._actuated, np.arange(len(self._actuated))))
             nq, nv = self._plant.num_positions(), self._plant.num_velocities()
+            self._nq = nq
             damping = np.zeros(nv) if joint_damping is None else np.asarray(joint_damping)
             self._defaults = (model, damping, joint_barrier_width, null_space_damping)
             self._redundant = nv > _TWIST
@@ -190,7 +197,7 @@ def ArmCamera_(T):
             )
             self.actuation_output = self.DeclareVectorOutputPort(
                 name="actuation",
-                size=self._B.shape[1],
+                size=len(self._actuated),
                 calc=self.CalcActuation,
                 prerequisites_of_calc={
                     state,
@@ -228,13 +235,10 @@ def ArmCamera_(T):
             world = self._world
             X_WC = self._camera.CalcPose(self._context, world)
             V_WC = self._camera.CalcSpatialVelocity(self._context, world, world)
+            # [q_WC, p_WC, w_WC_W, v_WCo_W]: the spatial velocity's coefficients are
+            # rotational first, one array (three pieces, not four: 1 us a call).
             camera_state = np.concatenate(
-                [
-                    X_WC.rotation().ToQuaternion().wxyz(),
-                    X_WC.translation(),
-                    V_WC.rotational(),
-                    V_WC.translational(),
-                ]
+                (X_WC.rotation().ToQuaternion().wxyz(), X_WC.translation(), V_WC.get_coeffs())
             )
             if T is float:
                 self._last = (self._last[0], camera_state)
@@ -276,8 +280,15 @@ def ArmCamera_(T):
             return v_ff, M @ a_r + 0.25 * (coriolis[0] - coriolis[1])
 
         def CalcActuation(self, context, output) -> None:
-            v = self._set(context)[self._plant.num_positions() :]  # the state is (q, v)
-            J_C = camera_jacobian(self._plant, self._context, self._camera)
+            v = self._set(context)[self._nq :]  # the state is (q, v)
+            J_C = self._plant.CalcJacobianSpatialVelocity(
+                self._context,
+                JacobianWrtVariable.kV,
+                self._camera,
+                _ORIGIN,
+                self._world,
+                self._camera,
+            )  # camera_jacobian's, its arguments built once
             F_C = self.wrench_C_input.Eval(context)
             p = param_vector(context, self._params_index, T)
             damping, null_damping = p[:-1], p[-1]
@@ -298,7 +309,8 @@ def ArmCamera_(T):
                 phi_q, dphi_q = joint_barrier(q, lower, upper, width, min if T is float else pm.min)
                 phi = self.phi_input.Eval(context)[0]
                 tau = tau + (1 - phi_q) * (J_C.T @ F_C) - k_p * (1 - phi) * np.asarray(dphi_q)
-            output.SetFromVector(self._B.T @ tau)  # B a permutation: its inverse is B^T
+            # B a permutation: its inverse B^T picks tau's entries (none to pick for I).
+            output.SetFromVector(tau if self._identity else tau[self._actuated])
 
     return Impl
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from pydrake.autodiffutils import AutoDiffXd
 from pydrake.math import inv
 from pydrake.systems.framework import BasicVector_, LeafSystem_
@@ -23,6 +24,61 @@ __all__ = ["KinematicArm", "KinematicArm_"]
 # zone's damping m [-], the null-space gain [1/s], then the joints' velocity limits (nv)
 # [rad/s].
 _MU, _SINGULAR, _NULL_GAIN, _LIMITS = 0, 1, 2, slice(3, None)
+
+
+#: The room by which sigma_min(J_C)^2 must clear m^2 (relative to m^2, and to |J_C|_F^2)
+#: for :func:`_clear_of_singular_zone` to skip the SVD: far above a Cholesky factor's
+#: rounding (about 1e-15 |J_C|^2), so a J_C it clears has sigma_min > m by the SVD too.
+_ZONE_SLACK = 1e-6
+_ZONE_SLACK_ABS = 1e-12
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _clear_of_singular_zone(J: np.ndarray, m2: float) -> bool:
+    """True where sigma_min(J)^2 exceeds m2 for sure: J J^T - (m2 + room) I has a Cholesky
+    factor (a 6 x 6 one in about 0.3 us, where the SVD takes 8 us); False leaves the
+    verdict to the SVD."""
+    rows, cols = J.shape
+    A = np.empty((rows, rows))
+    trace = 0.0
+    for i in range(rows):
+        for j in range(rows):
+            acc = 0.0
+            for k in range(cols):
+                acc += J[i, k] * J[j, k]
+            A[i, j] = acc
+        trace += A[i, i]
+    shift = m2 * (1.0 + _ZONE_SLACK) + _ZONE_SLACK_ABS * trace
+    for i in range(rows):
+        A[i, i] -= shift
+    for j in range(rows):  # Cholesky, in place: a pivot <= 0 is no factor
+        pivot = A[j, j]
+        for k in range(j):
+            pivot -= A[j, k] * A[j, k]
+        if not pivot > 0.0:
+            return False
+        root = np.sqrt(pivot)
+        A[j, j] = root
+        for i in range(j + 1, rows):
+            acc = A[i, j]
+            for k in range(j):
+                acc -= A[i, k] * A[j, k]
+            A[i, j] = acc / root
+    return True
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _largest_ratio(value: np.ndarray, bound: np.ndarray) -> float:
+    """``max |value| / bound`` (NaN if any ratio is): np.max's of the same ratios, exact
+    in any order, in 0.3 us where numpy's three calls take 3 us."""
+    largest = -np.inf
+    for i in range(value.shape[0]):
+        ratio = abs(value[i]) / bound[i]
+        if ratio != ratio:
+            return ratio
+        if ratio > largest:
+            largest = ratio
+    return largest
 
 
 # float and AutoDiffXd (Linearize) only: the pseudo-inverse and the velocity scaling do
@@ -167,6 +223,8 @@ def KinematicArm_(T):
             lam2 = p[_MU] ** 2
             if m <= 0:
                 return lam2
+            if T is float and _clear_of_singular_zone(J, m * m):
+                return lam2 + 0.0  # the SVD's branch for sigma >= m, without the SVD
             values = J if T is float else np.array([[x.value() for x in row] for row in J])
             sigma = np.linalg.svd(values, compute_uv=False)[min(values.shape) - 1]
             return lam2 + (m**2 - sigma**2 if sigma < m else 0.0)
@@ -175,11 +233,11 @@ def KinematicArm_(T):
             """s: 1, or what brings the fastest joint to its limit (a constant factor
             for AutoDiffXd: the derivative of the clip where it acts is not wanted)."""
             if T is float:
-                value, bound = qdot, limits
+                ratio = _largest_ratio(qdot, limits)
             else:
                 value = np.array([x.value() for x in qdot], dtype=float)
                 bound = np.array([x.value() for x in limits], dtype=float)
-            ratio = np.max(np.abs(value) / bound)
+                ratio = np.max(np.abs(value) / bound)
             return 1.0 if ratio <= 1.0 else 1.0 / ratio
 
         def CalcVelocityScale(self, context, output) -> None:
