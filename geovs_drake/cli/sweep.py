@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -200,14 +201,10 @@ class _Clock:
             self.first_part = time.perf_counter() - self.start
 
     def line(self) -> str:
-        """The ``--timings`` line; the start-up (interpreter, imports) where psutil can
-        read the process's start."""
-        try:
-            import psutil
-
-            before = f"start-up {self.start - _process_start(psutil):.2f} s, "
-        except ImportError:
-            before = ""
+        """The ``--timings`` line; the start-up (interpreter, imports) where the system
+        tells the process's start (Linux's /proc)."""
+        started = _process_start()
+        before = "" if started is None else f"start-up {self.start - started:.2f} s, "
         phases = ", ".join(f"{k} {v:.2f} s" for k, v in self.phases.items())
         first = ""
         if self.first_part is not None:
@@ -215,9 +212,20 @@ class _Clock:
         return f"geovs-drake sweep: timings: {before}{phases}{first}"
 
 
-def _process_start(psutil) -> float:
-    """This process's start on :func:`time.perf_counter`'s clock."""
-    return time.perf_counter() - (time.time() - psutil.Process().create_time())
+def _process_start() -> float | None:
+    """This process's start on :func:`time.perf_counter`'s clock, from Linux's
+    /proc/self/stat (its 22nd field, the start in clock ticks after boot) and /proc/uptime;
+    None where there is no /proc."""
+    try:
+        with open("/proc/self/stat") as f:
+            # The command name (field 2) may hold spaces: the fields after its ")" count.
+            fields = f.read().rsplit(")", 1)[1].split()
+        with open("/proc/uptime") as f:
+            uptime = float(f.read().split()[0])
+    except (OSError, IndexError, ValueError):
+        return None
+    age = uptime - int(fields[19]) / os.sysconf("SC_CLK_TCK")
+    return time.perf_counter() - age
 
 
 def run(args: argparse.Namespace) -> int:

@@ -188,10 +188,13 @@ class SimulatorSettings:
     def to_drake(self, max_step_size: float | None = None) -> SimulatorConfig:
         """Drake's ``SimulatorConfig`` of these settings, its maximum step
         ``max_step_size`` (the loop's step limit) where given, else the configured one
-        (Drake's own default where that is automatic)."""
+        (Drake's own default where that is automatic), and Drake's default integrator
+        where the scheme is unset (a resolved scenario's is its carrier's)."""
         step = self.max_step_size if max_step_size is None else max_step_size
         fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         fields["max_step_size"] = SimulatorConfig().max_step_size if step is None else step
+        if self.integration_scheme is None:  # unset: the resolver fills in the carrier's
+            fields["integration_scheme"] = SimulatorConfig().integration_scheme
         return SimulatorConfig(**fields)
 
 
