@@ -251,6 +251,7 @@ class Quadrotor:
             "the attitude cascade turns the NF's wrench into one thrust and an attitude "
             "(underactuated), and Appendix C's energy argument needs the wrench applied"
         ),
+        hover=True,
     )
 
     @property

@@ -35,7 +35,11 @@ class CarrierTraits:
     ``effort_limits``: its dynamic plant clamps torques at effort limits (the effort
     check applies). ``takes``: what it takes on each plant (by the plant's name).
     ``energy_exclusion``: why Appendix C's energy argument does not cover a loop on this
-    carrier, in a phrase (the run's ``energy_guarantee`` is then null with it), or empty."""
+    carrier, in a phrase (the run's ``energy_guarantee`` is then null with it), or empty.
+    ``hover``: it flies and holds a level hover only (the quadrotor): its start is a
+    position and a heading, the body level, so a sweep draws its starts level and at
+    rest, and its runs report the rotors' saturation and the peak tilt (the sweep's
+    :data:`~geovs_drake.analysis.sweep.parts.HOVER_FIELDS`)."""
 
     camera_in_hand: bool
     joints: bool
@@ -47,6 +51,7 @@ class CarrierTraits:
     effort_limits: bool
     takes: tuple[tuple[str, str], ...]
     energy_exclusion: str = ""
+    hover: bool = False
 
 
 @dataclass(frozen=True)
