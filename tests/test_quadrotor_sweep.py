@@ -82,7 +82,7 @@ def test_sweep_rows_of_the_quadrotor_match_simulate_and_the_summary_adds_up(coun
     config = _quadrotor()
     starts = [LEVEL_START, SMALL_MOVE][:count]
     X_BC = np.stack([RigidTransform(RollPitchYaw(p.rpy), p.xyz).GetAsMatrix4() for p in starts])
-    duration = 0.3
+    duration = 0.1
     result = sweep.run_sweep(config, (X_BC, None), duration, engine="drake", workers=1)
     table = result.table
     assert list(table.columns) == [*ROW_FIELDS, *HOVER_FIELDS]
