@@ -18,7 +18,7 @@ A carrier that holds a level hover only (``traits.hover``: the quadrotor) starts
 and at rest: each drawn pose is levelled (:func:`level_poses`: the body's position and
 heading kept, its roll and pitch zeroed, the camera where the mount puts it on the level
 body), a levelled pose outside D is dropped, and the block's stream draws again until the
-block is full (:func:`_level_block`).
+block is full.
 """
 
 from __future__ import annotations
