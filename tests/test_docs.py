@@ -114,12 +114,12 @@ def test_each_notebook_has_a_page_that_shows_its_figures(notebook):
 
 @pytest.mark.built_docs
 def test_each_meshcat_recording_the_gallery_embeds_is_beside_it():
-    """The gallery's iframes (notebook 01's servo, notebook 06's tracking arm) point at
-    standalone Meshcat pages this build copied into _static."""
+    """The gallery's iframes (notebook 01's servo, notebook 06's tracking arm, notebook
+    07's quadrotor) point at standalone Meshcat pages this build copied into _static."""
     if not (HTML / "gallery.html").is_file():
         pytest.skip("the docs are not built here: `make docs` builds them (make test does)")
     frames = re.findall(r'<iframe src="(_static/[^"]+\.html)"', (HTML / "gallery.html").read_text())
-    assert {"_static/servo.html", "_static/tracking.html"} <= set(frames)
+    assert {"_static/servo.html", "_static/tracking.html", "_static/quadrotor.html"} <= set(frames)
     for frame in frames:
         html = (HTML / frame).read_text()
         assert "<html" in html.lower() and len(html) > 100_000, frame  # the scene embedded

@@ -142,11 +142,12 @@ def run_notebooks(app: Sphinx) -> None:
 
 
 #: The Meshcat recordings the notebooks write (notebook 01: the servo; notebook 06: the
-#: arm tracking a moving target), each copied beside the pages as ``_static/<name>``,
-#: where the gallery embeds it.
+#: arm tracking a moving target; notebook 07: the quadrotor over the landing pad), each
+#: copied beside the pages as ``_static/<name>``, where the gallery embeds it.
 MESHCAT_RECORDINGS = (
     Path("results", "notebooks", "servo.html"),
     Path("results", "notebooks", "tracking.html"),
+    Path("results", "notebooks", "quadrotor.html"),
 )
 STATIC = Path("_static")
 

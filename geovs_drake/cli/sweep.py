@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import os
 import sys
@@ -23,7 +24,7 @@ from geovs_drake.cli._options import (
     check_at_least_1,
     check_duration,
     check_out,
-    load_config,
+    load_layers,
 )
 from geovs_drake.progress import Progress
 
@@ -53,8 +54,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
             "arm": "the camera on the arm shipped in the package (each start's joints by "
             "IK, its twist carried to the joints at the same E0 / k_p; the batch engine "
             "runs it with the exact sensor, a camera on it with --engine drake)",
+            "quadrotor": "the quadrotor (--engine drake: level starts at rest, docs/quadrotor.md)",
         },
-        names=("free", "arm"),
+        names=("free", "arm", "quadrotor"),
     )
     add_axis(
         p,
@@ -87,7 +89,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="initial twists: none (at rest), bounded (random, E0 < k_p) or above "
         "(E0 / k_p uniform in [1.5, 4): outside the guarantee) "
-        "(default: bounded on the dynamic plant, none on the kinematic one)",
+        "(default: bounded on the dynamic plant, none on the kinematic one and the quadrotor)",
     )
     p.add_argument(
         "--engine",
@@ -164,7 +166,14 @@ def _checked_config(args: argparse.Namespace):
     check_duration(args.duration)
     if args.config and not Path(args.config).is_file():
         raise ValueError(f"--config {args.config}: no such file")
-    config = load_config(args)
+    config = load_layers(args)
+    if config.carrier.traits.hover:
+        # The sweep draws its own starts and never reads the scenario's: a hovering
+        # carrier's checks of its start (the default start's tilt) do not apply.
+        config.initial = copy.deepcopy(config.goal)
+    from geovs_drake.loop.resolver import resolve
+
+    config = resolve(config).config
     if args.velocity in ("bounded", "above") and not config.dynamic:
         raise ValueError(
             f"--velocity {args.velocity} needs --plant dynamic (the kinematic loop is first order "
@@ -234,7 +243,8 @@ def run(args: argparse.Namespace) -> int:
     from geovs_drake.analysis import sweep
 
     config = _checked_config(args)
-    velocity = args.velocity or ("bounded" if config.dynamic else "none")
+    hover = config.carrier.traits.hover
+    velocity = args.velocity or ("bounded" if config.dynamic and not hover else "none")
     out = Path(args.out)
     progress = Progress(args.starts, "starts", "geovs-drake sweep")
 
@@ -295,6 +305,13 @@ def run(args: argparse.Namespace) -> int:
         if "joint_limit" in summary["counts"]:
             ends = " | ends: " + ", ".join(
                 f"{k.replace('_', ' ')} {v}" for k, v in summary["ends"].items() if v
+            )
+        if "hover" in summary:  # a hovering carrier: its fractions, its rotors
+            h = summary["hover"]
+            ends += (
+                f" | converged {h['converged']:.1%}, left D {h['left_domain']:.1%}, "
+                f"saturated {h['saturated']:.1%} (mean {h['mean_saturation_fraction']:.2%} "
+                f"of the samples), peak tilt {h['max_tilt_deg']:.1f} deg"
             )
         print(
             f"{result.plant}: {finished} of {result.starts} starts x "

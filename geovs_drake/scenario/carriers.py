@@ -275,6 +275,7 @@ class Quadrotor:
         # RK5: the 60 rad/s attitude loop's transient in a third of RK3's steps at the
         # same accuracy, the same statuses and convergence times (docs/quadrotor.md, Speed).
         integration_scheme="runge_kutta5",
+        hover=True,
     )
 
     @property

@@ -40,7 +40,16 @@ from geovs_drake.scenario import PoseConfig, ScenarioConfig, load_scenario
 if TYPE_CHECKING:  # the Drake loop stays out of the batch engine's workers
     from geovs_drake.systems.arm_model import ArmModel
 
-__all__ = ["ROW_FIELDS", "SUMMARY_KEY", "Part", "part_name", "read_part_summary", "run_part"]
+__all__ = [
+    "HOVER_FIELDS",
+    "ROW_FIELDS",
+    "SUMMARY_KEY",
+    "Part",
+    "part_name",
+    "read_part_summary",
+    "row_fields",
+    "run_part",
+]
 
 #: Per-start columns, in order. Poses are X_BC (metres, Drake RollPitchYaw in radians);
 #: the twist is the camera's body twist (Omega, V) in C [rad/s, m/s].
@@ -83,6 +92,10 @@ ROW_FIELDS = (
     "final_joint_margin",
     "end",
 )
+#: The columns a hovering carrier's rows add (``traits.hover``: the quadrotor), after
+#: ROW_FIELDS, from its run's ``carrier_entries``: the share of logged samples where the
+#: rotor allocation gave anything up, and the largest tilt of the body from level [deg].
+HOVER_FIELDS = ("rotor_saturation_fraction", "max_tilt_deg")
 #: The Parquet key-value metadata entry that holds a part's summary (JSON).
 SUMMARY_KEY = b"geovs_drake.summary"
 _POSE = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -118,6 +131,12 @@ class Part:
     twists: np.ndarray | None = None
     results: str | None = None
     single_thread: bool = False
+
+
+def row_fields(config: ScenarioConfig) -> tuple[str, ...]:
+    """The columns of ``config``'s rows: :data:`ROW_FIELDS`, and :data:`HOVER_FIELDS` on a
+    hovering carrier."""
+    return (*ROW_FIELDS, *HOVER_FIELDS) if config.carrier.traits.hover else ROW_FIELDS
 
 
 def part_name(index: int, parts: int) -> str:
@@ -306,7 +325,7 @@ def _drake_columns(
         c.initial = PoseConfig.from_rigid_transform(RigidTransform(X))
         c.initial_velocity = [float(v) for v in twist] if dynamic else [0.0] * 6
         rows.append(_drake_row(c) if arm is None else arm.row(c, X, twist))
-    names = [k for k in ROW_FIELDS if k not in ("start", *_POSE, *_TWIST, "end")]
+    names = [k for k in row_fields(config) if k not in ("start", *_POSE, *_TWIST, "end")]
     return {
         k: np.array([r[k] for r in rows], dtype=object if k == "status" else None) for k in names
     }
@@ -314,7 +333,7 @@ def _drake_columns(
 
 def _stopped_row(status: str) -> dict:
     """A start that stopped before its first step, with its status."""
-    row = dict.fromkeys(ROW_FIELDS[ROW_FIELDS.index("status") :], math.nan)
+    row = dict.fromkeys((*ROW_FIELDS[ROW_FIELDS.index("status") :], *HOVER_FIELDS), math.nan)
     row.update(status=status, monotone=True)
     return row
 
@@ -409,6 +428,9 @@ def _drake_row(config: ScenarioConfig) -> dict:
         "monotone": bool(r.lyapunov_monotone),
         **dict(zip(("final_" + k for k in _POSE), map(float, pose), strict=True)),
         **_arm_end(r),
+        # A hovering carrier's own entries (its rotors' saturation, its peak tilt); the
+        # columns keep only the fields of the config's rows (row_fields).
+        **{k: float(r.carrier_entries.get(k, math.nan)) for k in HOVER_FIELDS},
     }
 
 
@@ -453,7 +475,8 @@ def _table(columns: dict[str, np.ndarray], summary: dict):
     its schema's metadata."""
     pa = require("pyarrow", "sweep", "a sweep's part files")
     arrays = []
-    for name in ROW_FIELDS:
+    names = [*ROW_FIELDS, *(k for k in HOVER_FIELDS if k in columns)]
+    for name in names:
         v = columns[name]
         if name in ("status", "end"):
             arrays.append(pa.array([str(s) for s in v], pa.string()))
@@ -463,7 +486,7 @@ def _table(columns: dict[str, np.ndarray], summary: dict):
             arrays.append(pa.array(np.asarray(v, np.int64)))
         else:
             arrays.append(pa.array(np.asarray(v, np.float64)))
-    table = pa.Table.from_arrays(arrays, names=list(ROW_FIELDS))
+    table = pa.Table.from_arrays(arrays, names=names)
     return table.replace_schema_metadata({SUMMARY_KEY: json.dumps(summary).encode()})
 
 

@@ -23,6 +23,7 @@ uninterrupted run. A part whose file is damaged is named and run again.
 
 from __future__ import annotations
 
+import copy
 import itertools
 import json
 import logging
@@ -40,6 +41,7 @@ from pydrake.common.yaml import yaml_dump_typed
 from geovs_drake import __version__
 from geovs_drake._optional import require
 from geovs_drake.analysis.sweep.parts import (
+    HOVER_FIELDS,
     ROW_FIELDS,
     Part,
     part_name,
@@ -200,7 +202,8 @@ def write_csv(result: SweepResult, path: str | Path) -> Path:
         )
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp")
-    result.table[list(ROW_FIELDS)].to_csv(tmp, index=False)
+    table = result.table
+    table[[*ROW_FIELDS, *(k for k in HOVER_FIELDS if k in table)]].to_csv(tmp, index=False)
     tmp.replace(path)
     return path
 
@@ -501,6 +504,16 @@ def _run_parts(
     return tables, interrupted
 
 
+def _started_at_goal(config: ScenarioConfig) -> ScenarioConfig:
+    """``config`` as the sweep resolves it: each start replaces the scenario's, which no
+    run reads, so a hovering carrier's checks of a start (its tilt) are asked of the goal."""
+    if not config.carrier.traits.hover:
+        return config
+    config = copy.deepcopy(config)
+    config.initial = copy.deepcopy(config.goal)
+    return config
+
+
 def run_sweep(
     config: ScenarioConfig,
     starts: SampledStarts | tuple[np.ndarray, np.ndarray | None],
@@ -553,7 +566,7 @@ def run_sweep(
     from geovs_drake.loop.resolver import resolve
 
     # The arm's gain_scale: auto, chosen once for every start (resolve validates).
-    resolved = resolve(config)
+    resolved = resolve(_started_at_goal(config))
     config = resolved.fitted_config
     n, source = _check_settings(starts, duration, engine, workers, chunk)
     dynamic = config.dynamic

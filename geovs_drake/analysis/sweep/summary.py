@@ -139,6 +139,12 @@ class SweepSummary:
     grid: np.ndarray = field(
         default_factory=lambda: np.zeros((3, DISTANCE_BINS, YAW_BINS), np.int64)
     )
+    #: A hovering carrier's rows (those with a ``rotor_saturation_fraction``): how many,
+    #: how many saturated at all, the sum of their saturated fractions, the peak tilt [deg].
+    hover_rows: int = 0
+    saturated: int = 0
+    saturation_sum: float = 0.0
+    max_tilt_deg: float = -math.inf
 
     @classmethod
     def empty(cls, config: ScenarioConfig, duration: float) -> SweepSummary:
@@ -199,7 +205,21 @@ class SweepSummary:
         )
         for layer, mask in enumerate(masks):
             np.add.at(s.grid[layer], (cells[0][mask[finite]], cells[1][mask[finite]]), 1)
+        if "rotor_saturation_fraction" in columns:
+            s._add_hover(columns)
         return s
+
+    def _add_hover(self, columns: dict) -> None:
+        """A hovering carrier's figures of its rows (the runs that ran: a start stopped
+        at t = 0 has NaN)."""
+        fraction = np.asarray(columns["rotor_saturation_fraction"], float)
+        ran = np.isfinite(fraction)
+        self.hover_rows = int(np.sum(ran))
+        self.saturated = int(np.sum(fraction[ran] > 0))
+        self.saturation_sum = float(np.sum(fraction[ran]))
+        tilt = np.asarray(columns["max_tilt_deg"], float)
+        tilt = tilt[np.isfinite(tilt)]
+        self.max_tilt_deg = float(np.max(tilt)) if len(tilt) else -math.inf
 
     def merge(self, other: SweepSummary) -> None:
         """Add ``other`` (the same sweep's settings) into this summary."""
@@ -221,6 +241,10 @@ class SweepSummary:
         self.t_max = max(self.t_max, other.t_max)
         self.slowest = heapq.nlargest(SLOWEST, self.slowest + other.slowest)
         self.grid += other.grid
+        self.hover_rows += other.hover_rows
+        self.saturated += other.saturated
+        self.saturation_sum += other.saturation_sum
+        self.max_tilt_deg = max(self.max_tilt_deg, other.max_tilt_deg)
 
     def quantile(self, q: float) -> float | None:
         """The q-quantile of the converged starts' times, within duration / (2 TIME_BINS)
@@ -253,6 +277,12 @@ class SweepSummary:
             "t_max": _finite_or_none(self.t_max),
             "slowest": [list(item) for item in self.slowest],
             "grid": [[*map(int, c), int(self.grid[tuple(c)])] for c in cells],
+            "hover": [
+                self.hover_rows,
+                self.saturated,
+                self.saturation_sum,
+                _finite_or_none(self.max_tilt_deg),
+            ],
         }
 
     @classmethod
@@ -274,6 +304,9 @@ class SweepSummary:
         s.slowest = [tuple(item) for item in data["slowest"]]
         for layer, i, j, count in data["grid"]:
             s.grid[layer, i, j] = count
+        rows, saturated, total, tilt = data.get("hover", (0, 0, 0.0, None))  # none: older parts
+        s.hover_rows, s.saturated, s.saturation_sum = int(rows), int(saturated), float(total)
+        s.max_tilt_deg = -math.inf if tilt is None else float(tilt)
         return s
 
     def report(self) -> dict:
@@ -296,6 +329,22 @@ class SweepSummary:
             "monotone": self.monotone,
             "starts_below_energy_bound": self.covered,
             "guarantee": {"starts": self.covered, **self.covered_failed},
+            **({"hover": self.hover_report()} if self.hover_rows else {}),
+        }
+
+    def hover_report(self) -> dict:
+        """A hovering carrier's figures (``report()``'s ``hover``, only where its rows
+        have them): the fractions of the finished starts converged, left D and with any
+        rotor saturation, the mean saturated fraction of the logged samples over the runs,
+        and the peak tilt [deg]."""
+        n = max(self.finished, 1)
+        return {
+            "converged": self.counts.get("converged", 0) / n,
+            "left_domain": self.counts.get("left_domain", 0) / n,
+            "not_converged": self.counts.get("not_converged", 0) / n,
+            "saturated": self.saturated / n,
+            "mean_saturation_fraction": self.saturation_sum / max(self.hover_rows, 1),
+            "max_tilt_deg": _finite_or_none(self.max_tilt_deg),
         }
 
 
