@@ -38,6 +38,17 @@ def test_generated_module_is_up_to_date():
     )
 
 
+@pytest.mark.slow  # sympy's simplification of the prediction: about 7 s of CPU
+def test_the_batch_engines_generated_prediction_is_up_to_date():
+    """The batch engine's own generated kernel (the held frame's odometry prediction)
+    regenerates to the committed text, byte for byte."""
+    from geovs_drake.batch import _codegen as batch_codegen
+
+    assert batch_codegen.generate() == batch_codegen.TARGET.read_text(), (
+        "run: python -m geovs_drake.batch._codegen"
+    )
+
+
 @pytest.fixture(scope="module")
 def batch():
     """1000 random rig states whose images lie in D, with random velocities."""

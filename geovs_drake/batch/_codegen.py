@@ -14,7 +14,6 @@ here, not among the servo's kernels, because only the batch engine's sampled cam
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -70,18 +69,11 @@ def generate() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Write (or ``--check``) the generated module."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--check", action="store_true", help="exit 1 if the file is out of date")
-    args = parser.parse_args(argv)
-    text = generate()
-    if args.check:
-        if TARGET.read_text() != text:
-            print(f"{TARGET} is out of date: run python -m geovs_drake.batch._codegen")
-            return 1
-        return 0
-    TARGET.write_text(text)
-    print(f"wrote {TARGET} ({text.count(chr(10))} lines)")
-    return 0
+    from geovs_drake.geometry._codegen import run_generator
+
+    return run_generator(
+        argv, __doc__.split("\n\n")[0], generate, TARGET, "geovs_drake.batch._codegen"
+    )
 
 
 if __name__ == "__main__":

@@ -268,19 +268,31 @@ def generate() -> str:
     return HEADER + "".join(_generate_kernel(k, printer) for k in KERNELS)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def run_generator(
+    argv: list[str] | None, description: str, generate_text, target: Path, module: str
+) -> int:
+    """A generator's command line, shared by every generated module: write ``target``
+    from ``generate_text()``, or with ``--check`` exit 1 where it is out of date (the
+    command to run named by its ``module``)."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--check", action="store_true", help="exit 1 if the file is out of date")
     args = parser.parse_args(argv)
-    text = generate()
+    text = generate_text()
     if args.check:
-        if TARGET.read_text() != text:
-            print(f"{TARGET} is out of date: run python -m geovs_drake.geometry._codegen")
+        if target.read_text() != text:
+            print(f"{target} is out of date: run python -m {module}")
             return 1
         return 0
-    TARGET.write_text(text)
-    print(f"wrote {TARGET} ({text.count(chr(10))} lines)")
+    target.write_text(text)
+    print(f"wrote {target} ({text.count(chr(10))} lines)")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Write (or ``--check``) the generated module."""
+    return run_generator(
+        argv, __doc__.split("\n\n")[0], generate, TARGET, "geovs_drake.geometry._codegen"
+    )
 
 
 if __name__ == "__main__":
