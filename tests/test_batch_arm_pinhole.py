@@ -24,21 +24,23 @@ from geovs_drake.scenario import Arm, Kinematic, Pinhole, ScenarioConfig
 from geovs_drake.simulation.result import convergence_tolerance
 
 #: Both integrators run at 1e-10 (relative, per step). Over 0.2 s (six frames) the
-#: states differ by 6e-10 to 2e-9 on the dynamic UR5 and the held kinematic one, and by
-#: up to 7e-8 on the kinematic UR5 with odometry, whose joints run at their velocity
-#: limits (KinematicArm's scale s <= 1, a kink the two integrators step across
-#: differently; measured). 1e-6 leaves room and still catches a frame read at the wrong
-#: time or from the wrong pose (a frame of latency more moves the held loop by 0.1 and
-#: more, test below).
+#: states differ by 1e-9 to 2e-9 on the dynamic UR5 and by up to 3e-8 (held) and 8e-8
+#: (odometry) on the kinematic one, whose joints run at their velocity limits
+#: (KinematicArm's scale s <= 1, a kink the two integrators step across differently);
+#: on the Panda 2e-8 (dynamic, its torques clamped) and 1e-7 (kinematic); measured.
+#: 1e-6 leaves room and still catches a frame read at the wrong time or from the wrong
+#: pose (a frame of latency more moves the held loop by 0.1 and more, test below).
 STATE_TOLERANCE = 1e-6
 #: As tests/test_batch_arm.py's: both engines at the sweep's accuracy.
 FINAL_ERROR_TOLERANCE = 1e-6
 DURATION = 0.2  # [s]: six 30 Hz frames, one of them late
 
 
-def _config(plant: str, prediction: str, latency_frames: int = 1) -> ScenarioConfig:
+def _config(
+    plant: str, prediction: str, latency_frames: int = 1, model: str = "default"
+) -> ScenarioConfig:
     sensor = Pinhole(prediction=prediction, latency_frames=latency_frames)
-    config = ScenarioConfig(carrier=Arm(), sensor=sensor)
+    config = ScenarioConfig(carrier=Arm(model=model), sensor=sensor)
     if plant == "kinematic":
         config.plant = Kinematic()
     return config
@@ -70,18 +72,22 @@ def _drake_state_at(config: ScenarioConfig, x0: np.ndarray, t: float) -> np.ndar
 
 
 @pytest.mark.parametrize(
-    ("plant", "prediction"),
+    ("plant", "prediction", "model"),
     [
-        ("dynamic", "odometry"),
-        ("kinematic", "none"),
-        pytest.param("dynamic", "none", marks=pytest.mark.slow),
-        pytest.param("kinematic", "odometry", marks=pytest.mark.slow),
+        ("dynamic", "odometry", "default"),
+        ("kinematic", "none", "default"),
+        pytest.param("dynamic", "none", "default", marks=pytest.mark.slow),
+        pytest.param("kinematic", "odometry", "default", marks=pytest.mark.slow),
+        # The Panda (redundant: ArmCamera's null-space damping), its torques saturated.
+        pytest.param("dynamic", "odometry", "panda", marks=pytest.mark.slow),
+        pytest.param("kinematic", "odometry", "panda", marks=pytest.mark.slow),
     ],
 )
-def test_arm_pinhole_batch_states_match_the_drake_loop(plant, prediction):
-    """UR5 starts, one frame of latency, 0.2 s: the batch states agree with Drake's loop
-    to 1e-6 (the held frame, or odometry from the arm's own camera pose)."""
-    config = _config(plant, prediction)
+def test_arm_pinhole_batch_states_match_the_drake_loop(plant, prediction, model):
+    """Two starts (UR5; the Panda among the slow ones), one frame of latency, 0.2 s: the
+    batch states agree with Drake's loop to 1e-6 (the held frame, or odometry from the
+    arm's own camera pose)."""
+    config = _config(plant, prediction, model=model)
     q0 = _starts(config, 2)
     result = _batch(config, q0, DURATION)
     nv = q0.shape[1]
@@ -91,7 +97,9 @@ def test_arm_pinhole_batch_states_match_the_drake_loop(plant, prediction):
         truth = _drake_state_at(config, X0[i], DURATION)
         worst = max(worst, float(np.max(np.abs(result.final_states[i] - truth))))
         moved = max(moved, float(np.max(np.abs(truth[:nv] - q0[i]))))
-    print(f"\n{plant} {prediction}: max |batch - Drake| {worst:.1e}, joints moved {moved:.2f}")
+    print(
+        f"\n{model} {plant} {prediction}: max |batch - Drake| {worst:.1e}, joints moved {moved:.2f}"
+    )
     assert moved > 0.05  # the loop ran: the comparison is not of two resting arms
     assert worst < STATE_TOLERANCE
     assert list(result.status) == ["not_converged"] * len(q0)

@@ -63,7 +63,7 @@ def _rhs(dynamic, x, out, y, then, predict, p_pred, tree, p, scratch):
 @njit(cache=True, error_model="numpy", parallel=True)
 def _camera_poses(dynamic, X, tree, p, ws_columns):
     """Each start's camera pose ``[q_WC, p_WC]`` (N, 7) at its joints: what the pinhole
-    measures from, and the pose the odometry prediction starts from."""
+    measures its first frame from."""
     n, dim = X.shape
     poses = np.empty((n, _POSE))
     parent, index, kind, frames, axis, inertia, joint, camera_body, X_BC, gravity = tree
@@ -80,11 +80,14 @@ def _camera_poses(dynamic, X, tree, p, ws_columns):
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
-def _advance_arm(dynamic, X, H, t0, t1, Y, THEN, PRED, rec, min_m, tree, p, ws_columns, settings):
+def _advance_arm(
+    dynamic, X, H, POSES, t0, t1, Y, THEN, PRED, rec, min_m, tree, p, ws_columns, settings
+):
     """Every running start (``rec[0]``, status, 1) from t0 to t1, the law on its frame
     ``Y[i]`` (moved from the camera pose ``THEN[i]`` where ``PRED[i]``): the arm engine's
     step, checks and records (``rec``: status, t_stop, steps, L0, prev_L, max_ratio,
-    max_rise, inside, err_p, err_r, min_q), the next step size kept in ``H``."""
+    max_rise, inside, err_p, err_r, min_q), the next step size kept in ``H`` and the
+    camera pose at the last state in ``POSES`` (the next frame's)."""
     status, t_stop, steps, L0, prev_L, max_ratio, max_rise, inside, err_p, err_r, min_q = rec
     p_pred, p_err, tols, k_p, max_step, accuracy = settings
     n, dim = X.shape
@@ -190,6 +193,7 @@ def _advance_arm(dynamic, X, H, t0, t1, Y, THEN, PRED, rec, min_m, tree, p, ws_c
             steps[i] += 1
         X[i] = x
         H[i] = h
+        POSES[i] = pose
 
 
 def run_arm_sampled(p, X0: np.ndarray, settings: dict, lost: int) -> tuple:
@@ -219,16 +223,17 @@ def run_arm_sampled(p, X0: np.ndarray, settings: dict, lost: int) -> tuple:
         float(settings["max_step"]), float(settings["accuracy"]),
     )  # fmt: skip
 
+    # The camera poses at t = 0, then each interval's last (the running starts' only:
+    # frame_clock reads no other).
+    POSES = _camera_poses(p.dynamic, X, tree, vectors, columns)
+
     def advance(t0, t1, Y, THEN, PRED) -> None:
         _advance_arm(
-            p.dynamic, X, H, float(t0), float(t1), Y, THEN, PRED, rec, min_m, tree, vectors,
-            columns, step,
+            p.dynamic, X, H, POSES, float(t0), float(t1), Y, THEN, PRED, rec, min_m, tree,
+            vectors, columns, step,
         )  # fmt: skip
 
-    def poses() -> np.ndarray:
-        return _camera_poses(p.dynamic, X, tree, vectors, columns)
-
-    frame_clock(cam, poses, advance, status, t_stop, settings, lost)
+    frame_clock(cam, lambda: POSES, advance, status, t_stop, settings, lost)
     t_conv = np.full(n, np.nan)
     converged = (status == 1) & ~np.isnan(inside)
     status[converged], t_conv[converged] = 0, inside[converged]
