@@ -27,7 +27,12 @@ from numba import njit, prange
 from geovs_drake.batch._checks import JOINT_LIMIT as _JOINT_LIMIT
 from geovs_drake.batch._checks import joint_margin as _joint_margin
 from geovs_drake.batch._checks import state_status as _state_status
-from geovs_drake.batch.arm_rhs import SCRATCH_ROWS, arm_loop_rhs, arm_loop_rhs_held
+from geovs_drake.batch.arm_rhs import (
+    SCRATCH_ROWS,
+    ArmLoopParameters,
+    arm_loop_rhs,
+    arm_loop_rhs_held,
+)
 from geovs_drake.batch.sampled import frame_clock
 from geovs_drake.geometry import kernels
 
@@ -196,13 +201,12 @@ def _advance_arm(
         POSES[i] = pose
 
 
-def run_arm_sampled(p, X0: np.ndarray, settings: dict, lost: int) -> tuple:
-    """Integrate the arm's loop ``p`` (an :class:`~geovs_drake.batch.arm_rhs.
-    ArmLoopParameters` with ``sampled`` set) from the states ``X0`` (N, plant's layout)
-    through its pinhole camera (module docstring). ``settings``: h0, max_step, accuracy,
-    duration, tols (squared position and chord errors), p_err (the pose error's
-    parameters), ws_columns, seeds (N,); ``lost``: the status code of ``feature_lost``.
-    Returns the arm engine's tuple of per-start arrays."""
+def run_arm_sampled(p: ArmLoopParameters, X0: np.ndarray, settings: dict, lost: int) -> tuple:
+    """Integrate the arm's loop ``p`` (``p.sampled`` set) from the states ``X0`` (N, the
+    plant's layout) through its pinhole camera (module docstring). ``settings``: h0,
+    max_step, accuracy, duration, tols (squared position and chord errors), p_err (the
+    pose error's parameters), ws_columns, seeds (N,); ``lost``: the status code of
+    ``feature_lost``. Returns the arm engine's tuple of per-start arrays."""
     cam = p.sampled
     n, _ = X0.shape
     X = np.ascontiguousarray(X0, dtype=float).copy()
