@@ -21,6 +21,11 @@ built from the same config (as :func:`~geovs_drake.batch.engine.loop_parameters`
 for the free rig), so the two cannot drift apart; :func:`arm_loop_rhs` is the compiled
 right-hand side (one state; the tree's kernels of :mod:`.arm_kernels`, the loop's of
 :mod:`geovs_drake.geometry.kernels`), :func:`arm_rhs` its allocating Python form.
+With the pinhole camera (``sensor: !Pinhole``) the camera's ``camera_image`` feeds the
+monitor only, and the law reads the sensor's held frame, or that frame moved by the
+arm's own odometry (``FramePredictor`` on the camera pose the joints give):
+:func:`arm_loop_rhs_held`, the same right-hand side with the image given from outside,
+which :mod:`.arm_sampled` runs on the camera's clock.
 """
 
 from __future__ import annotations
@@ -119,8 +124,9 @@ class ArmLoopParameters:
 def arm_loop_parameters(config) -> ArmLoopParameters:
     """The parameter vectors of the arm's loop ``config`` (a ScenarioConfig or a
     ResolvedScenario) describes, read from a diagram built from it; ValueError in one
-    line for what the compiled loop does not model (another law or sensor, a moving
-    target, the joint-limit barrier)."""
+    line for what the compiled loop does not model (another law, the rendered camera, a
+    pinhole whose frames arrive after their capture, a moving target, the joint-limit
+    barrier)."""
     from geovs_drake.loop import assemble_loop, resolve
 
     resolved = resolve(config)
