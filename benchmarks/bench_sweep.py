@@ -204,7 +204,7 @@ def start(args: argparse.Namespace) -> None:
     name = f"geovs-drake sweep --starts {args.starts} --duration {args.duration:g}"
     record(
         "bench_sweep_start",
-        "The sweep's start-up: the command against the engine alone",
+        "The start-up of a sweep: the command against the engine alone",
         [
             Figure(name, cli, "s", "the engine alone on 2 threads, same starts", engine),
             Figure(

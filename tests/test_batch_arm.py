@@ -12,7 +12,7 @@ from geovs_drake.analysis import sweep
 from geovs_drake.batch.arm_engine import run_arm_batch
 from geovs_drake.batch.arm_rhs import arm_loop_parameters
 from geovs_drake.loop import resolve
-from geovs_drake.scenario import Arm, Kinematic, Pinhole, ScenarioConfig
+from geovs_drake.scenario import Arm, Kinematic, Rendered, ScenarioConfig
 from geovs_drake.simulation import simulate
 from geovs_drake.simulation.result import convergence_tolerance
 
@@ -98,11 +98,12 @@ def test_a_start_past_a_joint_limit_stops_joint_limit():
 
 
 def test_a_camera_on_the_arm_is_refused_by_the_batch_engine_with_the_remedy():
-    """The pinhole on the arm: the batch engine refuses it in one line naming --engine
-    drake (the CLI's exit 2 is tested with the other bad inputs)."""
+    """The rendered camera on the arm: the batch engine refuses it in one line naming
+    --engine drake (the CLI's exit 2 is tested with the other bad inputs); the pinhole
+    runs (tests/test_batch_arm_pinhole.py)."""
     with pytest.raises(sweep.SweepError, match="--engine drake"):
         sweep.run_sweep(
-            ScenarioConfig(carrier=Arm(), sensor=Pinhole()),
+            ScenarioConfig(carrier=Arm(), sensor=Rendered()),
             sweep.SampledStarts(1),
             1.0,
             engine="batch",

@@ -142,6 +142,9 @@ def test_each_benchmark_record_holds_its_baselines_and_is_on_the_performance_pag
     for f in data["figures"]:
         assert f["baseline"] and f["baseline_value"] > 0, f["name"]
         assert f["ratio"] == pytest.approx(f["value"] / f["baseline_value"]), f["name"]
+    # The built page's smart quotes turn ' and -- into other characters: the title would
+    # not be found there.
+    assert "'" not in data["title"] and "--" not in data["title"], data["title"]
     if not (HTML / "performance.html").is_file():
         pytest.skip("the docs are not built here: `make docs` builds them (make test does)")
     assert data["title"] in (HTML / "performance.html").read_text()

@@ -345,8 +345,9 @@ def test_cli_end_to_end(tmp_path, run_cli):
         (["--resume"], "--resume: no sweep in"),
         (["--starts", "100001", "--csv"], "--csv writes at most 100000 starts"),
         (["--seed=-1"], "the seed must be an integer >= 0"),
-        # The batch engine runs the arm with the exact sensor only: the remedy named.
-        (["--carrier", "arm", "--sensor", "pinhole"], "(run it with --engine drake)"),
+        # The batch engine runs the arm with the exact sensor and the pinhole; the rendered
+        # camera is refused with the remedy named.
+        (["--carrier", "arm", "--sensor", "rendered"], "(run it with --engine drake)"),
     ],
 )
 def test_cli_bad_input_exits_2_with_one_line(argv, message, tmp_path, monkeypatch, run_cli):
@@ -581,8 +582,8 @@ def test_the_drake_engine_sweeps_the_arm_through_its_camera(run_cli):
     """`sweep --carrier arm --engine drake --sensor pinhole` (issue 31): the starts are the
     exact sweep's (drawn on the exact y with the free rig's kernels), each run through the
     30 Hz camera, so the rows' final errors are the camera loop's, not the exact one's;
-    the batch engine, which runs the arm with the exact y only, refuses the camera on the
-    arm in one line."""
+    the batch engine, which runs the arm with the exact y and the pinhole, refuses the
+    rendered camera on the arm in one line."""
     from geovs_drake.scenario import Pinhole
 
     starts = sweep.SampledStarts(1, seed=2, velocity="bounded")  # a start the arm reaches
@@ -597,7 +598,7 @@ def test_the_drake_engine_sweeps_the_arm_through_its_camera(run_cli):
     assert np.isfinite(errors).all()
     assert not np.allclose(errors[0], errors[1], rtol=1e-6, atol=0)
     run = run_cli(
-        "sweep", "--carrier", "arm", "--sensor", "pinhole", "--starts", "2", "--duration", "1"
+        "sweep", "--carrier", "arm", "--sensor", "rendered", "--starts", "2", "--duration", "1"
     )
     assert run.code == 2 and "--engine drake" in run.err
     assert run.err.count("\n") == 1

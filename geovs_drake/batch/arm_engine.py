@@ -11,19 +11,24 @@ plant enforces (``joint_limit``: a joint outside ``[lower, upper]`` at an accept
 state). The monitor's second joint check, a run pinned on a limit (500 steps within
 25 ms), is not made: a start that pins runs on to its horizon here, ``not_converged``.
 
-The exact sensor only: a camera on the arm runs through ``simulate()`` or ``sweep
---engine drake``.
+The exact sensor or the pinhole camera (``sensor: !Pinhole``: its clock, latency,
+prediction and noise, :mod:`.arm_sampled`); the rendered camera on the arm runs through
+``simulate()`` or ``sweep --engine drake``.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from numba import njit, prange
 
 from geovs_drake.batch import arm_kernels as _k
+from geovs_drake.batch._checks import JOINT_LIMIT as _JOINT_LIMIT
+from geovs_drake.batch._checks import joint_margin as _joint_margin
 from geovs_drake.batch._checks import state_status as _state_status
 from geovs_drake.batch.arm_rhs import SCRATCH_ROWS, ArmLoopParameters, arm_loop_rhs
 from geovs_drake.batch.engine import DEFAULT_STEP, STATUS_NAMES, BatchResult
@@ -33,7 +38,6 @@ __all__ = ["ARM_STATUS_NAMES", "ArmBatchResult", "run_arm_batch", "warm_arm_engi
 
 #: The arm's statuses: the free rig's, then ``joint_limit`` (code 5).
 ARM_STATUS_NAMES = (*STATUS_NAMES, "joint_limit")
-_JOINT_LIMIT = 5
 _pose_error = kernels.pose_error.compiled
 _STATE, _POSE = 13, 7
 
@@ -57,15 +61,6 @@ def _rhs(dynamic, x, out, tree, p, scratch):
         dynamic, x, out, parent, index, kind, frames, axis, inertia, joint, camera_body,
         X_BC, gravity, p_cam, p_nav, p_ctrl, p_arm, q_mid, ws, J, M, L, A, L6, vec,
     )  # fmt: skip
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _joint_margin(x, joint):
-    """The least distance of a joint from its limits (< 0: outside)."""
-    m = np.inf
-    for c in range(joint.shape[0]):
-        m = min(m, x[c] - joint[c, 3], joint[c, 4] - x[c])
-    return m
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
@@ -202,11 +197,14 @@ def run_arm_batch(
     duration: float,
     accuracy: float,
     tolerance: tuple[float, float],
+    seeds: np.ndarray | None = None,
 ) -> ArmBatchResult:
     """Integrate the arm's loop ``p`` from the joints ``q0`` (N, nv) and velocities
     ``v0`` (dynamic only; zero if None) for ``duration`` [s], error-controlled at
     ``accuracy``; ``X_WC_goal`` (4x4) the camera's goal pose in W, ``tolerance`` the
-    (position [m], rotation [rad]) within which a start counts as converged."""
+    (position [m], rotation [rad]) within which a start counts as converged. With the
+    pinhole (``p.sampled``), ``seeds`` are its noise seeds per start (N,), ``sensor.seed
+    + i`` by default (:mod:`.arm_sampled`)."""
     if not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be finite and > 0: duration = {duration}")
     if not (math.isfinite(accuracy) and 0 < accuracy < 1):
@@ -221,7 +219,10 @@ def run_arm_batch(
     p_err = np.concatenate([np.eye(3).ravel(), np.zeros(3), goal[:3, :3].ravel(), goal[:3, 3]])
     max_step = p.max_step_size
     tols = np.array([tolerance[0] ** 2, 8.0 * math.sin(0.5 * tolerance[1]) ** 2])
-    out = _integrate_arm(
+    names, integrate = ARM_STATUS_NAMES, _integrate_arm
+    if p.sampled is not None:  # the pinhole: the same arguments, its seeds and clock added
+        names, integrate = (*ARM_STATUS_NAMES, "feature_lost"), partial(_sampled, p, seeds)
+    out = integrate(
         p.dynamic, X0, p.tree.kernel_args(),
         (p.camera, p.navigation, p.controller, p.arm, p.q_mid), _k.WS_COLUMNS,
         float(p.potential_gain), p_err, float(min(DEFAULT_STEP, max_step)), float(max_step),
@@ -244,17 +245,36 @@ def run_arm_batch(
         max_lyapunov_rise=max_rise,
         steps=steps,
         final_states=final,
-        names=ARM_STATUS_NAMES,
+        names=names,
         min_joint_margin=min_q,
     )
 
 
-def warm_arm_engine() -> None:
-    """Compile the arm's integrator on both plants (the shipped UR5) into numba's on-disk
-    cache (:mod:`geovs_drake.batch.warm`)."""
-    from geovs_drake.batch.arm_rhs import arm_loop_parameters
-    from geovs_drake.scenario import Arm, Dynamic, Kinematic, ScenarioConfig
+def _sampled(
+    p, seeds, dynamic, X0, tree, vectors, ws_columns, k_p, p_err, h0, max_step, accuracy,
+    duration, tols,
+) -> tuple:  # fmt: skip
+    """The pinhole's run (:func:`~geovs_drake.batch.arm_sampled.run_arm_sampled`) on
+    :func:`_integrate_arm`'s arguments."""
+    from geovs_drake.batch.arm_sampled import run_arm_sampled
 
-    for plant in (Dynamic(), Kinematic()):
-        p = arm_loop_parameters(ScenarioConfig(carrier=Arm(), plant=plant))
+    n = len(X0)
+    seeds = p.sampled.seed + np.arange(n) if seeds is None else np.asarray(seeds)
+    if seeds.shape != (n,):
+        raise ValueError(f"seeds must have one entry per start ({n}): shape {seeds.shape}")
+    settings = dict(
+        h0=h0, max_step=max_step, accuracy=accuracy, duration=duration, tols=tols,
+        p_err=p_err, ws_columns=ws_columns, seeds=seeds,
+    )  # fmt: skip
+    return run_arm_sampled(p, X0, settings, len(ARM_STATUS_NAMES))
+
+
+def warm_arm_engine() -> None:
+    """Compile the arm's integrator on both plants (the shipped UR5), with the exact
+    sensor and the pinhole, into numba's on-disk cache (:mod:`geovs_drake.batch.warm`)."""
+    from geovs_drake.batch.arm_rhs import arm_loop_parameters
+    from geovs_drake.scenario import Arm, Dynamic, Exact, Kinematic, Pinhole, ScenarioConfig
+
+    for plant, sensor in itertools.product((Dynamic(), Kinematic()), (Exact(), Pinhole())):
+        p = arm_loop_parameters(ScenarioConfig(carrier=Arm(), plant=plant, sensor=sensor))
         run_arm_batch(p, np.eye(4), np.zeros((1, p.tree.nv)), None, 0.01, 1e-6, (1e-3, 1e-3))

@@ -21,25 +21,36 @@ built from the same config (as :func:`~geovs_drake.batch.engine.loop_parameters`
 for the free rig), so the two cannot drift apart; :func:`arm_loop_rhs` is the compiled
 right-hand side (one state; the tree's kernels of :mod:`.arm_kernels`, the loop's of
 :mod:`geovs_drake.geometry.kernels`), :func:`arm_rhs` its allocating Python form.
+With the pinhole camera (``sensor: !Pinhole``) the camera's ``camera_image`` feeds the
+monitor only, and the law reads the sensor's held frame, or that frame moved by the
+arm's own odometry (``FramePredictor`` on the camera pose the joints give):
+:func:`arm_loop_rhs_held`, the same right-hand side with the image given from outside,
+which :mod:`.arm_sampled` runs on the camera's clock.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from geovs_drake.batch import arm_kernels as _k
+from geovs_drake.batch._generated.predicted import predicted_image
 from geovs_drake.batch.arm_tree import ArmTree, arm_tree, warm_arm_kernels
 from geovs_drake.geometry import kernels
+
+if TYPE_CHECKING:
+    from geovs_drake.batch.sampled import SampledCamera
 
 __all__ = [
     "SCRATCH_ROWS",
     "ArmLoopParameters",
     "arm_loop_parameters",
     "arm_loop_rhs",
+    "arm_loop_rhs_held",
     "arm_rhs",
     "warm_arm_loop",
 ]
@@ -48,6 +59,7 @@ _camera = kernels.camera_image.compiled
 _navigation = kernels.navigation.compiled
 _force = kernels.servo_force.compiled
 _kinematic_velocity = kernels.kinematic_velocity.compiled
+_predicted = njit(cache=True, error_model="numpy", nogil=True)(predicted_image)
 # The generated kernels' output layouts, as literals (numba freezes module globals):
 # camera_image (nu, y 1:14, margins 14:18), navigation (dphi 1:8, phi 8).
 _NU, _Y0, _Y1, _M0, _M1, _D0, _D1, _PHI = 0, 1, 14, 14, 18, 1, 8, 8
@@ -73,7 +85,8 @@ class ArmLoopParameters:
     ``controller``: the ImageJacobianForce's (dynamic) or the KinematicController's;
     ``arm``: ArmCamera's ``[B_q (nv), d]`` and NULL_SPACE_MU (dynamic) or KinematicArm's
     ``[mu, m, k_n, velocity limits (nv)]``; ``q_mid`` the kinematic arm's centre of
-    range; ``potential_gain`` k_p (the dynamic loop's E = 1/2 v^T M v + k_p phi).
+    range; ``potential_gain`` k_p (the dynamic loop's E = 1/2 v^T M v + k_p phi);
+    ``sampled`` the pinhole camera's clock and measurement (None: the exact sensor).
     """
 
     plant: str
@@ -86,6 +99,8 @@ class ArmLoopParameters:
     q_mid: np.ndarray
     potential_gain: float
     max_step_size: float
+    #: The pinhole camera's clock and measurement (:mod:`.sampled`); None: the exact y.
+    sampled: SampledCamera | None = None
 
     @property
     def state_size(self) -> int:
@@ -109,16 +124,19 @@ class ArmLoopParameters:
 def arm_loop_parameters(config) -> ArmLoopParameters:
     """The parameter vectors of the arm's loop ``config`` (a ScenarioConfig or a
     ResolvedScenario) describes, read from a diagram built from it; ValueError in one
-    line for what the compiled loop does not model (another law or sensor, a moving
-    target, the joint-limit barrier)."""
+    line for what the compiled loop does not model (another law, the rendered camera, a
+    pinhole whose frames arrive after their capture, a moving target, the joint-limit
+    barrier)."""
     from geovs_drake.loop import assemble_loop, resolve
 
     resolved = resolve(config)
     config = resolved.config
-    if not config.controller.traits.batch_kernel or not config.sensor.traits.batch_kernel:
+    sensor = config.sensor.traits
+    pinhole = sensor.camera and not sensor.renders
+    if not config.controller.traits.batch_kernel or not (sensor.batch_kernel or pinhole):
         raise ValueError(
-            f"the arm's compiled loop runs the NF with the exact sensor: controller "
-            f"{config.controller!r}, sensor {type(config.sensor).__name__}"
+            f"the arm's compiled loop runs the NF with the exact sensor or the pinhole: "
+            f"controller {config.controller!r}, sensor {type(config.sensor).__name__}"
         )
     if config.moving_target:
         raise ValueError("the arm's compiled loop takes a fixed target: target moves")
@@ -149,11 +167,18 @@ def arm_loop_parameters(config) -> ArmLoopParameters:
         arm = np.append(params("arm_camera"), NULL_SPACE_MU)
     else:
         arm = params("kinematic_arm")
+    camera = params("spherical_camera")
+    sampled = None
+    if pinhole:  # the pinhole on the camera's own pose (the arm's X_RC = I)
+        from geovs_drake.batch.sampled import camera_parameters
+        from geovs_drake.systems.spherical_camera import CAMERA_OFFSET
+
+        sampled = camera_parameters(resolved, diagram, root, camera[CAMERA_OFFSET])
     return ArmLoopParameters(
         plant="dynamic" if dynamic else "kinematic",
         dynamic=dynamic,
         tree=tree,
-        camera=params("spherical_camera"),
+        camera=camera,
         navigation=np.array(nav.navigation_parameters(nav.GetMyContextFromRoot(root))),
         controller=params("image_jacobian_force" if dynamic else "kinematic_controller"),
         arm=arm,
@@ -161,6 +186,7 @@ def arm_loop_parameters(config) -> ArmLoopParameters:
         q_mid=np.where(np.isfinite(lower + upper), 0.5 * (lower + upper), 0.0),
         potential_gain=config.control.potential_gain if dynamic else 1.0,
         max_step_size=resolved.step_limit.max_step_size,
+        sampled=sampled,
     )
 
 
@@ -277,15 +303,11 @@ def _kinematic_qdot(x, out, n, nu_W, J, p_arm, q_mid, A, L, vec):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def arm_loop_rhs(
-    dynamic, x, out, parent, index, kind, frames, axis, inertia, joint, camera_body, X_BC,
-    gravity, p_cam, p_nav, p_ctrl, p_arm, q_mid, ws, J, M, L, A, L6, vec,
-):  # fmt: skip
-    """The arm loop's xdot into ``out``; returns (nu, margins (4), phi, 1/2 v^T M v) at x
-    (the kinetic energy with the rotor inertia, 0 on the kinematic arm), as the free
-    rig's engine does. Arguments after ``out``: :meth:`ArmLoopParameters.kernel_args`.
-    """
-    n = parent.shape[0]
+def _arm_camera(
+    dynamic, x, n, parent, index, kind, frames, axis, camera_body, X_BC, p_cam, ws, J, vec
+):
+    """The camera at x: its state ``[q_WC, p_WC, w, v]`` into ``vec``'s state row, R_WC
+    and p_WC into theirs, J_C (in W) into ``J``; returns the exact camera's output."""
     _k.arm_forward(x[0:n], parent, index, kind, frames, axis, ws)
     R_WC = vec[_ROW_R, 0:9].reshape(3, 3)
     p_WC = vec[_ROW_NULL, 0:3]
@@ -293,16 +315,26 @@ def arm_loop_rhs(
     _k.camera_jacobian_W(camera_body, parent, index, p_WC, ws, J)
     state = vec[_ROW_STATE, 0:_STATE]
     _camera_state(dynamic, x, n, R_WC, p_WC, J, state)
-    cam = _camera(state[0:_POSE], p_cam)
-    y = cam[_Y0:_Y1]
+    return _camera(state[0:_POSE], p_cam)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _arm_law(
+    dynamic, x, out, y, n, parent, index, inertia, joint, gravity, p_nav, p_ctrl, p_arm, q_mid,
+    ws, J, M, L, A, L6, vec,
+):  # fmt: skip
+    """The law on the image ``y`` and the arm's xdot into ``out``, the camera's state,
+    R_WC and J_C already in ``vec`` and ``J`` (:func:`_arm_camera`); returns (phi at y,
+    1/2 v^T M v)."""
+    R_WC = vec[_ROW_R, 0:9].reshape(3, 3)
+    state = vec[_ROW_STATE, 0:_STATE]
     nav = _navigation(y, p_nav)
     dphi = nav[_D0:_D1]
-    margins = np.array(cam[_M0:_M1])
     twist_W = vec[_ROW_TWIST, 0:_TWIST]
     if not dynamic:
         _to_world(R_WC, _kinematic_velocity(y, dphi, p_ctrl), twist_W)
         _kinematic_qdot(x, out, n, twist_W, J, p_arm, q_mid, A, L6, vec)
-        return cam[_NU], margins, nav[_PHI], 0.0
+        return nav[_PHI], 0.0
     wrench = _force(state, y, dphi, p_ctrl)
     _to_world(R_WC, wrench[0:6], twist_W)  # F_C in W: J_C^T F_C = J_W^T F_W
     v = x[n : 2 * n]
@@ -334,7 +366,59 @@ def arm_loop_rhs(
         out[r] = v[r]
         for c in range(n):
             kinetic += 0.5 * v[r] * M[r, c] * v[c]
-    return cam[_NU], margins, nav[_PHI], kinetic
+    return nav[_PHI], kinetic
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def arm_loop_rhs(
+    dynamic, x, out, parent, index, kind, frames, axis, inertia, joint, camera_body, X_BC,
+    gravity, p_cam, p_nav, p_ctrl, p_arm, q_mid, ws, J, M, L, A, L6, vec,
+):  # fmt: skip
+    """The arm loop's xdot into ``out``; returns (nu, margins (4), phi, 1/2 v^T M v) at x
+    (the kinetic energy with the rotor inertia, 0 on the kinematic arm), as the free
+    rig's engine does. Arguments after ``out``: :meth:`ArmLoopParameters.kernel_args`.
+    """
+    n = parent.shape[0]
+    cam = _arm_camera(
+        dynamic, x, n, parent, index, kind, frames, axis, camera_body, X_BC, p_cam, ws, J, vec
+    )
+    phi, kinetic = _arm_law(
+        dynamic, x, out, cam[_Y0:_Y1], n, parent, index, inertia, joint, gravity, p_nav,
+        p_ctrl, p_arm, q_mid, ws, J, M, L, A, L6, vec,
+    )  # fmt: skip
+    return cam[_NU], np.array(cam[_M0:_M1]), phi, kinetic
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def arm_loop_rhs_held(
+    dynamic, x, out, y_held, then, predict, p_pred, parent, index, kind, frames, axis,
+    inertia, joint, camera_body, X_BC, gravity, p_cam, p_nav, p_ctrl, p_arm, q_mid, ws, J, M,
+    L, A, L6, vec,
+):  # fmt: skip
+    """:func:`arm_loop_rhs` with the law on an image given from outside: a camera's held
+    frame ``y_held``, or (``predict``) that frame moved from the camera pose ``then``
+    (``[q_WC, p_WC]``, where it was taken) to the camera's pose at x, the odometry
+    prediction of :class:`~geovs_drake.systems.FramePredictor` (``p_pred``: [believed
+    radius, R_RC = I, p_RC = 0]: the arm's camera pose is the body's). Returns the same
+    tuple, nu, the margins and phi those of the exact image at x (the Drake loop's
+    monitor reads them), the kinetic energy at x.
+    """
+    n = parent.shape[0]
+    cam = _arm_camera(
+        dynamic, x, n, parent, index, kind, frames, axis, camera_body, X_BC, p_cam, ws, J, vec
+    )
+    y = y_held
+    if predict:
+        moved = _predicted(y_held, then, vec[_ROW_STATE, 0:_POSE], p_pred)
+        y = np.empty(_Y1 - _Y0)
+        for j in range(_Y1 - _Y0):
+            y[j] = moved[j]
+    _, kinetic = _arm_law(
+        dynamic, x, out, y, n, parent, index, inertia, joint, gravity, p_nav, p_ctrl, p_arm,
+        q_mid, ws, J, M, L, A, L6, vec,
+    )  # fmt: skip
+    phi = _navigation(cam[_Y0:_Y1], p_nav)[_PHI]
+    return cam[_NU], np.array(cam[_M0:_M1]), phi, kinetic
 
 
 def warm_arm_loop() -> None:

@@ -34,6 +34,7 @@ refuses it in one line, and such a loop runs through ``simulate()``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -48,7 +49,13 @@ from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SE
 if TYPE_CHECKING:
     from geovs_drake.loop.resolved import ResolvedScenario
 
-__all__ = ["FEATURE_LOST", "SampledCamera", "camera_parameters", "run_sampled"]
+__all__ = [
+    "FEATURE_LOST",
+    "SampledCamera",
+    "camera_parameters",
+    "frame_clock",
+    "run_sampled",
+]
 
 #: The status code of a start whose held frame gave no y (after ``STATUS_NAMES``).
 FEATURE_LOST = 5
@@ -346,19 +353,57 @@ class _Frames:
                 a[i, -1] = value
 
 
-def _read_frame(cam, frames, X, seeds, t, k, first, Y, THEN, PRED, status, t_stop) -> None:
-    """Every running start's frame k at time t, and what its law reads until the next."""
+def _read_frame(
+    cam, frames, poses, seeds, t, k, first, Y, THEN, PRED, status, t_stop, lost
+) -> None:
+    """Every running start's frame k at time t, taken from its pose ``poses[i]`` (``[q,
+    p]``), and what its law reads until the next; ``lost``: the feature-lost status code."""
     for i in np.flatnonzero(status == 1):
-        pose = X[i, :_POSE].copy()
+        pose = poses[i].copy()
         y, code = _measure(cam, pose, int(seeds[i]), k)
         frames.read(i, y, int(code), pose, first)
-        has_y, lost, code0 = frames.has_y[i, 0], frames.lost[i, 0], frames.code[i, 0]
-        if has_y and lost <= cam.max_lost_frames:
+        has_y, lost_frames, code0 = frames.has_y[i, 0], frames.lost[i, 0], frames.code[i, 0]
+        if has_y and lost_frames <= cam.max_lost_frames:
             Y[i], THEN[i], PRED[i] = frames.y[i, 0], frames.pose[i, 0], cam.predict
-        elif not has_y and code0 == 0 and lost == 0:  # waiting for the first frame
+        elif not has_y and code0 == 0 and lost_frames == 0:  # waiting for the first frame
             Y[i], PRED[i] = cam.y_goal, False
         else:
-            status[i], t_stop[i] = FEATURE_LOST, t
+            status[i], t_stop[i] = lost, t
+
+
+def frame_clock(
+    cam: SampledCamera,
+    poses: Callable[[], np.ndarray],
+    advance: Callable[..., None],
+    status: np.ndarray,
+    t_stop: np.ndarray,
+    run: dict,
+    lost: int = FEATURE_LOST,
+) -> None:
+    """The camera's clock over N starts (module docstring): frames read at ``offset + k
+    period`` from the poses ``poses()`` returns ((N, 7) ``[q, p]``, the pinhole's body:
+    the rig, or the arm's camera), and ``advance(t0, t1, Y, THEN, PRED)`` integrating
+    every running start (``status`` 1) from t0 to t1, the law on ``Y[i]`` (moved from
+    ``THEN[i]`` where ``PRED[i]``). A start whose frames stay lost gets status ``lost``
+    (its time into ``t_stop``). ``run``: ``duration`` and ``seeds`` (N,), the noise's."""
+    n = len(status)
+    seeds, duration = run["seeds"], run["duration"]
+    Y = np.tile(cam.y_goal, (n, 1))
+    THEN = np.array(poses(), dtype=float)
+    PRED = np.zeros(n, bool)
+    frames = _Frames(cam, n)
+    t, k = 0.0, 0
+    if cam.offset == 0:  # the frame at t = 0 fills the line (an initialization event)
+        _read_frame(cam, frames, THEN, seeds, 0.0, 0, True, Y, THEN, PRED, status, t_stop, lost)
+        k = 1
+    while True:
+        t_next = min(cam.offset + k * cam.period, duration)
+        advance(t, t_next, Y, THEN, PRED)
+        t = t_next
+        if t >= duration or not np.any(status == 1):
+            break
+        _read_frame(cam, frames, poses(), seeds, t, k, False, Y, THEN, PRED, status, t_stop, lost)
+        k += 1
 
 
 def run_sampled(kinematic: bool, X0: np.ndarray, p, cam: SampledCamera, run: dict) -> tuple:
@@ -368,7 +413,6 @@ def run_sampled(kinematic: bool, X0: np.ndarray, p, cam: SampledCamera, run: dic
     Returns the engine's tuple of per-start arrays."""
     n, _ = X0.shape
     X = X0.copy()
-    seeds = run["seeds"]
     H = np.full(n, run["h0"])
     status = np.ones(n, np.int64)
     t_stop = np.full(n, run["duration"])
@@ -377,28 +421,16 @@ def run_sampled(kinematic: bool, X0: np.ndarray, p, cam: SampledCamera, run: dic
     L0, prev_L, inside = np.full(n, np.nan), np.zeros(n), np.full(n, np.nan)
     max_ratio, max_rise = np.full(n, -np.inf), np.zeros(n)
     err_p, err_r = np.full(n, np.nan), np.full(n, np.nan)
-    Y = np.tile(cam.y_goal, (n, 1))
-    THEN = X[:, :_POSE].copy()
-    PRED = np.zeros(n, bool)
-    frames = _Frames(cam, n)
-    duration = run["duration"]
-    t, k = 0.0, 0
-    if cam.offset == 0:  # the frame at t = 0 fills the line (an initialization event)
-        _read_frame(cam, frames, X, seeds, 0.0, 0, True, Y, THEN, PRED, status, t_stop)
-        k = 1
-    while True:
-        t_next = min(cam.offset + k * cam.period, duration)
+
+    def advance(t0, t1, Y, THEN, PRED) -> None:
         _advance(
-            kinematic, X, H, t, t_next, Y, THEN, PRED, status, t_stop, steps, min_m, L0,
+            kinematic, X, H, t0, t1, Y, THEN, PRED, status, t_stop, steps, min_m, L0,
             max_ratio, max_rise, prev_L, inside, err_p, err_r, p.camera, p.navigation,
             p.controller, p.body, p.pose_error, cam.predictor, float(p.potential_gain),
             run["max_step"], run["accuracy"], run["tol_p2"], run["tol_r2"],
         )  # fmt: skip
-        t = t_next
-        if t >= duration or not np.any(status == 1):
-            break
-        _read_frame(cam, frames, X, seeds, t, k, False, Y, THEN, PRED, status, t_stop)
-        k += 1
+
+    frame_clock(cam, lambda: X[:, :_POSE], advance, status, t_stop, run)
     t_conv = np.full(n, np.nan)
     converged = (status == 1) & ~np.isnan(inside)
     status[converged], t_conv[converged] = 0, inside[converged]

@@ -413,8 +413,10 @@ def _shipped_parameters(config: ScenarioConfig, engine: str):
 
 
 def _check_arm_batch(config: ScenarioConfig) -> None:
-    """ValueError, with the remedy, for an arm's loop the batch engine does not run (a
-    camera on the arm, a moving target, the joint barrier): refused before any part."""
+    """ValueError, with the remedy, for an arm's loop the batch engine does not run (the
+    rendered camera on the arm, a pinhole whose frames arrive after their capture, a
+    moving target, the joint barrier): refused before any part. The pinhole runs
+    (:mod:`geovs_drake.batch.arm_sampled`)."""
     from geovs_drake.batch.arm_rhs import arm_loop_parameters
 
     try:
