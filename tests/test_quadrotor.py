@@ -163,10 +163,11 @@ def _vector(y) -> np.ndarray:
 PAD = PoseConfig(xyz=[0.0, 0.0, 0.0], rpy=[np.pi, 0.0, 0.0])
 
 
+@pytest.mark.parametrize("heading", ["goal", "nf"])
 @pytest.mark.parametrize("mount", ["forward", "down"])
-def test_linearize_at_hover_is_stable_and_matches_finite_differences(mount):
+def test_linearize_at_hover_is_stable_and_matches_finite_differences(mount, heading):
     config = _config(initial=ScenarioConfig().goal)
-    config.carrier = Quadrotor(mount=mount)
+    config.carrier = Quadrotor(mount=mount, heading=heading)
     if mount == "down":
         config.target = PAD
     loop = assemble_loop(resolve(config), log=False)
@@ -189,7 +190,8 @@ def test_linearize_at_hover_is_stable_and_matches_finite_differences(mount):
     # the pose has not); every other mode decays.
     near_zero = np.abs(eigenvalues) < 1e-6
     assert near_zero.sum() == 1
-    assert np.max(eigenvalues[~near_zero].real) < -1.0
+    # With heading nf the forward camera's slowest mode is the NF's heading, -0.73 1/s.
+    assert np.max(eigenvalues[~near_zero].real) < (-1.0 if heading == "goal" else -0.5)
 
 
 def test_a_short_run_from_the_default_start_closes_in_and_stays_in_d():
@@ -261,6 +263,10 @@ BAD_INPUTS = {
     "initial-attitude": (
         ["--scenario-text", "carrier: !Quadrotor {initial_attitude: upright}"],
         ["carrier.initial_attitude must be one of level, given", "'upright'"],
+    ),
+    "heading": (
+        ["--scenario-text", "carrier: !Quadrotor {heading: target}"],
+        ["carrier.heading must be one of goal, nf", "'target'"],
     ),
 }
 
