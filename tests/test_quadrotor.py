@@ -212,6 +212,23 @@ def test_the_level_start_converges_within_30_s_and_stays_in_d():
     assert result.convergence_time < 30.0
 
 
+def test_the_nf_heading_keeps_the_target_in_view_where_the_goals_turn_loses_it():
+    # Sweep start 108 (seed 0): level, 0.44 m off, the target's bearing 28.6 deg off the
+    # goal's heading. Lee's loop turns the body to the goal's heading at once and the
+    # target leaves the 35 deg field of view (t = 0.14 s); with heading nf the NF's
+    # torque turns it with the barrier's, and the run stays in D (it converges at 8.3 s).
+    start = PoseConfig(xyz=[0.208, 0.002, -0.382], rpy=[0.0, -0.53, 0.0])
+    results = {}
+    for heading in ("goal", "nf"):
+        config = _config(initial=start, duration=0.5)
+        config.carrier = Quadrotor(heading=heading)
+        results[heading] = simulate(config)
+    assert results["goal"].left_domain and results["goal"].times[-1] < 0.3
+    assert results["goal"].summary()["min_fov_margin"] < 0
+    assert not results["nf"].left_domain and results["nf"].times[-1] == pytest.approx(0.5)
+    assert results["nf"].summary()["min_fov_margin"] > 0.05
+
+
 def test_linearize_command_reads_stable_with_the_finite_difference_check(run_cli):
     code, out, err = run_cli("linearize", "--carrier", "quadrotor", "--json")
     assert code == 0, err
