@@ -123,7 +123,7 @@ def AttitudeCascade_(T):
         z_d and the body's own x axis (Lee's loop turns z_B only), and the torque about
         z_B is the NF's torque's component about z_B (``generalized_force``'s tau_Ro_W,
         about the level view's body origin: the centre of mass with the body level, off
-        it by the tilt times |p_RC|, 1 cm at 10 deg with the forward mount) plus the
+        it by the tilt times the length of p_RC, 1 cm at 10 deg, forward mount) plus the
         gyroscopic term ``(Omega x J Omega)_z`` that Lee's law cancels: the yaw obeys
         ``J_z dOmega_z/dt = z_B . tau_NF``, the paper's free body (Eq. 45's wrench
         applied) about the one axis the rotors actuate fully.
