@@ -163,10 +163,11 @@ def _vector(y) -> np.ndarray:
 PAD = PoseConfig(xyz=[0.0, 0.0, 0.0], rpy=[np.pi, 0.0, 0.0])
 
 
+@pytest.mark.parametrize("heading", ["goal", "nf"])
 @pytest.mark.parametrize("mount", ["forward", "down"])
-def test_linearize_at_hover_is_stable_and_matches_finite_differences(mount):
+def test_linearize_at_hover_is_stable_and_matches_finite_differences(mount, heading):
     config = _config(initial=ScenarioConfig().goal)
-    config.carrier = Quadrotor(mount=mount)
+    config.carrier = Quadrotor(mount=mount, heading=heading)
     if mount == "down":
         config.target = PAD
     loop = assemble_loop(resolve(config), log=False)
@@ -189,7 +190,8 @@ def test_linearize_at_hover_is_stable_and_matches_finite_differences(mount):
     # the pose has not); every other mode decays.
     near_zero = np.abs(eigenvalues) < 1e-6
     assert near_zero.sum() == 1
-    assert np.max(eigenvalues[~near_zero].real) < -1.0
+    # With heading nf the forward camera's slowest mode is the NF's heading, -0.73 1/s.
+    assert np.max(eigenvalues[~near_zero].real) < (-1.0 if heading == "goal" else -0.5)
 
 
 def test_a_short_run_from_the_default_start_closes_in_and_stays_in_d():
@@ -208,6 +210,23 @@ def test_the_level_start_converges_within_30_s_and_stays_in_d():
     result = simulate(_config(duration=30.0))
     assert result.converged and not result.left_domain
     assert result.convergence_time < 30.0
+
+
+def test_the_nf_heading_keeps_the_target_in_view_where_the_goals_turn_loses_it():
+    # Sweep start 108 (seed 0): level, 0.44 m off, the target's bearing 28.6 deg off the
+    # goal's heading. Lee's loop turns the body to the goal's heading at once and the
+    # target leaves the 35 deg field of view (t = 0.14 s); with heading nf the NF's
+    # torque turns it with the barrier's, and the run stays in D (it converges at 8.3 s).
+    start = PoseConfig(xyz=[0.208, 0.002, -0.382], rpy=[0.0, -0.53, 0.0])
+    results = {}
+    for heading in ("goal", "nf"):
+        config = _config(initial=start, duration=0.5)
+        config.carrier = Quadrotor(heading=heading)
+        results[heading] = simulate(config)
+    assert results["goal"].left_domain and results["goal"].times[-1] < 0.3
+    assert results["goal"].summary()["min_fov_margin"] < 0
+    assert not results["nf"].left_domain and results["nf"].times[-1] == pytest.approx(0.5)
+    assert results["nf"].summary()["min_fov_margin"] > 0.05
 
 
 def test_linearize_command_reads_stable_with_the_finite_difference_check(run_cli):
@@ -261,6 +280,10 @@ BAD_INPUTS = {
     "initial-attitude": (
         ["--scenario-text", "carrier: !Quadrotor {initial_attitude: upright}"],
         ["carrier.initial_attitude must be one of level, given", "'upright'"],
+    ),
+    "heading": (
+        ["--scenario-text", "carrier: !Quadrotor {heading: target}"],
+        ["carrier.heading must be one of goal, nf", "'target'"],
     ),
 }
 

@@ -26,9 +26,12 @@ MASS, GRAVITY, INERTIA, GAINS = 0.775, 9.81, (0.0015, 0.0025, 0.0035), (3600.0, 
 HEADING, DAMPING, MAX_TILT, MAX_THRUST = (0.8, 0.6, 0.0), 4.0, math.radians(10.0), 4.75
 
 
-def _lee(x: np.ndarray, f_W: np.ndarray) -> np.ndarray:
-    """(T, tau) of the cascade's docstring, by Drake's quaternion and numpy."""
+def _lee(x: np.ndarray, f_W: np.ndarray, tau_W: np.ndarray | None = None) -> np.ndarray:
+    """(T, tau) of the cascade's docstring, by Drake's quaternion and numpy; with the NF's
+    torque ``tau_W`` (heading ``nf``) x_d in the plane of z_d and the body's own x axis,
+    and tau_z the NF's torque about z_B plus Euler's gyroscopic term about z_B."""
     R = RotationMatrix(Quaternion(x[0:4] / np.linalg.norm(x[0:4]))).matrix()
+    heading = HEADING if tau_W is None else R[:, 0]
     Omega = R.T @ x[7:10]
     weight = MASS * GRAVITY
     f = f_W - DAMPING * x[10:13] + [0.0, 0.0, weight]
@@ -36,13 +39,15 @@ def _lee(x: np.ndarray, f_W: np.ndarray) -> np.ndarray:
     horizontal = np.linalg.norm(f[0:2])
     f = np.array([*(f[0:2] * min(1.0, math.tan(MAX_TILT) * up / horizontal)), up])
     z_d = f / np.linalg.norm(f)
-    y_d = np.cross(z_d, HEADING)
+    y_d = np.cross(z_d, heading)
     y_d /= np.linalg.norm(y_d)
     R_d = np.column_stack([np.cross(y_d, z_d), y_d, z_d])
     E = R_d.T @ R - R.T @ R_d
     e_R = 0.5 * np.array([E[2, 1], E[0, 2], E[1, 0]])
     J = np.diag(INERTIA)
     tau = J @ (-GAINS[0] * e_R - GAINS[1] * Omega) + np.cross(Omega, J @ Omega)
+    if tau_W is not None:
+        tau[2] = R[:, 2] @ tau_W + np.cross(Omega, J @ Omega)[2]
     return np.array([f @ R[:, 2], *tau])
 
 
@@ -62,7 +67,7 @@ def _states(rng: np.random.Generator, n: int) -> list[tuple[np.ndarray, np.ndarr
     return out
 
 
-def _cascade() -> AttitudeCascade:
+def _cascade(heading: str = "goal") -> AttitudeCascade:
     return AttitudeCascade(
         mass=MASS,
         inertia_diagonal=INERTIA,
@@ -73,21 +78,26 @@ def _cascade() -> AttitudeCascade:
         max_thrust=MAX_THRUST,
         velocity_damping=DAMPING,
         max_tilt=MAX_TILT,
+        heading=heading,
     )
 
 
-def test_cascade_kernel_is_lees_law_on_floats_and_autodiff():
-    cascade = _cascade()
+@pytest.mark.parametrize("heading", ["goal", "nf"])
+def test_cascade_kernel_is_lees_law_on_floats_and_autodiff(heading):
+    """Lee's law on floats and AutoDiffXd; with ``heading: nf`` its yaw the NF's torque
+    about z_B (the roll and pitch Lee's, toward z_d with the body's own heading)."""
+    cascade = _cascade(heading)
     M = mixer(*rotor_layout(Quadrotor()))
     ad = cascade.ToAutoDiffXd()
     context, ad_context = cascade.CreateDefaultContext(), ad.CreateDefaultContext()
     saturated = []
     for x, f_W in _states(np.random.default_rng(7), 40):
-        force = np.concatenate([[0.3, -0.2, 0.1], f_W])  # the NF's torque: not used
+        tau_W = np.array([0.3, -0.2, 0.1]) * 0.05  # the NF's torque: goal's leaves it unread
+        force = np.concatenate([tau_W, f_W])
         cascade.generalized_force_input.FixValue(context, force)
         cascade.body_state_input.FixValue(context, x)
         wrench = np.array(cascade.wanted_wrench(context))
-        truth = _lee(x, f_W)
+        truth = _lee(x, f_W, tau_W if heading == "nf" else None)
         assert np.allclose(wrench, truth, rtol=1e-12, atol=1e-12 * np.abs(truth).max())
         u = cascade.rotor_thrusts_output.Eval(context)
         flag = cascade.saturated_output.Eval(context)[0]

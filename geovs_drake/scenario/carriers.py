@@ -30,6 +30,7 @@ __all__ = [
     "FixedCamera",
     "FreeRig",
     "QUADROTOR_MOUNTS",
+    "QUADROTOR_HEADINGS",
     "QUADROTOR_START_ATTITUDES",
     "Quadrotor",
     "RigidBodyConfig",
@@ -201,6 +202,12 @@ QUADROTOR_START_ATTITUDES: dict[str, str] = {
     "given": "the start as given (refused past the tilt the rotors hold the weight at)",
 }
 
+#: What turns the quadrotor's heading (``Quadrotor.heading``), what each does.
+QUADROTOR_HEADINGS: dict[str, str] = {
+    "goal": "the cascade's attitude loop turns the body to the goal's heading",
+    "nf": "the NF's torque about the body's z axis turns it (Lee's loop leaves the yaw)",
+}
+
 #: A goal attitude within this tilt [rad] of level is level: a tenth of the 1 mrad
 #: convergence tolerance, so that the body held level leaves the camera within it.
 LEVEL_TOLERANCE_RAD = 1e-4
@@ -255,6 +262,11 @@ class Quadrotor:
     #: :func:`level_start`); ``given`` keeps the start as it is, refused past the tilt the
     #: rotors can hold the weight at.
     initial_attitude: str = "level"
+    #: What turns the body's heading (:data:`QUADROTOR_HEADINGS`): ``goal``, the cascade's
+    #: attitude loop turns it to the goal's at once; ``nf``, the NF's own torque about z_B
+    #: (the yaw is fully actuated, through the rotors' drag), the field-of-view barrier
+    #: keeping the target in view while it turns (docs/quadrotor.md, The basin).
+    heading: str = "goal"
 
     traits: ClassVar[CarrierTraits] = CarrierTraits(
         camera_in_hand=True,
@@ -420,6 +432,10 @@ def _check_quadrotor(quad: Quadrotor) -> None:
         raise ValueError(
             f"carrier.initial_attitude must be one of {', '.join(QUADROTOR_START_ATTITUDES)}, "
             f"got {quad.initial_attitude!r}"
+        )
+    if quad.heading not in QUADROTOR_HEADINGS:
+        raise ValueError(
+            f"carrier.heading must be one of {', '.join(QUADROTOR_HEADINGS)}, got {quad.heading!r}"
         )
 
 

@@ -13,7 +13,8 @@ Expression cannot run them (nor could the numpy forms they replace).
 Parameter vectors (floats, built once by each system):
 
 * ``cascade``: ``[m g, Jx, Jy, Jz, k_R, k_Omega, heading_W (3), max_thrust, b,
-  tan(max_tilt), M^-1 (16, row-major)]`` (:data:`CASCADE_PARAMETERS` long);
+  tan(max_tilt), M^-1 (16, row-major), heading]`` (:data:`CASCADE_PARAMETERS` long;
+  ``heading`` 0.0 for the goal's, 1.0 for the NF's: :data:`CASCADE_HEADINGS`);
 * ``level_image`` and ``level_state``: ``[R_RC (9, row-major), p_RC (3)]``.
 """
 
@@ -33,6 +34,7 @@ else:  # pragma: no cover - numba is a dependency
 
 
 __all__ = [
+    "CASCADE_HEADINGS",
     "CASCADE_PARAMETERS",
     "allocation",
     "attitude_wrench",
@@ -43,29 +45,43 @@ __all__ = [
 ]
 
 #: The length of ``cascade``'s parameter vector.
-CASCADE_PARAMETERS = 28
+CASCADE_PARAMETERS = 29
+
+#: The cascade's headings (``Quadrotor.heading``) and their values in its vector's last
+#: entry: ``goal``, Lee's loop turns the body to the goal's heading; ``nf``, the NF's
+#: torque about z_B turns it and Lee's loop leaves the yaw alone.
+CASCADE_HEADINGS: dict[str, float] = {"goal": 0.0, "nf": 1.0}
 
 
-def cascade(x, f, p) -> tuple:
+def cascade(x, w, p) -> tuple:
     """``(u0, u1, u2, u3, saturated, T, tau_x, tau_y, tau_z)``: the rotor thrusts [N] of
     :class:`~geovs_drake.systems.AttitudeCascade` for the 13-vector body state ``x`` and
-    the NF's force ``f`` = f_W (3) [N], the allocation's verdict (1.0 where it gave
-    anything up, else 0.0) and the wanted wrench before the allocation (the thrust along
-    z_B and the torque in B). ``p``: the module docstring's cascade vector."""
+    the NF's wrench ``w`` = (tau_W (3) [N m], f_W (3) [N]), the generalized force's
+    order, the allocation's verdict (1.0 where it gave anything up, else 0.0) and the
+    wanted wrench before the allocation (the thrust along z_B and the torque in B).
+    ``p``: the module docstring's cascade vector; its ``heading`` entry 1.0 gives the
+    yaw to the NF's torque (:func:`attitude_wrench`), 0.0 leaves tau_W unread."""
     # f_d = f_W - b v_W + m g e_z: the NF's force, the cascade's own damping, the weight.
-    f0, f1, f2 = f[0] - p[10] * x[10], f[1] - p[10] * x[11], f[2] - p[10] * x[12] + p[0]
-    thrust, tau0, tau1, tau2 = attitude_wrench(x, f0, f1, f2, p[6], p[7], p[8], p)
+    f0, f1, f2 = w[3] - p[10] * x[10], w[4] - p[10] * x[11], w[5] - p[10] * x[12] + p[0]
+    thrust, tau0, tau1, tau2 = attitude_wrench(
+        x, f0, f1, f2, p[6], p[7], p[8], p, p[28], w[0], w[1], w[2]
+    )
     u0, u1, u2, u3, saturated = allocation(thrust, tau0, tau1, tau2, p[12:28], p[9])
     return u0, u1, u2, u3, saturated, thrust, tau0, tau1, tau2
 
 
 @_helper
-def attitude_wrench(x, f0, f1, f2, h0, h1, h2, p) -> tuple:
+def attitude_wrench(x, f0, f1, f2, h0, h1, h2, p, nf_yaw, t0, t1, t2) -> tuple:
     """``(T, tau_x, tau_y, tau_z)``: the thrust along z_B [N] and Lee, Leok & McClamroch's
     torque in B [N m] that turn the body in state ``x`` to push along the thrust vector
     ``(f0, f1, f2)`` [N] in W (the weight included) with the heading ``(h0, h1, h2)``;
     ``p``: the cascade vector (its weight, inertia, gains and tilt limit). Shared by the
-    cascade and the laws that drive the rotors themselves (Hamel & Mahony's)."""
+    cascade and the laws that drive the rotors themselves (Hamel & Mahony's).
+
+    With ``nf_yaw`` 1.0 the heading is the body's own (its x axis: Lee's loop then turns
+    z_B to z_d and leaves the yaw alone) and tau_z is the NF's torque ``(t0, t1, t2)``
+    [N m] (in W) about z_B plus the gyroscopic term (Euler's equation about z_B, as
+    Lee's law cancels it about all three); with 0.0 the torque is unread (zeros)."""
     weight, tan_tilt = p[0], p[11]
     # R_WB of the quaternion, normalised (the integrator's drifts off the unit sphere).
     n = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3]) ** 0.5
@@ -77,6 +93,11 @@ def attitude_wrench(x, f0, f1, f2, h0, h1, h2, p) -> tuple:
     o0 = r00 * x[7] + r10 * x[8] + r20 * x[9]
     o1 = r01 * x[7] + r11 * x[8] + r21 * x[9]
     o2 = r02 * x[7] + r12 * x[8] + r22 * x[9]
+    if nf_yaw > 0.5:
+        # The NF turns the heading: x_d in the plane of z_d and the body's own x axis, so
+        # that R_d differs from R by the turn of z_B to z_d (Lee's yaw error then vanishes
+        # to first order; its torque about z_B is replaced below in any case).
+        h0, h1, h2 = r00, r10, r20
     # f_d's upward part at least a tenth of the weight and its horizontal part at most
     # tan(max_tilt) times the upward: the attitude it asks within the tilt limit (far from
     # the goal the NF's force alone would lay the body on its side).
@@ -100,7 +121,13 @@ def attitude_wrench(x, f0, f1, f2, h0, h1, h2, p) -> tuple:
     j0, j1, j2 = p[1] * o0, p[2] * o1, p[3] * o2
     tau0 = p[1] * (-p[4] * e0 - p[5] * o0) + (o1 * j2 - o2 * j1)
     tau1 = p[2] * (-p[4] * e1 - p[5] * o1) + (o2 * j0 - o0 * j2)
-    tau2 = p[3] * (-p[4] * e2 - p[5] * o2) + (o0 * j1 - o1 * j0)
+    if nf_yaw > 0.5:
+        # The yaw is fully actuated (the rotors' drag): the NF's own torque drives it, as
+        # Eq. 45's wrench drives the paper's free body, its component about z_B; the
+        # gyroscopic term cancelled, so that J_z dOmega_z/dt = z_B . tau_NF (Lee's form).
+        tau2 = (t0 * r02 + t1 * r12 + t2 * r22) + (o0 * j1 - o1 * j0)
+    else:
+        tau2 = p[3] * (-p[4] * e2 - p[5] * o2) + (o0 * j1 - o1 * j0)
     thrust = f0 * r02 + f1 * r12 + f2 * r22
     return thrust, tau0, tau1, tau2
 

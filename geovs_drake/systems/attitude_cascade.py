@@ -17,6 +17,7 @@ from pydrake.systems.framework import LeafSystem_
 
 from geovs_drake.systems._parameters import STATE_SIZE
 from geovs_drake.systems._quadrotor_kernels import (
+    CASCADE_HEADINGS,
     allocation,
     attitude_wrench,
     cascade,
@@ -72,7 +73,8 @@ def lee_wrench(
     (:mod:`geovs_drake.systems._quadrotor_kernels`, ``attitude_wrench``), for the laws that
     drive the rotors themselves (Hamel & Mahony's)."""
     p = (weight, *inertia, *gains, 0.0, 0.0, 0.0, 0.0, 0.0, tan_tilt)
-    return list(attitude_wrench(x, f_d[0], f_d[1], f_d[2], heading[0], heading[1], heading[2], p))
+    h0, h1, h2 = heading[0], heading[1], heading[2]
+    return list(attitude_wrench(x, f_d[0], f_d[1], f_d[2], h0, h1, h2, p, 0.0, 0.0, 0.0, 0.0))
 
 
 _ARM, _MOMENT_RATIO = 0.15, 0.0245
@@ -115,8 +117,16 @@ def AttitudeCascade_(T):
         (f_d moves at the NF's pace against the attitude's 60 rad/s).
         ``rotor_thrusts`` (4) [N] are the allocation's (:func:`allocate`: the mixer's
         inverse, then saturation to [0, max_thrust], yaw given up first);
-        ``saturated`` is 1 where the allocation gave anything up, else 0. The NF's torque
-        is not used: three torques go to the attitude, and the heading is the goal's.
+        ``saturated`` is 1 where the allocation gave anything up, else 0. With ``heading``
+        ``goal`` the NF's torque is not used: three torques go to the attitude, and the
+        heading is the goal's. With ``nf`` the yaw is the NF's: x_d lies in the plane of
+        z_d and the body's own x axis (Lee's loop turns z_B only), and the torque about
+        z_B is the NF's torque's component about z_B (``generalized_force``'s tau_Ro_W,
+        about the level view's body origin: the centre of mass with the body level, off
+        it by the tilt times the length of p_RC, 1 cm at 10 deg, forward mount) plus the
+        gyroscopic term ``(Omega x J Omega)_z`` that Lee's law cancels: the yaw obeys
+        ``J_z dOmega_z/dt = z_B . tau_NF``, the paper's free body (Eq. 45's wrench
+        applied) about the one axis the rotors actuate fully.
 
         Behind a moving target (translating: the goal's heading is held) the thrust
         vector follows the target's motion as the loop believes it, as the free rig's
@@ -148,6 +158,7 @@ def AttitudeCascade_(T):
             velocity_damping: float = 4.0,
             max_tilt: float = math.radians(10.0),
             target_rotation: np.ndarray | None = None,
+            heading: str = "goal",
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
@@ -156,7 +167,11 @@ def AttitudeCascade_(T):
             M = _DEFAULT_MIXER if mixer_matrix is None else np.asarray(mixer_matrix, dtype=float)
             if M.shape != (4, 4) or abs(np.linalg.det(M)) < 1e-12:
                 raise ValueError(f"the mixer must be an invertible 4 x 4 matrix, got {M}")
-            heading = np.asarray(heading_W, dtype=float)
+            heading_vector = np.asarray(heading_W, dtype=float)
+            if heading not in CASCADE_HEADINGS:
+                raise ValueError(
+                    f"heading must be one of {', '.join(CASCADE_HEADINGS)}, got {heading!r}"
+                )
             if not (math.isfinite(max_thrust) and max_thrust > 0):
                 raise ValueError(f"max_thrust must be finite and > 0 [N], got {max_thrust}")
             self._defaults = (
@@ -164,12 +179,13 @@ def AttitudeCascade_(T):
                 tuple(inertia_diagonal),
                 gravity,
                 tuple(attitude_gains),
-                tuple(heading),
+                tuple(heading_vector),
                 M,
                 max_thrust,
                 velocity_damping,
                 max_tilt,
                 target_rotation,
+                heading,
             )
             # The feed-forward's numbers (a moving target's): b, m and R_WB of a
             # translating target, the believed acceleration's frame.
@@ -182,11 +198,12 @@ def AttitudeCascade_(T):
                     mass * gravity,
                     *inertia_diagonal,
                     *(float(k) for k in attitude_gains),
-                    *heading,
+                    *heading_vector,
                     max_thrust,
                     velocity_damping,
                     math.tan(max_tilt),
                     *np.linalg.inv(M).ravel(),
+                    CASCADE_HEADINGS[heading],
                 ],
                 dtype=float,
             )
@@ -222,11 +239,11 @@ def AttitudeCascade_(T):
         def _kernel(self, context) -> tuple:
             """The kernel's ``(u (4), saturated, T, tau (3))`` at this context."""
             x = self.body_state_input.Eval(context)
-            f_W = self.generalized_force_input.Eval(context)[3:6]
+            wrench = self.generalized_force_input.Eval(context)
             feedforward = self._feedforward(context, x)
-            if feedforward is not None:  # a moving target's
-                f_W = f_W + feedforward
-            return self._cascade(x, f_W, self._p)
+            if feedforward is not None:  # a moving target's, added to the force f_W
+                wrench = np.concatenate([wrench[0:3], wrench[3:6] + feedforward])
+            return self._cascade(x, wrench, self._p)
 
         def _feedforward(self, context, x: np.ndarray) -> np.ndarray | None:
             """``b v_ff + m a_ff`` (3, in W) of a moving target's believed motion (the

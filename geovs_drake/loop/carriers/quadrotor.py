@@ -122,6 +122,7 @@ def _rotor_drive(
                 velocity_damping=quad.velocity_damping,
                 # A moving target translates (the scenario's check): X_WB(0)'s rotation.
                 target_rotation=config.X_WB.rotation().matrix(),
+                heading=quad.heading,
                 **model,
             ),
         )
