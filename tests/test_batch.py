@@ -155,18 +155,20 @@ def test_energy_guarantee_on_1000_moving_starts_and_its_other_side():
     assert np.all(np.min(above.min_margins[exits], axis=1) < 0)  # the exit state is recorded
 
 
+@pytest.mark.slow  # 18 s on a loaded machine even from a warm cache; make test warms first
 def test_the_warm_up_compiles_every_kernel_make_test_would_compile_side_by_side():
     """``python -m geovs_drake.batch.warm`` (make test, before its processes start side by
-    side) calls the batch engine's compiled functions and the loop's generated kernels:
-    each numba dispatcher then holds a compiled signature in this process (the arm's
-    kernels and its closed loop's too)."""
+    side) runs its two halves, each in a process of its own; here both in this process:
+    each numba dispatcher then holds a compiled signature (the batch engine's, the
+    loop's generated kernels, the arm's kernels and its closed loop's, the quadrotor's)."""
     from geovs_drake.batch import arm_kernels, arm_rhs, engine
-    from geovs_drake.batch.warm import warm
+    from geovs_drake.batch.warm import warm_arm, warm_free
     from geovs_drake.geometry import kernels
 
     if not kernels.NUMBA:
         pytest.skip("numba is not installed: nothing is compiled")
-    assert warm() > 0
+    warm_free()
+    warm_arm()
     assert engine._integrate.signatures
     assert arm_kernels.mass_matrix.signatures and arm_rhs.arm_loop_rhs.signatures
     from geovs_drake.systems import _quadrotor_kernels as quadrotor
