@@ -21,6 +21,7 @@ import time
 import numpy as np
 
 from geovs_drake.batch.arm_engine import warm_arm_engine
+from geovs_drake.batch.arm_ik import warm_arm_ik
 from geovs_drake.batch.arm_rhs import warm_arm_loop
 from geovs_drake.batch.engine import run_batch
 from geovs_drake.scenario import Dynamic, Kinematic, Pinhole, Quadrotor, ScenarioConfig
@@ -47,6 +48,7 @@ def warm() -> float:
     simulate(ScenarioConfig(carrier=Quadrotor(), duration=WARM_DURATION_S))
     warm_arm_loop()
     warm_arm_engine()
+    warm_arm_ik()
     return time.perf_counter() - start
 
 

@@ -330,16 +330,21 @@ class _ArmStarts:
     parameters: LoopParameters
     gain_ratio: float
     domain: SafeDomain
+    follow: object = None  # the compiled path (goal_on_branch's follow), once per part
 
     @classmethod
     def of(cls, config: ScenarioConfig, p: LoopParameters) -> _ArmStarts:
+        from geovs_drake.batch.arm_ik import PathFollower
+        from geovs_drake.batch.arm_tree import arm_tree
         from geovs_drake.goal.arm import arm_model
         from geovs_drake.loop.resolver import resolve
 
         resolved = resolve(config)  # once per part, in its worker
         k_p_arm = resolved.config.control.potential_gain
         ratio = k_p_arm / p.potential_gain
-        return cls(arm_model(config), free_twin(config), p, ratio, resolved.domain)
+        model = arm_model(config)
+        follow = PathFollower(arm_tree(model))
+        return cls(model, free_twin(config), p, ratio, resolved.domain, follow)
 
     def row(self, config: ScenarioConfig, X: np.ndarray, twist) -> dict:
         """:func:`_drake_row` on the arm: IK for the joints, the twist to joint velocities."""
@@ -372,7 +377,8 @@ class _ArmStarts:
             return None
         # The start's whole turns from the joints carried along the NF's way to the goal.
         path = chart_path(config, self.domain, RigidTransform(X))
-        q = start_branch(self.model, q, X_WC, config.X_WB @ config.X_BC_goal, path)
+        goal = config.X_WB @ config.X_BC_goal
+        q = start_branch(self.model, q, X_WC, goal, path, self.follow)
         v = None
         if config.dynamic and np.any(np.asarray(twist) != 0):
             twist = np.asarray(twist, dtype=float)
