@@ -25,7 +25,7 @@ from numba import njit, prange
 
 from geovs_drake.batch import arm_kernels as _k
 from geovs_drake.batch._checks import state_status as _state_status
-from geovs_drake.batch.arm_rhs import SCRATCH_ROWS, ArmLoopParameters, arm_loop_rhs
+from geovs_drake.batch.arm_rhs import _ROW_TAU, SCRATCH_ROWS, ArmLoopParameters, arm_loop_rhs
 from geovs_drake.batch.engine import DEFAULT_STEP, STATUS_NAMES, BatchResult
 from geovs_drake.geometry import kernels
 
@@ -41,10 +41,12 @@ _STATE, _POSE = 13, 7
 @dataclass
 class ArmBatchResult(BatchResult):
     """:class:`~geovs_drake.batch.BatchResult` of the arm, with its joints at the end
-    (``final_states`` holds (q, v) or q) and the least distance of any joint from its
-    limits over the run [rad]."""
+    (``final_states`` holds (q, v) or q), the least distance of any joint from its
+    limits over the run [rad], and whether an actuator's torque was clamped at its
+    effort limit at any accepted state (always False on the kinematic arm)."""
 
     min_joint_margin: np.ndarray | None = None
+    torque_clamped: np.ndarray | None = None
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -68,6 +70,24 @@ def _joint_margin(x, joint):
     return m
 
 
+#: A torque counts as clamped within this fraction of its effort limit: the clamped
+#: torque is read back as tau + (C v - tau_g) + D v, to rounding.
+_CLAMP_RTOL = 1e-9
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _clamped(x, joint, vec):
+    """Whether arm_loop_rhs's last evaluation (at x, dynamic) clamped an actuator: its
+    torque before the plant's terms, tau + bias + D v (rows _ROW_TAU and 1 of ``vec``),
+    at the effort limit."""
+    n = joint.shape[0]
+    for c in range(n):
+        applied = vec[_ROW_TAU, c] + vec[1, c] + joint[c, 0] * x[n + c]
+        if abs(applied) >= joint[c, 2] * (1.0 - _CLAMP_RTOL):
+            return True
+    return False
+
+
 @njit(cache=True, error_model="numpy", parallel=True)
 def _integrate_arm(
     dynamic, X0, tree, p, ws_columns, k_p, p_err, h0, max_step, accuracy, t_end, tols
@@ -82,6 +102,7 @@ def _integrate_arm(
     err_r = np.full(n, np.nan)
     min_m = np.full((n, 4), np.inf)
     min_q = np.full(n, np.inf)
+    clamped = np.zeros(n, np.bool_)
     L0 = np.full(n, np.nan)
     max_ratio = np.full(n, -np.inf)
     max_rise = np.zeros(n)
@@ -109,6 +130,9 @@ def _integrate_arm(
         inside_since = np.nan
         previous = 0.0
         while True:
+            # The scratch holds the right-hand side at x (the start, or the step accepted).
+            if dynamic and not clamped[i]:
+                clamped[i] = _clamped(x, joint, vec)
             status[i] = _state_status(x, nu, margins, phi)
             q_margin = _joint_margin(x, joint)
             if status[i] == 1 and q_margin < 0:
@@ -191,7 +215,10 @@ def _integrate_arm(
         if status[i] == 1 and not math.isnan(inside_since):
             status[i] = 0
             t_conv[i] = inside_since
-    return status, t_stop, t_conv, err_p, err_r, min_m, L0, max_ratio, max_rise, steps, final, min_q
+    return (
+        status, t_stop, t_conv, err_p, err_r, min_m, L0, max_ratio, max_rise, steps, final, min_q,
+        clamped,
+    )  # fmt: skip
 
 
 def run_arm_batch(
@@ -227,7 +254,7 @@ def run_arm_batch(
         float(p.potential_gain), p_err, float(min(DEFAULT_STEP, max_step)), float(max_step),
         float(accuracy), float(duration), tols,
     )  # fmt: skip
-    status, t_stop, t_conv, err_p, err_r, min_m, L0, max_ratio, max_rise, steps, final, min_q = out
+    status, t_stop, t_conv, err_p, err_r, min_m, L0, max_ratio, max_rise, steps, final = out[:11]
     return ArmBatchResult(
         plant=p.plant,
         step=math.nan,
@@ -245,7 +272,8 @@ def run_arm_batch(
         steps=steps,
         final_states=final,
         names=ARM_STATUS_NAMES,
-        min_joint_margin=min_q,
+        min_joint_margin=out[11],
+        torque_clamped=out[12],
     )
 
 

@@ -81,6 +81,11 @@ ROW_FIELDS = (
     "final_joint_speed",
     "final_joint_barrier",
     "final_joint_margin",
+    # Whether an actuator's torque was clamped at its effort limit (the dynamic arm; False
+    # elsewhere): the batch engine at any accepted step, the Drake engine at its logged
+    # states (the arm carrier's run entry). The one term of the arm's loop that
+    # Appendix C's energy argument does not cover.
+    "torque_clamped",
     "end",
 )
 #: The Parquet key-value metadata entry that holds a part's summary (JSON).
@@ -210,6 +215,7 @@ def _batch_columns(
         "monotone": r.monotone,
         **_pose_columns(final, "final_"),
         **{k: np.full(len(X_BC), math.nan) for k in _ARM_END},  # no arm in the batch engine
+        "torque_clamped": np.zeros(len(X_BC), bool),
     }
 
 
@@ -243,6 +249,7 @@ def _arm_batch_columns(
     rows = {k: np.full(n, math.nan) for k in ROW_FIELDS[ROW_FIELDS.index("status") + 1 : -1]}
     rows["status"] = np.full(n, "unreachable", dtype=object)
     rows["monotone"] = np.ones(n, bool)
+    rows["torque_clamped"] = np.zeros(n, bool)
     if np.any(reached):
         goal = (resolved.config.X_WB @ resolved.config.X_BC_goal).GetAsMatrix4()
         r = run_arm_batch(
@@ -273,6 +280,7 @@ def _arm_batch_columns(
             "final_joint_speed": speed,
             "final_joint_barrier": np.zeros(len(final)),  # the batch arm has no barrier
             "final_joint_margin": _final_joint_margin(arm_p.tree, r.final_states[:, :nv]),
+            "torque_clamped": r.torque_clamped,
         }
         for k, v in columns.items():
             rows[k][reached] = v
@@ -315,7 +323,7 @@ def _drake_columns(
 def _stopped_row(status: str) -> dict:
     """A start that stopped before its first step, with its status."""
     row = dict.fromkeys(ROW_FIELDS[ROW_FIELDS.index("status") :], math.nan)
-    row.update(status=status, monotone=True)
+    row.update(status=status, monotone=True, torque_clamped=False)
     return row
 
 
@@ -415,6 +423,7 @@ def _drake_row(config: ScenarioConfig) -> dict:
         "monotone": bool(r.lyapunov_monotone),
         **dict(zip(("final_" + k for k in _POSE), map(float, pose), strict=True)),
         **_arm_end(r),
+        "torque_clamped": r.carrier_entries.get("torque_clamped_fraction", 0.0) > 0,
     }
 
 
@@ -463,7 +472,7 @@ def _table(columns: dict[str, np.ndarray], summary: dict):
         v = columns[name]
         if name in ("status", "end"):
             arrays.append(pa.array([str(s) for s in v], pa.string()))
-        elif name == "monotone":
+        elif name in ("monotone", "torque_clamped"):
             arrays.append(pa.array(np.asarray(v, bool)))
         elif name == "start":
             arrays.append(pa.array(np.asarray(v, np.int64)))
