@@ -12,7 +12,7 @@ from geovs_drake.analysis import sweep
 from geovs_drake.batch.arm_engine import run_arm_batch
 from geovs_drake.batch.arm_rhs import arm_loop_parameters
 from geovs_drake.loop import resolve
-from geovs_drake.scenario import Arm, Kinematic, Rendered, ScenarioConfig
+from geovs_drake.scenario import Arm, Exact, Kinematic, Pinhole, Rendered, ScenarioConfig
 from geovs_drake.simulation import simulate
 from geovs_drake.simulation.result import convergence_tolerance
 
@@ -109,3 +109,30 @@ def test_a_camera_on_the_arm_is_refused_by_the_batch_engine_with_the_remedy():
             engine="batch",
             workers=1,
         )
+
+
+@pytest.mark.parametrize(
+    "gain_scale, clamped, sensor",
+    [(10.0, True, Exact()), (1.0, False, Exact()), (10.0, True, Pinhole())],
+    ids=["clamped", "inside", "clamped-pinhole"],
+)
+def test_the_batch_engine_s_clamp_flag_is_drake_s_torque_against_the_effort_limits(
+    gain_scale, clamped, sensor
+):
+    """The UR5's default start, 0.1 s: at gain scale 10 (the default) its torque passes
+    wrist 2's effort limit at t = 0 (docs/arm.md, "Torques inside the effort limits"), at
+    1 it stays inside. The batch engine's ``torque_clamped`` is what Drake's diagram says:
+    the arm's torque at the run's logged states against MultibodyPlant's effort limits
+    (the run's ``torque_clamped_fraction``), with the exact sensor and the pinhole's
+    frame clock (its own integrator, :mod:`geovs_drake.batch.arm_sampled`)."""
+    config = ScenarioConfig(carrier=Arm(gain_scale=gain_scale), duration=0.1, sensor=sensor)
+    r = simulate(config)
+    assert (r.carrier_entries["torque_clamped_fraction"] > 0) is clamped
+    resolved = resolve(config)
+    p = arm_loop_parameters(resolved)
+    goal = (resolved.config.X_WB @ resolved.config.X_BC_goal).GetAsMatrix4()
+    nv = p.tree.nv
+    b = run_arm_batch(
+        p, goal, r.states[0][None, :nv], None, 0.1, 1e-6, convergence_tolerance(resolved)
+    )
+    assert bool(b.torque_clamped[0]) is clamped

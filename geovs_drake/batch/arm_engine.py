@@ -30,7 +30,12 @@ from geovs_drake.batch import arm_kernels as _k
 from geovs_drake.batch._checks import JOINT_LIMIT as _JOINT_LIMIT
 from geovs_drake.batch._checks import joint_margin as _joint_margin
 from geovs_drake.batch._checks import state_status as _state_status
-from geovs_drake.batch.arm_rhs import SCRATCH_ROWS, ArmLoopParameters, arm_loop_rhs
+from geovs_drake.batch.arm_rhs import (
+    SCRATCH_ROWS,
+    ArmLoopParameters,
+    arm_loop_rhs,
+    effort_clamped,
+)
 from geovs_drake.batch.engine import DEFAULT_STEP, STATUS_NAMES, BatchResult
 from geovs_drake.geometry import kernels
 
@@ -45,10 +50,12 @@ _STATE, _POSE = 13, 7
 @dataclass
 class ArmBatchResult(BatchResult):
     """:class:`~geovs_drake.batch.BatchResult` of the arm, with its joints at the end
-    (``final_states`` holds (q, v) or q) and the least distance of any joint from its
-    limits over the run [rad]."""
+    (``final_states`` holds (q, v) or q), the least distance of any joint from its
+    limits over the run [rad], and whether an actuator's torque was clamped at its
+    effort limit at any accepted state (always False on the kinematic arm)."""
 
     min_joint_margin: np.ndarray | None = None
+    torque_clamped: np.ndarray | None = None
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -77,6 +84,7 @@ def _integrate_arm(
     err_r = np.full(n, np.nan)
     min_m = np.full((n, 4), np.inf)
     min_q = np.full(n, np.inf)
+    clamped = np.zeros(n, np.bool_)
     L0 = np.full(n, np.nan)
     max_ratio = np.full(n, -np.inf)
     max_rise = np.zeros(n)
@@ -104,6 +112,9 @@ def _integrate_arm(
         inside_since = np.nan
         previous = 0.0
         while True:
+            # The scratch holds the right-hand side at x (the start, or the step accepted).
+            if dynamic and not clamped[i]:
+                clamped[i] = effort_clamped(x, joint, vec)
             status[i] = _state_status(x, nu, margins, phi)
             q_margin = _joint_margin(x, joint)
             if status[i] == 1 and q_margin < 0:
@@ -186,7 +197,10 @@ def _integrate_arm(
         if status[i] == 1 and not math.isnan(inside_since):
             status[i] = 0
             t_conv[i] = inside_since
-    return status, t_stop, t_conv, err_p, err_r, min_m, L0, max_ratio, max_rise, steps, final, min_q
+    return (
+        status, t_stop, t_conv, err_p, err_r, min_m, L0, max_ratio, max_rise, steps, final, min_q,
+        clamped,
+    )  # fmt: skip
 
 
 def run_arm_batch(
@@ -228,7 +242,7 @@ def run_arm_batch(
         float(p.potential_gain), p_err, float(min(DEFAULT_STEP, max_step)), float(max_step),
         float(accuracy), float(duration), tols,
     )  # fmt: skip
-    status, t_stop, t_conv, err_p, err_r, min_m, L0, max_ratio, max_rise, steps, final, min_q = out
+    status, t_stop, t_conv, err_p, err_r, min_m, L0, max_ratio, max_rise, steps, final = out[:11]
     return ArmBatchResult(
         plant=p.plant,
         step=math.nan,
@@ -246,7 +260,8 @@ def run_arm_batch(
         steps=steps,
         final_states=final,
         names=names,
-        min_joint_margin=min_q,
+        min_joint_margin=out[11],
+        torque_clamped=out[12],
     )
 
 

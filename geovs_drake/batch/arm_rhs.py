@@ -46,12 +46,14 @@ if TYPE_CHECKING:
     from geovs_drake.batch.sampled import SampledCamera
 
 __all__ = [
+    "CLAMP_RTOL",
     "SCRATCH_ROWS",
     "ArmLoopParameters",
     "arm_loop_parameters",
     "arm_loop_rhs",
     "arm_loop_rhs_held",
     "arm_rhs",
+    "effort_clamped",
     "warm_arm_loop",
 ]
 
@@ -75,6 +77,24 @@ _ROW_STATE, _ROW_NULL, _ROW_TWIST, _ROW_TAU, _ROW_R, _ROW_ZERO, _ROWS = 2, 3, 4,
 #: The rows of the scratch ``vec`` a caller of :func:`arm_loop_rhs` allocates (numba checks
 #: no bounds: fewer rows would be written past their end).
 SCRATCH_ROWS = _ROWS
+
+
+#: A torque counts as clamped within this fraction of its effort limit: the clamped
+#: torque is read back as tau + (C v - tau_g) + D v, to rounding.
+CLAMP_RTOL = 1e-9
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def effort_clamped(x, joint, vec):
+    """Whether :func:`arm_loop_rhs`'s last evaluation (at ``x``, dynamic: its scratch
+    ``vec``) clamped an actuator: its torque before the plant's terms, tau + bias + D v
+    (the scratch's torque row and row 1), at the effort limit."""
+    n = joint.shape[0]
+    for c in range(n):
+        applied = vec[_ROW_TAU, c] + vec[1, c] + joint[c, 0] * x[n + c]
+        if abs(applied) >= joint[c, 2] * (1.0 - CLAMP_RTOL):
+            return True
+    return False
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,7 @@ from geovs_drake.batch.arm_rhs import (
     ArmLoopParameters,
     arm_loop_rhs,
     arm_loop_rhs_held,
+    effort_clamped,
 )
 from geovs_drake.batch.sampled import frame_clock
 from geovs_drake.geometry import kernels
@@ -91,9 +92,10 @@ def _advance_arm(
     """Every running start (``rec[0]``, status, 1) from t0 to t1, the law on its frame
     ``Y[i]`` (moved from the camera pose ``THEN[i]`` where ``PRED[i]``): the arm engine's
     step, checks and records (``rec``: status, t_stop, steps, L0, prev_L, max_ratio,
-    max_rise, inside, err_p, err_r, min_q), the next step size kept in ``H`` and the
+    max_rise, inside, err_p, err_r, min_q, clamped), the next step size kept in ``H`` and the
     camera pose at the last state in ``POSES`` (the next frame's)."""
-    status, t_stop, steps, L0, prev_L, max_ratio, max_rise, inside, err_p, err_r, min_q = rec
+    status, t_stop, steps, L0, prev_L, max_ratio, max_rise, inside, err_p, err_r, min_q = rec[:11]
+    clamped = rec[11]
     p_pred, p_err, tols, k_p, max_step, accuracy = settings
     n, dim = X.shape
     nv = tree[0].shape[0]
@@ -113,6 +115,10 @@ def _advance_arm(
         t = t0
         h = H[i]
         while True:
+            # The scratch holds the right-hand side at x (the frame's first state, or the
+            # step accepted), as the exact sensor's engine reads it.
+            if dynamic and not clamped[i]:
+                clamped[i] = effort_clamped(x, joint, vec)
             status[i] = _state_status(x, nu, margins, phi)
             q_margin = _joint_margin(x, joint)
             if status[i] == 1 and q_margin < 0:
@@ -218,7 +224,11 @@ def run_arm_sampled(p: ArmLoopParameters, X0: np.ndarray, settings: dict, lost: 
     max_ratio, max_rise = np.full(n, -np.inf), np.zeros(n)
     err_p, err_r = np.full(n, np.nan), np.full(n, np.nan)
     min_m, min_q = np.full((n, 4), np.inf), np.full(n, np.inf)
-    rec = (status, t_stop, steps, L0, prev_L, max_ratio, max_rise, inside, err_p, err_r, min_q)
+    clamped = np.zeros(n, np.bool_)
+    rec = (
+        status, t_stop, steps, L0, prev_L, max_ratio, max_rise, inside, err_p, err_r, min_q,
+        clamped,
+    )  # fmt: skip
     tree = p.tree.kernel_args()
     vectors = (p.camera, p.navigation, p.controller, p.arm, p.q_mid)
     columns = settings["ws_columns"]
@@ -241,4 +251,7 @@ def run_arm_sampled(p: ArmLoopParameters, X0: np.ndarray, settings: dict, lost: 
     t_conv = np.full(n, np.nan)
     converged = (status == 1) & ~np.isnan(inside)
     status[converged], t_conv[converged] = 0, inside[converged]
-    return status, t_stop, t_conv, err_p, err_r, min_m, L0, max_ratio, max_rise, steps, X, min_q
+    return (
+        status, t_stop, t_conv, err_p, err_r, min_m, L0, max_ratio, max_rise, steps, X, min_q,
+        clamped,
+    )  # fmt: skip

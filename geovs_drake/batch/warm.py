@@ -11,7 +11,8 @@ in two processes side by side (each kernel compiles in one process, on one core)
   :func:`~geovs_drake.simulation.simulate` on each plant, and one of the quadrotor for
   its cascade's and level view's) and the batch engine's for the free rig
   (:func:`~geovs_drake.batch.engine.run_batch` on each plant, with the exact sensor and
-  the sampled camera): about 26 s of CPU cold;
+  the sampled camera), and the arm's start path
+  (:func:`~geovs_drake.batch.arm_ik.warm_arm_ik`): about 26 s of CPU cold without it;
 * :func:`warm_arm`: the arm's compiled loop and its batch integrators
   (:func:`~geovs_drake.batch.arm_rhs.warm_arm_loop`,
   :func:`~geovs_drake.batch.arm_engine.warm_arm_engine`): about 44 s.
@@ -51,6 +52,10 @@ def warm_free() -> None:
     # The quadrotor's cascade and level view (systems/_quadrotor_kernels.py), from its
     # default start (level).
     simulate(ScenarioConfig(carrier=Quadrotor(), duration=WARM_DURATION_S))
+    # The arm's start path (its compiled branch follower): here, the lighter half.
+    from geovs_drake.batch.arm_ik import warm_arm_ik
+
+    warm_arm_ik()
 
 
 def warm_arm() -> None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -439,15 +440,28 @@ def chart_path(
         np.stack([np.cos(a), np.sin(a)], axis=-1),
     )
     X_CB = camera_map_inverse(features_from_model(chart, domain), radius)
-    return [config.X_WB @ RigidTransform(X).inverse() for X in X_CB]
+    X_WB = config.X_WB  # once: the schema's property builds it anew at each read
+    return [X_WB @ RigidTransform(X).inverse() for X in X_CB]
 
 
-def goal_on_branch(model: ArmModel, q: np.ndarray, path: list[RigidTransform]) -> np.ndarray | None:
+def goal_on_branch(
+    model: ArmModel,
+    q: np.ndarray,
+    path: list[RigidTransform],
+    follow: Callable[..., np.ndarray | None] | None = None,
+) -> np.ndarray | None:
     """The joints at the end of ``path`` (camera poses X_WC, the camera at q at the
     first) carried from q along it, the limits ignored: at each pose a few damped Newton
     steps, then Newton to rounding at the last. The joints keep their posture
     (shoulder, elbow, wrist) and count their whole turns along the path, unless it
-    crosses a singularity; None where they do not reach the last pose."""
+    crosses a singularity; None where they do not reach the last pose.
+
+    ``follow``: the same steps compiled, :class:`~geovs_drake.batch.arm_ik.PathFollower`
+    of this model's arm; None: the plant's context, step by step (some 40 ms a path)."""
+    if follow is not None:
+        R_p = [np.array([X.rotation().matrix() for X in path]), [X.translation() for X in path]]
+        tolerance = (IK_POSITION_TOLERANCE, IK_ROTATION_TOLERANCE)
+        return follow(q, *R_p, GOAL_PATH_DAMPING, GOAL_PATH_JUMP, 3, 4, tolerance)
     plant = arm_plant(model)
     context = plant.CreateDefaultContext()
     camera = plant.GetFrameByName(CAMERA_FRAME)
@@ -486,6 +500,7 @@ def start_branch(
     X_WC: RigidTransform,
     X_WC_goal: RigidTransform,
     path: list[RigidTransform] | None = None,
+    follow: Callable[..., np.ndarray | None] | None = None,
 ) -> np.ndarray:
     """The start q with each joint whose range spans 2 pi or more on the branch (whole
     turns, the same camera pose) that keeps the motion to come inside its range.
@@ -504,7 +519,8 @@ def start_branch(
     suite's roll_179 the UR5's wrist 3 ran onto its limit (issue 31); the first-order
     estimate then missed the way round of starts rolled near a half turn and the travel
     of joints near a singularity, where the arm stalled at the barrier of a goal joint
-    within its width of a limit (docs/arm.md, "The barrier's spurious equilibria")."""
+    within its width of a limit (docs/arm.md, "The barrier's spurious equilibria").
+    ``follow``: :func:`goal_on_branch`'s compiled path, or None."""
     plant = arm_plant(model)
     lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
     error = X_WC.InvertAndCompose(X_WC_goal)
@@ -514,7 +530,7 @@ def start_branch(
     turning = np.flatnonzero(upper - lower >= 2 * np.pi)
     if angle > np.pi - HALF_TURN_AMBIGUITY or len(turning) == 0:  # (the Panda has none)
         return q
-    goal = None if path is None else goal_on_branch(model, q, path)
+    goal = None if path is None else goal_on_branch(model, q, path, follow)
     if goal is not None:
         dq = goal - q
     else:

@@ -90,6 +90,11 @@ ROW_FIELDS = (
     "final_joint_speed",
     "final_joint_barrier",
     "final_joint_margin",
+    # Whether an actuator's torque was clamped at its effort limit (the dynamic arm; False
+    # elsewhere): the batch engine at any accepted step, the Drake engine at its logged
+    # states (the arm carrier's run entry). The one term of the arm's loop that
+    # Appendix C's energy argument does not cover.
+    "torque_clamped",
     "end",
 )
 #: The columns a hovering carrier's rows add (``traits.hover``: the quadrotor), after
@@ -229,6 +234,7 @@ def _batch_columns(
         "monotone": r.monotone,
         **_pose_columns(final, "final_"),
         **{k: np.full(len(X_BC), math.nan) for k in _ARM_END},  # no arm in the batch engine
+        "torque_clamped": np.zeros(len(X_BC), bool),
     }
 
 
@@ -262,6 +268,7 @@ def _arm_batch_columns(
     rows = {k: np.full(n, math.nan) for k in ROW_FIELDS[ROW_FIELDS.index("status") + 1 : -1]}
     rows["status"] = np.full(n, "unreachable", dtype=object)
     rows["monotone"] = np.ones(n, bool)
+    rows["torque_clamped"] = np.zeros(n, bool)
     if np.any(reached):
         goal = (resolved.config.X_WB @ resolved.config.X_BC_goal).GetAsMatrix4()
         r = run_arm_batch(
@@ -292,6 +299,7 @@ def _arm_batch_columns(
             "final_joint_speed": speed,
             "final_joint_barrier": np.zeros(len(final)),  # the batch arm has no barrier
             "final_joint_margin": _final_joint_margin(arm_p.tree, r.final_states[:, :nv]),
+            "torque_clamped": r.torque_clamped,
         }
         for k, v in columns.items():
             rows[k][reached] = v
@@ -334,7 +342,7 @@ def _drake_columns(
 def _stopped_row(status: str) -> dict:
     """A start that stopped before its first step, with its status."""
     row = dict.fromkeys((*ROW_FIELDS[ROW_FIELDS.index("status") :], *HOVER_FIELDS), math.nan)
-    row.update(status=status, monotone=True)
+    row.update(status=status, monotone=True, torque_clamped=False)
     return row
 
 
@@ -349,16 +357,21 @@ class _ArmStarts:
     parameters: LoopParameters
     gain_ratio: float
     domain: SafeDomain
+    follow: object = None  # the compiled path (goal_on_branch's follow), once per part
 
     @classmethod
     def of(cls, config: ScenarioConfig, p: LoopParameters) -> _ArmStarts:
+        from geovs_drake.batch.arm_ik import PathFollower
+        from geovs_drake.batch.arm_tree import arm_tree
         from geovs_drake.goal.arm import arm_model
         from geovs_drake.loop.resolver import resolve
 
         resolved = resolve(config)  # once per part, in its worker
         k_p_arm = resolved.config.control.potential_gain
         ratio = k_p_arm / p.potential_gain
-        return cls(arm_model(config), free_twin(config), p, ratio, resolved.domain)
+        model = arm_model(config)
+        follow = PathFollower(arm_tree(model))
+        return cls(model, free_twin(config), p, ratio, resolved.domain, follow)
 
     def row(self, config: ScenarioConfig, X: np.ndarray, twist) -> dict:
         """:func:`_drake_row` on the arm: IK for the joints, the twist to joint velocities."""
@@ -391,7 +404,8 @@ class _ArmStarts:
             return None
         # The start's whole turns from the joints carried along the NF's way to the goal.
         path = chart_path(config, self.domain, RigidTransform(X))
-        q = start_branch(self.model, q, X_WC, config.X_WB @ config.X_BC_goal, path)
+        goal = config.X_WB @ config.X_BC_goal
+        q = start_branch(self.model, q, X_WC, goal, path, self.follow)
         v = None
         if config.dynamic and np.any(np.asarray(twist) != 0):
             twist = np.asarray(twist, dtype=float)
@@ -431,6 +445,7 @@ def _drake_row(config: ScenarioConfig) -> dict:
         # A hovering carrier's own entries (its rotors' saturation, its peak tilt); the
         # columns keep only the fields of the config's rows (row_fields).
         **{k: float(r.carrier_entries.get(k, math.nan)) for k in HOVER_FIELDS},
+        "torque_clamped": r.carrier_entries.get("torque_clamped_fraction", 0.0) > 0,
     }
 
 
@@ -480,7 +495,7 @@ def _table(columns: dict[str, np.ndarray], summary: dict):
         v = columns[name]
         if name in ("status", "end"):
             arrays.append(pa.array([str(s) for s in v], pa.string()))
-        elif name == "monotone":
+        elif name in ("monotone", "torque_clamped"):
             arrays.append(pa.array(np.asarray(v, bool)))
         elif name == "start":
             arrays.append(pa.array(np.asarray(v, np.int64)))

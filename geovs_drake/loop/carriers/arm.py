@@ -241,6 +241,25 @@ def _arm_parts(
     )
 
 
+def _clamp_entries(arm: LeafSystem, limits: np.ndarray):
+    """The run's JSON entry ``torque_clamped_fraction``: the share of logged states at which
+    the arm's torque (ArmCamera's, before the plant) passes an actuator's effort limit,
+    where MultibodyPlant clamps it (the one term of the loop that Appendix C's energy
+    argument does not cover; the sweep's ``torque_clamped`` column)."""
+
+    def run_entries(root: Context, states: np.ndarray, times: np.ndarray) -> dict:
+        context = root.Clone()  # the diagram evaluated at each logged state, at its time
+        port = arm.actuation_output
+        clamped = np.zeros(len(states), bool)
+        for k, x in enumerate(states):
+            context.SetTime(float(times[k]))
+            context.SetContinuousState(x)
+            clamped[k] = np.any(np.abs(port.Eval(arm.GetMyContextFromRoot(context))) > limits)
+        return {"torque_clamped_fraction": float(np.mean(clamped)) if len(states) else 0.0}
+
+    return run_entries
+
+
 def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_marks: bool):
     """Eye-in-hand on a torque-driven arm: the law's wrench becomes joint torques through
     the camera frame's Jacobian, with gravity compensated (:class:`ArmCamera`)."""
@@ -291,6 +310,7 @@ def _arm_dynamic(builder: DiagramBuilder, resolved: ResolvedScenario, draws_mark
         (model, plant, scene_graph, link, X_LinkC),
         body_pose=body_pose,
         state=plant.get_state_output_port(),
+        run_entries=_clamp_entries(arm, plant.GetEffortUpperLimits()),
         state_log_name="log_arm_state",
         set_initial_state=set_initial_state,
         body_state=arm.camera_state_output,
