@@ -57,16 +57,20 @@ test: $(STAMP) system-deps
 	@# First the numba kernels compile once into their on-disk cache (geovs_drake.batch.warm):
 	@# on a fresh checkout pytest's workers and the notebooks' kernels, started side by
 	@# side, would each compile them (about 20 s of CPU apiece), while the wheel check
-	@# (its own installs: it reads no cache of ours) runs beside it from the start. Then
-	@# the docs (with the notebooks) build while pytest runs, and last the tests that read
-	@# the built HTML.
+	@# (its own installs: it reads no cache of ours) runs beside it from the start. The
+	@# free rig's half first, beside the arm's (about 26 s and 44 s of CPU); then the docs
+	@# (with the notebooks, which need only the free half) build beside the arm's half
+	@# and pytest, which waits for it; last the tests that read the built HTML.
 	@$(MAKE) --no-print-directory wheel-check > .wheel-check.log 2>&1 & wheel=$$!; \
-	$(BIN)/python -m geovs_drake.batch.warm; warmed=$$?; \
+	$(BIN)/python -m geovs_drake.batch.warm arm & arm=$$!; \
+	$(BIN)/python -m geovs_drake.batch.warm free; warmed=$$?; \
 	$(MAKE) --no-print-directory docs > .docs-build.log 2>&1 & docs=$$!; \
+	wait $$arm; armed=$$?; \
 	GEOVS_FAST=1 $(BIN)/python -m pytest -q -n auto -m "not slow and not built_docs and not wheel"; \
 	tests=$$?; wait $$docs; built=$$?; wait $$wheel; wheeled=$$?; \
 	cat .wheel-check.log .docs-build.log; rm -f .wheel-check.log .docs-build.log; \
-	test $$warmed -eq 0 && test $$tests -eq 0 && test $$built -eq 0 && test $$wheeled -eq 0
+	test $$warmed -eq 0 && test $$armed -eq 0 && test $$tests -eq 0 && test $$built -eq 0 \
+	  && test $$wheeled -eq 0
 	@# The built pages' tests live in one file: collecting only it spares the whole
 	@# suite's collection (6 s, on one core, at the end).
 	$(BIN)/python -m pytest -q -p no:cacheprovider -m built_docs tests/test_docs.py

@@ -66,7 +66,9 @@ def _rhs(dynamic, x, out, y, then, predict, p_pred, tree, p, scratch):
     )  # fmt: skip
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
+# Not parallel: one right-hand side a start, once a run (microseconds), where a parallel
+# kernel costs about 4 s of compiling on a fresh checkout.
+@njit(cache=True, nogil=True, error_model="numpy")
 def _camera_poses(dynamic, X, tree, p, ws_columns):
     """Each start's camera pose ``[q_WC, p_WC]`` (N, 7) at its joints: what the pinhole
     measures its first frame from."""
@@ -74,7 +76,7 @@ def _camera_poses(dynamic, X, tree, p, ws_columns):
     poses = np.empty((n, _POSE))
     parent, index, kind, frames, axis, inertia, joint, camera_body, X_BC, gravity = tree
     p_cam, p_nav, p_ctrl, p_arm, q_mid = p
-    for i in prange(n):
+    for i in range(n):
         ws, J, M, L, A, L6, vec = _scratch(parent.shape[0], ws_columns)
         arm_loop_rhs(
             dynamic, X[i].copy(), np.empty(dim), parent, index, kind, frames, axis, inertia,

@@ -28,7 +28,7 @@ import multiprocessing
 import sys
 import time
 
-__all__ = ["warm", "warm_arm", "warm_free"]
+__all__ = ["HALVES", "warm", "warm_arm", "warm_free"]
 
 #: How long each warming run simulates [s]: a few steps call every kernel.
 WARM_DURATION_S = 0.05
@@ -67,14 +67,18 @@ def warm_arm() -> None:
     warm_arm_engine()
 
 
-def warm() -> float:
-    """Compile every kernel (:func:`warm_free` and :func:`warm_arm` in two processes side
-    by side); returns the seconds it took (mostly compiling where the cache was cold).
-    Raises RuntimeError naming a half that failed."""
+#: The halves by name, for ``python -m geovs_drake.batch.warm [free|arm ...]``.
+HALVES = {"free": warm_free, "arm": warm_arm}
+
+
+def warm(names: tuple[str, ...] = ("arm", "free")) -> float:
+    """Compile the kernels of the halves ``names`` (:data:`HALVES`; default both, each in
+    a process of its own, side by side); returns the seconds it took (mostly compiling
+    where the cache was cold). Raises RuntimeError naming a half that failed."""
     start = time.perf_counter()
     # spawn: a fresh interpreter each, no forked copy of numba's or Drake's threads.
     context = multiprocessing.get_context("spawn")
-    halves = [context.Process(target=f, name=f.__name__) for f in (warm_arm, warm_free)]
+    halves = [context.Process(target=HALVES[n], name=HALVES[n].__name__) for n in names]
     for half in halves:
         half.start()
     for half in halves:
@@ -86,5 +90,15 @@ def warm() -> float:
 
 
 if __name__ == "__main__":
-    seconds = warm()
-    print(f"numba kernels compiled or found in their cache: {seconds:.1f} s", file=sys.stderr)
+    # make test warms the free rig's half first, then builds the docs (whose notebooks
+    # need only it) beside the arm's half, then runs pytest.
+    chosen = tuple(sys.argv[1:]) or tuple(HALVES)
+    unknown = [n for n in chosen if n not in HALVES]
+    if unknown:
+        print(f"warm: unknown half {unknown[0]!r} (choose from free, arm)", file=sys.stderr)
+        sys.exit(2)
+    seconds = warm(chosen)
+    print(
+        f"numba kernels ({', '.join(chosen)}) compiled or found in their cache: {seconds:.1f} s",
+        file=sys.stderr,
+    )
