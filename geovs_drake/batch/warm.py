@@ -59,12 +59,20 @@ def warm_free() -> None:
 
 
 def warm_arm() -> None:
-    """Call the arm's compiled kernels once: its closed loop and its batch integrators."""
+    """Call the arm's compiled kernels once: its closed loop, its batch integrators and
+    its Drake loop's compiled checks."""
     from geovs_drake.batch.arm_engine import warm_arm_engine
     from geovs_drake.batch.arm_rhs import warm_arm_loop
+    from geovs_drake.scenario import Arm, Dynamic, Kinematic, ScenarioConfig
+    from geovs_drake.simulation import simulate
 
     warm_arm_loop()
     warm_arm_engine()
+    # The Drake arm loop's own compiled checks (the kinematic arm's singular zone and
+    # speed scale, the monitor's joint limits), which pytest's workers and the notebooks
+    # would otherwise each compile.
+    for plant in (Dynamic(), Kinematic()):
+        simulate(ScenarioConfig(carrier=Arm(), plant=plant, duration=WARM_DURATION_S))
 
 
 #: The halves by name, for ``python -m geovs_drake.batch.warm [free|arm ...]``.
