@@ -59,15 +59,15 @@ test: $(STAMP) system-deps
 	@# side, would each compile them (about 20 s of CPU apiece), while the wheel check
 	@# (its own installs: it reads no cache of ours) runs beside it from the start. The
 	@# free rig's half first, beside the arm's (about 26 s and 44 s of CPU); then the docs
-	@# (with the notebooks, which need only the free half) build beside the arm's half
-	@# and pytest, which waits for it; last the tests that read the built HTML.
+	@# (with the notebooks, which need only the free half) and pytest start beside the
+	@# arm's half (tests/conftest.py runs the arm kernels' tests last, once it is done);
+	@# last the tests that read the built HTML.
 	@$(MAKE) --no-print-directory wheel-check > .wheel-check.log 2>&1 & wheel=$$!; \
 	$(BIN)/python -m geovs_drake.batch.warm arm & arm=$$!; \
 	$(BIN)/python -m geovs_drake.batch.warm free; warmed=$$?; \
 	$(MAKE) --no-print-directory docs > .docs-build.log 2>&1 & docs=$$!; \
-	wait $$arm; armed=$$?; \
 	GEOVS_FAST=1 $(BIN)/python -m pytest -q -n auto -m "not slow and not built_docs and not wheel"; \
-	tests=$$?; wait $$docs; built=$$?; wait $$wheel; wheeled=$$?; \
+	tests=$$?; wait $$arm; armed=$$?; wait $$docs; built=$$?; wait $$wheel; wheeled=$$?; \
 	cat .wheel-check.log .docs-build.log; rm -f .wheel-check.log .docs-build.log; \
 	test $$warmed -eq 0 && test $$armed -eq 0 && test $$tests -eq 0 && test $$built -eq 0 \
 	  && test $$wheeled -eq 0
