@@ -102,6 +102,8 @@ def test_an_ibvs_point_out_of_view_stops_the_run_naming_it(monkeypatch, carrier)
     assert simulate(config).status != "lost_visibility"
 
 
+# make test's budget: test_cli_compare_and_simulate_baselines keeps compare's small case.
+@pytest.mark.slow
 def test_compare_mini_suite_writes_the_table(tmp_path):
     """The kinematic plant, 2 scenarios x 6 laws in this process: every law converges
     from the small move; on 180 deg IBVS (true) leaves D and the NF does not move off

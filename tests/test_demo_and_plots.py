@@ -13,6 +13,9 @@ from geovs_drake.scenario import Kinematic, ScenarioConfig
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
+# The CLI's demo end to end with its rendered run: make test's budget; the in-process demo
+# (test_demo_without_the_vision_extra...) stays.
+@pytest.mark.slow
 def test_demo_writes_every_result(tmp_path, run_cli):
     # 5 s: both runs converge by then (the rendered one at 1.7 mm, measured).
     out = run_cli("demo", "--out", str(tmp_path), "--duration", "5", subprocess=True)

@@ -31,6 +31,9 @@ X_RC = RigidTransform(
 )
 
 
+# sympy regenerates the module (4-8 s): make test's budget; the kernels' behaviour tests
+# against the geometry and autodiff stay.
+@pytest.mark.slow
 def test_generated_module_is_up_to_date():
     """Regenerating from the sources gives the committed text, byte for byte."""
     assert _codegen.generate() == _codegen.TARGET.read_text(), (

@@ -94,6 +94,7 @@ def test_the_sampled_linearisation_predicts_which_loops_leave_the_domain(default
         assert (result.status == "left_domain") == unstable, (name, result.message)
 
 
+@pytest.mark.slow  # make test's budget; the study's other tests keep its small cases
 def test_a_short_sweep_summarises_and_plots(tmp_path):
     rows = robustness_sweep(starts=1, duration=5.0, levels={"radius_error": (0.0, 0.2)}, seed=3)
     assert [(r.parameter, r.level, r.start) for r in rows] == [
