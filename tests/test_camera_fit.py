@@ -234,7 +234,7 @@ def _has_panda() -> bool:
         pytest.param("default", "dynamic", 1, id="ur5-dynamic-late"),
         pytest.param("default", "kinematic", 0, id="ur5-kinematic", marks=pytest.mark.slow),
         pytest.param("default", "kinematic", 1, id="ur5-kinematic-late", marks=pytest.mark.slow),
-        pytest.param("panda", "dynamic", 0, id="panda-dynamic"),
+        pytest.param("panda", "dynamic", 0, id="panda-dynamic", marks=pytest.mark.slow),
         pytest.param("panda", "dynamic", 1, id="panda-dynamic-late", marks=pytest.mark.slow),
         pytest.param("panda", "kinematic", 0, id="panda-kinematic", marks=pytest.mark.slow),
         pytest.param("panda", "kinematic", 1, id="panda-kinematic-late", marks=pytest.mark.slow),

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from geovs_drake.batch._checks import JOINT_LIMIT as _JOINT_LIMIT
 from geovs_drake.batch._checks import joint_margin as _joint_margin
@@ -87,10 +87,7 @@ def _camera_poses(dynamic, X, tree, p, ws_columns):
     return poses
 
 
-# Not parallel: an arm's pinhole sweep spends most of its time in each start's IK and
-# each frame's measurement (in Python), the integration about an eighth; a parallel
-# kernel here cost 6.5 s more of compiling on a fresh checkout (19.2 s against 12.7 s).
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", parallel=True)
 def _advance_arm(
     dynamic, X, H, POSES, t0, t1, Y, THEN, PRED, rec, min_m, tree, p, ws_columns, settings
 ):
@@ -106,7 +103,7 @@ def _advance_arm(
     nv = tree[0].shape[0]
     joint = tree[6]
     adaptive = accuracy > 0
-    for i in range(n):
+    for i in prange(n):
         if status[i] != 1:
             continue
         scratch = _scratch(nv, ws_columns)
