@@ -4,8 +4,6 @@ a PiecewisePose, and the command line's ``--target-trajectory``."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -306,18 +304,13 @@ def test_the_copy_constructor_keeps_the_trajectory():
 
 
 # ------------------------------------------------------------------ the command line
-def test_cli_bad_trajectory_file_is_one_line_exit_2(tmp_path):
+def test_cli_bad_trajectory_file_is_one_line_exit_2(run_cli, tmp_path, monkeypatch):
     (tmp_path / "bad.csv").write_text("t,qw,qx,qy,qz,x,y,z\n0,1,0,0,0,0,0,0\n1,1,0,0,abc,0,0,0\n")
-    done = subprocess.run(
-        [sys.executable, "-m", "geovs_drake.cli", "simulate", "--target-trajectory", "bad.csv"]
-        + ["--duration", "1", "--json"],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-    )
-    assert done.returncode == 2, done.stderr
-    assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr
-    assert "'bad.csv', line 3" in done.stderr and done.stdout == ""
+    monkeypatch.chdir(tmp_path)  # the file named as a user would, from where it lies
+    run = run_cli("simulate", "--target-trajectory", "bad.csv", "--duration", "1", "--json")
+    assert run.code == 2, run.err
+    assert run.err.count("\n") == 1 and "Traceback" not in run.err
+    assert "'bad.csv', line 3" in run.err and run.out == ""
     assert [p.name for p in tmp_path.iterdir()] == ["bad.csv"]
 
 
