@@ -46,7 +46,7 @@ from pydrake.systems.sensors import RgbdSensor
 
 from geovs_drake.goal.arm import initial_joints
 from geovs_drake.hardware.config import HardwareConfig, check_hardware_arm, check_still_target
-from geovs_drake.hardware.images import add_image_camera, check_rendered_over_lcm
+from geovs_drake.hardware.images import CameraScene, add_image_camera, check_rendered_over_lcm
 from geovs_drake.hardware.messages import (
     COMMAND_NUM_TORQUE,
     COMMAND_NUM_VELOCITY,
@@ -270,8 +270,10 @@ class Station:
     target), the ``gate`` (:class:`CommandGate`), the arm's ``model``, start ``q0``, the
     camera's ``frame_period`` [s], the ``status_delay`` line (None without), the
     rendered camera's ``RgbdSensor`` (``camera``; None for the pinhole camera: its
-    label image is the station's truth of the arm's pixels, never published) and
-    ``frame_offset`` [s], when the first frame is published."""
+    label image is the station's truth of the arm's pixels, never published),
+    ``frame_offset`` [s], when the first frame is published, and the rendered camera's
+    own scene (``camera_scene``, :class:`~geovs_drake.hardware.images.CameraScene`;
+    None for the pinhole camera)."""
 
     diagram: Diagram
     resolved: ResolvedScenario
@@ -284,6 +286,7 @@ class Station:
     status_delay: LeafSystem | None = None
     camera: RgbdSensor | None = None
     frame_offset: float = 0.0
+    camera_scene: CameraScene | None = None
 
     def set_initial_state(self, root: Context) -> None:
         """The arm at rest at its start ``q0`` (and, with a status delay, as if it had
@@ -318,7 +321,7 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     rendered = config.sensor.traits.renders
     builder = DiagramBuilder()
     interface = builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
-    model, plant, scene_graph, link, X_LinkC = add_arm_scene(builder, resolved, True, True)
+    model, plant, _scene_graph, _link, _X_LinkC = add_arm_scene(builder, resolved, True, True)
     q0 = initial_joints(config, resolved.domain)
     demux, delay = _arm_status_state(builder, plant, hardware)
 
@@ -359,13 +362,10 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     cam = config.sensor
     period = 1.0 / cam.rate
     if rendered:  # the scene drawn on the arm's camera, its images on the image channel
-        rgbd, first_publish = add_image_camera(
+        scene, first_publish = add_image_camera(
             builder,
             resolved,
-            plant,
-            scene_graph,
-            link,
-            X_LinkC,
+            plant.get_state_output_port(),
             hardware.channels.image,
             interface,
             transport_delay=1.0 / hardware.status_rate,
@@ -374,7 +374,7 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
         diagram.set_name("panda_station")
         return Station(
             diagram, resolved, hardware, plant, gate, model, q0, period, delay,
-            camera=rgbd, frame_offset=first_publish,
+            camera=scene.rgbd, camera_scene=scene, frame_offset=first_publish,
         )  # fmt: skip
 
     first_publish = _pinhole_frames(builder, resolved, hardware, model, plant, lcm)
