@@ -279,12 +279,13 @@ CONFIGURATION_OFFSETS = (
 
 def test_the_station_camera_draws_its_own_scene_as_the_plants_scene_graph_did():
     """The station's camera renders a SceneGraph of its own, posed from the plant's state
-    at its frames only (the plant's SceneGraph holds no renderer: its geometry queries at
-    every derivative evaluation move nothing in a renderer); its colour image is the one
-    the camera drew on the plant's SceneGraph, pixel for pixel, at several configurations."""
+    at its frames only (the plant has no SceneGraph: no geometry query at every
+    derivative evaluation moves a renderer's geometry); its colour image is the one the
+    camera drew on the plant's SceneGraph, pixel for pixel, at several configurations."""
     setup = _setup(1.0)
     station = build_station(setup.resolved, setup.hardware, DrakeLcm("memq://"))
-    assert station.diagram.GetSubsystemByName("scene_graph").RendererCount() == 0
+    assert not station.plant.geometry_source_is_registered()
+    assert station.camera_scene.scene_graph.RendererCount() == 1
     hand = station.q0.copy()
     for joint, value in HAND_IN_VIEW.items():
         hand[joint] = value
