@@ -170,11 +170,15 @@ def _station(sensor: str, before: bool = False, own_scene: bool = True):
     return built, simulator
 
 
-def _station_rtf(sensor: str, duration: float, before: bool = False, own_scene: bool = True):
+def _station_rtf(
+    sensor: str, duration: float, before: bool = False, own_scene: bool = True
+) -> tuple[float, float]:
+    """The station's real-time factor over ``duration`` and its process's CPU time per
+    simulated second [s] (the renderer's threads included; less disturbed by the load)."""
     _, simulator = _station(sensor, before, own_scene)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     simulator.AdvanceTo(duration)
-    return duration / (time.perf_counter() - start)
+    return duration / (time.perf_counter() - start), (time.process_time() - cpu) / duration
 
 
 def _frame_costs(repeat: int) -> dict[str, float]:
@@ -223,15 +227,16 @@ STATIONS = {
 def station_main(args: argparse.Namespace) -> None:
     for sensor in ("Rendered", "Pinhole"):  # warm: EGL's and the renderer's first frames
         _station_rtf(sensor, 0.1)
-    rates: dict[str, list[float]] = {name: [] for name in STATIONS}
+    runs: dict[str, list[tuple[float, float]]] = {name: [] for name in STATIONS}
     for _ in range(args.repeat):
         for name, case in STATIONS.items():
-            rates[name].append(_station_rtf(case[0], args.duration, *case[1:]))
-    rate = {name: float(np.median(r)) for name, r in rates.items()}
+            runs[name].append(_station_rtf(case[0], args.duration, *case[1:]))
+    rate = {name: float(np.median([r for r, _ in v])) for name, v in runs.items()}
+    cpu = {name: float(np.median([c for _, c in v])) for name, v in runs.items()}
     costs = _frame_costs(args.repeat)
-    print(f"station, unpaced, {args.duration:g} s, x real time, median of {args.repeat}:")
+    print(f"station, unpaced, {args.duration:g} s, median of {args.repeat}:")
     for name, value in rate.items():
-        print(f"  {name:45s} {value:5.2f}x")
+        print(f"  {name:45s} {value:5.2f}x real time, {cpu[name]:.3f} s CPU a simulated s")
     print(
         f"per frame: colour {costs['colour']:.1f} ms, label {costs['label']:.1f} ms, "
         f"colour + LCM message {costs['message']:.1f} ms"
@@ -242,14 +247,17 @@ def station_main(args: argparse.Namespace) -> None:
         Figure(name, rate["rendered"], "x real time", "the pinhole station, same run",
                rate["pinhole"], target=">= 1x"),
         Figure(f"{name}, as before: the camera on the plant's SceneGraph", rate[before],
-               "x real time", "the station now (plant without SceneGraph, camera's own scene)",
-               rate["rendered"]),
+               "x real time", "the station as built now", rate["rendered"]),
         Figure(f"{name}, the camera's own scene, the plant still on a SceneGraph",
-               rate["rendered, plant on a SceneGraph"], "x real time", "the station now",
+               rate["rendered, plant on a SceneGraph"], "x real time", "the station as built now",
                rate["rendered"]),
         Figure(f"the pinhole Panda station, unpaced, arm at rest, {args.duration:g} s, the "
                "plant on a SceneGraph (as before)", rate["pinhole, plant on a SceneGraph"],
-               "x real time", "the pinhole station now", rate["pinhole"]),
+               "x real time", "the pinhole station as built now", rate["pinhole"]),
+        Figure("the rendered station's CPU time a simulated second", cpu["rendered"], "s",
+               "the pinhole station's, same run", cpu["pinhole"]),
+        Figure("the rendered station's CPU time a simulated second, as before",
+               cpu[before], "s", "the station as built now", cpu["rendered"]),
         Figure("the station's colour frame (320x240)", costs["colour"], "ms",
                "the label image of the same frame", costs["label"]),
         Figure("the colour frame and its LCM message", costs["message"], "ms",

@@ -1,7 +1,9 @@
 """The rendered camera over LCM (issue 34): images on the bus, features in the controller.
 
 Station side, :func:`add_image_camera`: the arm's camera (Drake's ``RgbdSensor``,
-RenderEngineVtk with the rendered loop's lights and intrinsics) draws the scene, and
+RenderEngineVtk with the rendered loop's lights and intrinsics) draws the scene (a
+SceneGraph of its own, :func:`add_camera_scene`, posed from the plant's state at the
+frames only), and
 its colour image goes out as ``lcmt_image_array`` through Drake's
 ``ImageToLcmImageArrayT`` and ``LcmPublisherSystem``, a periodic publish at the
 camera's clock (``capture_offset + k / rate``). Why that is the capture time exactly:
