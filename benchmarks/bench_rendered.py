@@ -23,10 +23,13 @@ Reported:
 ``--station`` (issue 44, item 7; its own record, ``bench_rendered_station.json``): the
 simulated Panda station (``geovs-drake station``'s diagram on ``memq://``, unpaced, the
 arm held at rest: no controller) over ``--duration`` simulated seconds, alternating,
-medians of ``--repeat``: with the rendered camera, with the arm perceived as its 39
-collision shapes one by one (as before the capsules), and with the pinhole camera (the
-baseline: the same station without a renderer); then, at the station's start, what one
-frame costs: the colour image (what the station sends), the label image (what the
+medians of ``--repeat`` (after a short warm-up run of each camera): the stations of
+:data:`STATIONS`, the rendered and the pinhole one as built now (the plant with no
+SceneGraph; the rendered camera on a SceneGraph of its own, posed at its frames) and as
+before (the plant on a SceneGraph that holds its collision geometry, queried at each
+derivative evaluation; the camera on that SceneGraph, whose every perceived geometry
+was moved in the renderer at each query); then, at the station's start, what one frame
+costs: the colour image (what the station sends), the label image (what the
 controller's self-filter draws) and the colour image made into its LCM message.
 """
 
@@ -44,6 +47,7 @@ from geovs_drake.analysis.studies.camera_accuracy import render_frames
 from geovs_drake.geometry.features import TargetMarks
 from geovs_drake.scenario import SENSOR_VARIANTS, Rendered, ScenarioConfig
 from geovs_drake.simulation import simulate
+from geovs_drake.systems.arm_model import CAMERA_FRAME
 from geovs_drake.systems.feature_extractor import (
     FeatureExtractor_,
     extract_features,
@@ -115,34 +119,66 @@ def rtf(config: ScenarioConfig, repeat: int) -> tuple[float, object]:
     return max(factors), result
 
 
-def _station(sensor: str, capsules: bool = True):
-    """(the station, its Simulator initialized): memq://, unpaced."""
+def _camera_on_plant_scene(builder, resolved, arm_state):
+    """The camera on the plant's own SceneGraph, as the station built it before its
+    camera had a scene of its own (the comparison's)."""
     from geovs_drake.hardware import images
+    from geovs_drake.loop.sensors import add_scene_renderer
+
+    plant = builder.GetSubsystemByName("plant")
+    scene_graph = builder.GetSubsystemByName("scene_graph")
+    camera = plant.GetFrameByName(CAMERA_FRAME)
+    add_scene_renderer(scene_graph)
+    images.perceive_collision_shapes(plant, scene_graph, camera.body().model_instance())
+    rgbd = images._rgbd(builder, "rgbd_sensor", resolved, plant, scene_graph, camera.body(),
+                        camera.GetFixedPoseInBodyFrame())  # fmt: skip
+    return images.CameraScene(scene_graph, plant, rgbd, rgbd.color_image_output_port())
+
+
+def _plant_with_scene(builder, resolved):
+    """The station's plant as it was built before: the loop's arm scene, the plant on a
+    SceneGraph holding the arm's collision geometry and the target (its geometry
+    queried at each derivative evaluation)."""
+    from geovs_drake.loop.carriers import add_arm_scene
+
+    model, plant, _, _, _ = add_arm_scene(builder, resolved, True, True)
+    return model, plant
+
+
+def _station(sensor: str, before: bool = False, own_scene: bool = True):
+    """(the station, its Simulator initialized): memq://, unpaced. ``before``: its plant
+    on a SceneGraph (as before), and ``own_scene`` False: the camera on that SceneGraph."""
+    from geovs_drake.hardware import images, station
     from geovs_drake.hardware.run import _simulator, load_setup, open_lcm
-    from geovs_drake.hardware.station import build_station
 
     setup = load_setup(
         None,
         [("bench", f"{{sensor: !{sensor} {{}}}}")],
         {"lcm_url": "memq://", "real_time_rate": 0.0},
     )
-    original = images._capsules
-    if not capsules:  # every collision shape perceived on its own, as before
-        images._capsules = lambda inspector, shapes: ([], set())
+    originals = station._station_plant, images.add_camera_scene
+    if before:
+        station._station_plant = _plant_with_scene
+    if not own_scene:
+        images.add_camera_scene = _camera_on_plant_scene
     try:
-        station = build_station(setup.resolved, setup.hardware, open_lcm("memq://"))
+        built = station.build_station(setup.resolved, setup.hardware, open_lcm("memq://"))
     finally:
-        images._capsules = original
-    simulator = _simulator(station.diagram, setup, station.set_initial_state)
+        station._station_plant, images.add_camera_scene = originals
+    simulator = _simulator(built.diagram, setup, built.set_initial_state)
     simulator.Initialize()
-    return station, simulator
+    return built, simulator
 
 
-def _station_rtf(sensor: str, duration: float, capsules: bool = True) -> float:
-    _, simulator = _station(sensor, capsules)
-    start = time.perf_counter()
+def _station_rtf(
+    sensor: str, duration: float, before: bool = False, own_scene: bool = True
+) -> tuple[float, float]:
+    """The station's real-time factor over ``duration`` and its process's CPU time per
+    simulated second [s] (the renderer's threads included; less disturbed by the load)."""
+    _, simulator = _station(sensor, before, own_scene)
+    start, cpu = time.perf_counter(), time.process_time()
     simulator.AdvanceTo(duration)
-    return duration / (time.perf_counter() - start)
+    return duration / (time.perf_counter() - start), (time.process_time() - cpu) / duration
 
 
 def _frame_costs(repeat: int) -> dict[str, float]:
@@ -177,26 +213,51 @@ def _frame_costs(repeat: int) -> dict[str, float]:
             (("colour", colour), ("label", label), ("message", message))}  # fmt: skip
 
 
+#: The stations compared by ``--station``: (sensor, the plant on a SceneGraph as before,
+#: the camera on a SceneGraph of its own).
+STATIONS = {
+    "rendered": ("Rendered", False, True),
+    "rendered, plant on a SceneGraph": ("Rendered", True, True),
+    "rendered, camera on the plant's SceneGraph": ("Rendered", True, False),
+    "pinhole": ("Pinhole", False, True),
+    "pinhole, plant on a SceneGraph": ("Pinhole", True, True),
+}
+
+
 def station_main(args: argparse.Namespace) -> None:
-    rates: dict[str, list[float]] = {"rendered": [], "shapes": [], "pinhole": []}
+    for sensor in ("Rendered", "Pinhole"):  # warm: EGL's and the renderer's first frames
+        _station_rtf(sensor, 0.1)
+    runs: dict[str, list[tuple[float, float]]] = {name: [] for name in STATIONS}
     for _ in range(args.repeat):
-        rates["rendered"].append(_station_rtf("Rendered", args.duration))
-        rates["shapes"].append(_station_rtf("Rendered", args.duration, capsules=False))
-        rates["pinhole"].append(_station_rtf("Pinhole", args.duration))
-    rendered, shapes, pinhole = (float(np.median(rates[k])) for k in rates)
+        for name, case in STATIONS.items():
+            runs[name].append(_station_rtf(case[0], args.duration, *case[1:]))
+    rate = {name: float(np.median([r for r, _ in v])) for name, v in runs.items()}
+    cpu = {name: float(np.median([c for _, c in v])) for name, v in runs.items()}
     costs = _frame_costs(args.repeat)
+    print(f"station, unpaced, {args.duration:g} s, median of {args.repeat}:")
+    for name, value in rate.items():
+        print(f"  {name:45s} {value:5.2f}x real time, {cpu[name]:.3f} s CPU a simulated s")
     print(
-        f"station, unpaced, {args.duration:g} s, median of {args.repeat}: rendered "
-        f"{rendered:.2f}x real time, the arm as 39 shapes {shapes:.2f}x, pinhole "
-        f"{pinhole:.2f}x; per frame: colour {costs['colour']:.1f} ms, label "
-        f"{costs['label']:.1f} ms, colour + LCM message {costs['message']:.1f} ms"
+        f"per frame: colour {costs['colour']:.1f} ms, label {costs['label']:.1f} ms, "
+        f"colour + LCM message {costs['message']:.1f} ms"
     )
     name = f"the rendered Panda station, unpaced, arm at rest, {args.duration:g} s"
+    before = "rendered, camera on the plant's SceneGraph"
     figures = [
-        Figure(name, rendered, "x real time", "the pinhole station, same run", pinhole,
-               target=">= 1x"),
-        Figure(f"{name}, the arm as its 39 collision shapes (before the capsules)", shapes,
-               "x real time", "the station with the arm as 13 capsules", rendered),
+        Figure(name, rate["rendered"], "x real time", "the pinhole station, same run",
+               rate["pinhole"], target=">= 1x"),
+        Figure(f"{name}, as before: the camera on the plant's SceneGraph", rate[before],
+               "x real time", "the station as built now", rate["rendered"]),
+        Figure(f"{name}, the camera's own scene, the plant still on a SceneGraph",
+               rate["rendered, plant on a SceneGraph"], "x real time", "the station as built now",
+               rate["rendered"]),
+        Figure(f"the pinhole Panda station, unpaced, arm at rest, {args.duration:g} s, the "
+               "plant on a SceneGraph (as before)", rate["pinhole, plant on a SceneGraph"],
+               "x real time", "the pinhole station as built now", rate["pinhole"]),
+        Figure("the rendered station's CPU time a simulated second", cpu["rendered"], "s",
+               "the pinhole station's, same run", cpu["pinhole"]),
+        Figure("the rendered station's CPU time a simulated second, as before",
+               cpu[before], "s", "the station as built now", cpu["rendered"]),
         Figure("the station's colour frame (320x240)", costs["colour"], "ms",
                "the label image of the same frame", costs["label"]),
         Figure("the colour frame and its LCM message", costs["message"], "ms",

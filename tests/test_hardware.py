@@ -260,6 +260,42 @@ def test_the_station_holds_the_arm_until_a_first_command():
     assert np.allclose(station.arm_state(root)[:7], station.q0, atol=1e-9)
 
 
+#: Random states and actuations at which the station's plant's derivatives are compared
+#: with the loop's arm scene's plant (joint offsets from the start [rad], velocities
+#: [rad/s] and torques [N m] of this size).
+DERIVATIVE_CASES, DERIVATIVE_SPREAD = 4, 0.5
+
+
+def test_the_station_plant_has_no_scene_graph_and_the_arm_scene_plants_dynamics():
+    """The station integrates the arm with no SceneGraph (the loop models no contact:
+    a plant with collision geometry would query it at every derivative evaluation); its
+    time derivatives are those of the loop's arm scene's plant (the arm, its collision
+    geometry filtered, the target), bit for bit, at random states and torques."""
+    from geovs_drake.loop.carriers import add_arm_scene
+
+    setup = _setup(0.3)
+    station = build_station(setup.resolved, setup.hardware, DrakeLcm("memq://"))
+    assert not station.plant.geometry_source_is_registered()
+    builder = DiagramBuilder()
+    _, truth, _, _, _ = add_arm_scene(builder, setup.resolved, True, True)
+    diagram = builder.Build()
+    root = diagram.CreateDefaultContext()
+    truth_context = truth.GetMyMutableContextFromRoot(root)
+    context = station.plant.CreateDefaultContext()
+    assert truth.num_collision_geometries() > 0  # the scene's plant would query them
+    rng = np.random.default_rng(0)
+    nq, nu = station.plant.num_positions(), station.plant.num_actuators()
+    for _ in range(DERIVATIVE_CASES):
+        x = np.concatenate([station.q0, np.zeros(nq)]) + DERIVATIVE_SPREAD * rng.normal(size=2 * nq)
+        u = DERIVATIVE_SPREAD * rng.normal(size=nu)
+        derivatives = []
+        for plant, c in ((station.plant, context), (truth, truth_context)):
+            plant.SetPositionsAndVelocities(c, x)
+            plant.get_actuation_input_port().FixValue(c, u)
+            derivatives.append(plant.EvalTimeDerivatives(c).CopyToVector())
+        assert np.array_equal(*derivatives)
+
+
 @pytest.mark.parametrize(
     "url, why",
     [

@@ -172,8 +172,9 @@ def _hand_in_view_label(setup) -> tuple[np.ndarray, int, list[int]]:
     label = station.camera.label_image_output_port().Eval(station.camera.GetMyContextFromRoot(root))
     instance = plant.GetModelInstanceByName("arm::panda")
     labels = [int(i) for i in plant.GetBodyIndices(instance)]
-    frames = {plant.GetBodyFrameIdOrThrow(i) for i in plant.GetBodyIndices(instance)}
-    inspector = station.diagram.GetSubsystemByName("scene_graph").model_inspector()
+    scene = station.camera_scene  # the camera's own scene: its plant's frames
+    frames = {scene.plant.GetBodyFrameIdOrThrow(i) for i in plant.GetBodyIndices(instance)}
+    inspector = scene.scene_graph.model_inspector()
     perceived = [
         g
         for g in inspector.GetAllGeometryIds(Role.kPerception)
@@ -243,3 +244,58 @@ def test_the_rendered_lcm_loop_approaches_the_goal():
     assert error < LONG_RUN_M, error
     publisher = controller.publisher.GetMyContextFromRoot(root)
     assert controller.publisher.stop_reason(publisher) == ""
+
+
+def _plant_scene_colour(setup, configurations: list[np.ndarray]) -> list[np.ndarray]:
+    """The colour images of the station's camera as it was built on the plant's own
+    SceneGraph (the loop's arm scene with the renderer added to it, the arm perceived
+    as the station perceives it), at each of ``configurations``."""
+    from geovs_drake.hardware import images
+    from geovs_drake.loop.carriers import add_arm_scene
+    from geovs_drake.loop.sensors import add_scene_renderer
+
+    builder = DiagramBuilder()
+    _, plant, scene_graph, link, X_LinkC = add_arm_scene(builder, setup.resolved, True, True)
+    add_scene_renderer(scene_graph)
+    images.perceive_collision_shapes(plant, scene_graph, link.model_instance())
+    rgbd = images._rgbd(builder, "rgbd", setup.resolved, plant, scene_graph, link, X_LinkC)
+    diagram = builder.Build()
+    root = diagram.CreateDefaultContext()
+    frames = []
+    for q in configurations:
+        plant.SetPositions(plant.GetMyMutableContextFromRoot(root), q)
+        image = rgbd.color_image_output_port().Eval(rgbd.GetMyContextFromRoot(root))
+        frames.append(image.data.copy())  # the cached image is drawn over at the next q
+    return frames
+
+
+#: Configurations of the colour image check: the start, the hand in view, and the start
+#: moved by these joint offsets [rad] (the target and the arm both in view).
+CONFIGURATION_OFFSETS = (
+    [0.1, -0.1, 0.05, 0.1, -0.05, 0.1, 0.2],
+    [-0.08, 0.05, 0, -0.1, 0.1, -0.15, 0],
+)
+
+
+def test_the_station_camera_draws_its_own_scene_as_the_plants_scene_graph_did():
+    """The station's camera renders a SceneGraph of its own, posed from the plant's state
+    at its frames only (the plant has no SceneGraph: no geometry query at every
+    derivative evaluation moves a renderer's geometry); its colour image is the one the
+    camera drew on the plant's SceneGraph, pixel for pixel, at several configurations."""
+    setup = _setup(1.0)
+    station = build_station(setup.resolved, setup.hardware, DrakeLcm("memq://"))
+    assert not station.plant.geometry_source_is_registered()
+    assert station.camera_scene.scene_graph.RendererCount() == 1
+    hand = station.q0.copy()
+    for joint, value in HAND_IN_VIEW.items():
+        hand[joint] = value
+    configurations = [station.q0, hand, *(station.q0 + np.array(d) for d in CONFIGURATION_OFFSETS)]
+    root = station.diagram.CreateDefaultContext()
+    context = station.plant.GetMyMutableContextFromRoot(root)
+    camera = station.camera.GetMyContextFromRoot(root)
+    truths = _plant_scene_colour(setup, configurations)
+    for q, truth in zip(configurations, truths, strict=True):
+        station.plant.SetPositions(context, q)
+        image = station.camera.color_image_output_port().Eval(camera).data
+        assert (truth[..., :3] != truth[0, 0, :3]).any(axis=-1).sum() > 1000  # a scene drawn
+        assert np.array_equal(image, truth), (q, (image != truth).any(axis=-1).sum())

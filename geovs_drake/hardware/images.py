@@ -1,7 +1,9 @@
 """The rendered camera over LCM (issue 34): images on the bus, features in the controller.
 
 Station side, :func:`add_image_camera`: the arm's camera (Drake's ``RgbdSensor``,
-RenderEngineVtk with the rendered loop's lights and intrinsics) draws the scene, and
+RenderEngineVtk with the rendered loop's lights and intrinsics) draws the scene (a
+SceneGraph of its own, :func:`add_camera_scene`, posed from the plant's state at the
+frames only), and
 its colour image goes out as ``lcmt_image_array`` through Drake's
 ``ImageToLcmImageArrayT`` and ``LcmPublisherSystem``, a periodic publish at the
 camera's clock (``capture_offset + k / rate``). Why that is the capture time exactly:
@@ -78,6 +80,7 @@ from geovs_drake.hardware.messages import (
     VectorSerializer,
     frame_vector_size,
 )
+from geovs_drake.loop.carriers import add_arm_scene
 from geovs_drake.loop.resolved import ResolvedScenario
 from geovs_drake.loop.sensors import add_scene_renderer, camera_config, sampled_settings
 from geovs_drake.systems import SelfMask
@@ -88,8 +91,10 @@ __all__ = [
     "CAPSULE_END_TOLERANCE",
     "COLOR_FRAME_NAME",
     "IMAGE_HISTORY",
+    "CameraScene",
     "ImageFeatureFrames",
     "SelfFilter",
+    "add_camera_scene",
     "add_image_camera",
     "add_self_filter",
     "perceive_collision_shapes",
@@ -217,31 +222,69 @@ def _rgbd(
     return rgbd
 
 
+class CameraScene:
+    """The station camera's scene (:func:`add_camera_scene`): its ``scene_graph``, the
+    ``plant`` whose geometry it holds, ``rgbd`` (the camera's RgbdSensor) and
+    ``color_image``, the colour image's port in the station's diagram."""
+
+    def __init__(self, scene_graph, plant, rgbd, color_image: OutputPort) -> None:
+        self.scene_graph, self.plant, self.rgbd = scene_graph, plant, rgbd
+        self.color_image = color_image
+
+
+def add_camera_scene(
+    builder: DiagramBuilder, resolved: ResolvedScenario, arm_state: OutputPort
+) -> CameraScene:
+    """The station's camera on a scene of its own: a subsystem ``camera_scene`` holding
+    a SceneGraph with the station's scene (the arm and the target, as
+    :func:`~geovs_drake.loop.carriers.add_arm_scene` registers them with the station's
+    plant, in the same order: the same bodies' indices, the same labels), the arm
+    perceived as :func:`perceive_collision_shapes` makes it, the renderer
+    (:func:`~geovs_drake.loop.sensors.add_scene_renderer`), posed by
+    ``MultibodyPositionToGeometryPose`` from the plant's state ``arm_state`` (q, v), and
+    the camera's RgbdSensor. Its output ``color_image``.
+
+    Why not the plant's own SceneGraph: a SceneGraph moves every perceived geometry in
+    its renderers at each pose update, and the continuous plant asks for one at each
+    derivative evaluation (its contact query: about 3 a step at 1 kHz), while the camera
+    reads its scene 30 times a second. This scene is posed only when the camera reads it
+    (docs/performance.md, "The rendered station")."""
+    inner = DiagramBuilder()
+    _model, plant, scene_graph, link, X_LinkC = add_arm_scene(inner, resolved, True, False)
+    add_scene_renderer(scene_graph)
+    perceive_collision_shapes(plant, scene_graph, link.model_instance())
+    to_pose = inner.AddNamedSystem(
+        "camera_scene_poses", MultibodyPositionToGeometryPose(plant, input_multibody_state=True)
+    )
+    inner.Connect(
+        to_pose.get_output_port(), scene_graph.get_source_pose_port(plant.get_source_id())
+    )
+    rgbd = _rgbd(inner, "rgbd_sensor", resolved, plant, scene_graph, link, X_LinkC)
+    inner.ExportInput(to_pose.get_input_port(), "arm_state")
+    inner.ExportOutput(rgbd.color_image_output_port(), "color_image")
+    diagram = builder.AddNamedSystem("camera_scene", inner.Build())
+    builder.Connect(arm_state, diagram.get_input_port())
+    return CameraScene(scene_graph, plant, rgbd, diagram.GetOutputPort("color_image"))
+
+
 def add_image_camera(
     builder: DiagramBuilder,
     resolved: ResolvedScenario,
-    plant: MultibodyPlant,
-    scene_graph: SceneGraph,
-    body,
-    X_LinkC: RigidTransform,
+    arm_state: OutputPort,
     channel: str,
     interface: LcmInterfaceSystem,
     transport_delay: float = 0.0,
-) -> tuple[RgbdSensor, float]:
-    """The station's camera: the scene drawn on the arm's camera (``body``, ``X_LinkC``)
-    and its colour image published on ``channel`` as ``lcmt_image_array``
-    (``header.utime`` = the capture): at the camera's capture times, or, for a camera
-    with a delay, ``latency_frames`` periods plus ``output_delay`` plus
-    ``transport_delay`` after each capture. Returns the sensor and when the first image
-    is sent [s]."""
-    add_scene_renderer(scene_graph)
-    perceive_collision_shapes(plant, scene_graph, body.model_instance())
-    rgbd = _rgbd(builder, "rgbd_sensor", resolved, plant, scene_graph, body, X_LinkC)
-    # Uncompressed: zlib on every frame costs the station's real time more than the
-    # bytes cost the bus (measured in docs/hardware.md).
+) -> tuple[CameraScene, float]:
+    """The station's camera: the scene drawn on the arm's camera
+    (:func:`add_camera_scene`, posed from the plant's state ``arm_state``) and its colour
+    image published on ``channel`` as ``lcmt_image_array`` (``header.utime`` = the
+    capture): at the camera's capture times, or, for a camera with a delay,
+    ``latency_frames`` periods plus ``output_delay`` plus ``transport_delay`` after each
+    capture. Returns the camera's scene and when the first image is sent [s]."""
+    scene = add_camera_scene(builder, resolved, arm_state)
     to_lcm = builder.AddNamedSystem("image_to_lcm", ImageToLcmImageArrayT(do_compress=False))
     color_in = to_lcm.DeclareImageInputPort[PixelType.kRgba8U](COLOR_FRAME_NAME)
-    builder.Connect(rgbd.color_image_output_port(), color_in)
+    builder.Connect(scene.color_image, color_in)
     cam = resolved.config.sensor
     period = sampled_settings(resolved)["period"]
     message = to_lcm.image_array_t_msg_output_port()
@@ -273,7 +316,7 @@ def add_image_camera(
         ),
     )
     builder.Connect(message, publisher.get_input_port())
-    return rgbd, first_send
+    return scene, first_send
 
 
 def decode_image_utime(data: bytes) -> np.ndarray:

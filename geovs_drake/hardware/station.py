@@ -3,13 +3,15 @@
 The station is what the controller cannot see: the world. It is a straight line, as
 Drake's hardware_sim::
 
-    plant, scene_graph = the arm and the target (the loop's own arm scene)
+    plant    = the arm alone (the loop's own arm; no SceneGraph: no contact modelled)
     status   = PandaStatusSender -> LcmPublisherSystem(PANDA_STATUS, 1 kHz)
     camera   = PinholeFeatureSensor on the camera's pose (the loop's own,
                loop.sensors.add_pinhole_sensor) -> FeatureFrameEncoder (utime: the
                held y's capture) -> FramePublisher(camera channel, the camera's rate)
-    (rendered: RgbdSensor on the camera -> ImageToLcmImageArrayT -> LcmPublisherSystem
-               (image channel, stamped at each capture, sent latency later: :mod:`.images`))
+    (rendered: the arm and the target in a SceneGraph of the camera's own, posed from
+               the plant's state at each frame -> RgbdSensor on the camera ->
+               ImageToLcmImageArrayT -> LcmPublisherSystem (image channel, stamped at
+               each capture, sent latency later: :mod:`.images`))
     command  = LcmSubscriberSystem(PANDA_COMMAND, as a vector) -> CommandGate
                -> the plant's actuation (held at the status rate)
 
@@ -44,9 +46,9 @@ from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem
 from pydrake.systems.primitives import Demultiplexer, DiscreteTimeDelay
 from pydrake.systems.sensors import RgbdSensor
 
-from geovs_drake.goal.arm import initial_joints
+from geovs_drake.goal.arm import arm_model, initial_joints
 from geovs_drake.hardware.config import HardwareConfig, check_hardware_arm, check_still_target
-from geovs_drake.hardware.images import add_image_camera, check_rendered_over_lcm
+from geovs_drake.hardware.images import CameraScene, add_image_camera, check_rendered_over_lcm
 from geovs_drake.hardware.messages import (
     COMMAND_NUM_TORQUE,
     COMMAND_NUM_VELOCITY,
@@ -61,13 +63,12 @@ from geovs_drake.hardware.messages import (
     subscribe_vector,
 )
 from geovs_drake.loop.assembly import FEATURE_SIZE
-from geovs_drake.loop.carriers import add_arm_scene
 from geovs_drake.loop.resolved import ResolvedScenario
 from geovs_drake.loop.sensors import add_pinhole_sensor
 from geovs_drake.systems import ArmCamera
 from geovs_drake.systems._parameters import POSE_SIZE
 from geovs_drake.systems.arm_camera import actuation_permutation
-from geovs_drake.systems.arm_model import CAMERA_FRAME, ArmModel, arm_plant
+from geovs_drake.systems.arm_model import CAMERA_FRAME, ArmModel, add_arm, arm_plant
 
 __all__ = [
     "CommandGate",
@@ -270,8 +271,10 @@ class Station:
     target), the ``gate`` (:class:`CommandGate`), the arm's ``model``, start ``q0``, the
     camera's ``frame_period`` [s], the ``status_delay`` line (None without), the
     rendered camera's ``RgbdSensor`` (``camera``; None for the pinhole camera: its
-    label image is the station's truth of the arm's pixels, never published) and
-    ``frame_offset`` [s], when the first frame is published."""
+    label image is the station's truth of the arm's pixels, never published),
+    ``frame_offset`` [s], when the first frame is published, and the rendered camera's
+    own scene (``camera_scene``, :class:`~geovs_drake.hardware.images.CameraScene`;
+    None for the pinhole camera)."""
 
     diagram: Diagram
     resolved: ResolvedScenario
@@ -284,6 +287,7 @@ class Station:
     status_delay: LeafSystem | None = None
     camera: RgbdSensor | None = None
     frame_offset: float = 0.0
+    camera_scene: CameraScene | None = None
 
     def set_initial_state(self, root: Context) -> None:
         """The arm at rest at its start ``q0`` (and, with a status delay, as if it had
@@ -318,7 +322,7 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     rendered = config.sensor.traits.renders
     builder = DiagramBuilder()
     interface = builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
-    model, plant, scene_graph, link, X_LinkC = add_arm_scene(builder, resolved, True, True)
+    model, plant = _station_plant(builder, resolved)
     q0 = initial_joints(config, resolved.domain)
     demux, delay = _arm_status_state(builder, plant, hardware)
 
@@ -359,13 +363,10 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
     cam = config.sensor
     period = 1.0 / cam.rate
     if rendered:  # the scene drawn on the arm's camera, its images on the image channel
-        rgbd, first_publish = add_image_camera(
+        scene, first_publish = add_image_camera(
             builder,
             resolved,
-            plant,
-            scene_graph,
-            link,
-            X_LinkC,
+            plant.get_state_output_port(),
             hardware.channels.image,
             interface,
             transport_delay=1.0 / hardware.status_rate,
@@ -374,7 +375,7 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
         diagram.set_name("panda_station")
         return Station(
             diagram, resolved, hardware, plant, gate, model, q0, period, delay,
-            camera=rgbd, frame_offset=first_publish,
+            camera=scene.rgbd, camera_scene=scene, frame_offset=first_publish,
         )  # fmt: skip
 
     first_publish = _pinhole_frames(builder, resolved, hardware, model, plant, lcm)
@@ -384,6 +385,26 @@ def build_station(resolved: ResolvedScenario, hardware: HardwareConfig, lcm: Dra
         diagram, resolved, hardware, plant, gate, model, q0, period, delay,
         frame_offset=first_publish,
     )  # fmt: skip
+
+
+def _station_plant(
+    builder: DiagramBuilder, resolved: ResolvedScenario
+) -> tuple[ArmModel, MultibodyPlant]:
+    """The arm the station integrates (``plant``, continuous, gravity on): the loop's
+    arm (:func:`~geovs_drake.systems.arm_model.add_arm`, the same bodies and joints as
+    :func:`~geovs_drake.loop.carriers.add_arm_scene`'s plant) with no SceneGraph.
+
+    Why none: the loop models no contact (``add_arm_scene`` filters every pair of its
+    geometry), yet a plant with collision geometry asks its SceneGraph for point pairs
+    at every derivative evaluation (about 3 a step at 1 kHz), each a pose update of
+    every geometry. The target is fixed in the world and has no dynamics; the cameras
+    draw the scene apart (the pinhole from the joints, the rendered camera on a
+    SceneGraph of its own, :func:`~geovs_drake.hardware.images.add_camera_scene`)."""
+    model = arm_model(resolved.config)
+    plant = builder.AddNamedSystem("plant", MultibodyPlant(time_step=0.0))
+    add_arm(plant, model)
+    plant.Finalize()
+    return model, plant
 
 
 def _check_station(resolved: ResolvedScenario, hardware: HardwareConfig) -> None:
