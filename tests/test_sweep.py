@@ -508,14 +508,15 @@ from geovs_drake.analysis.sweep.parts import Part, run_part
 text, parameters = pickle.loads(sys.stdin.buffer.read())
 part = Part(text, 0, 0, 3, 1.0, "batch", parameters, seed=4, velocity="bounded")
 summary, table = run_part(part)
-heavy = [m for m in ("geovs_drake.loop.build", "pydrake.multibody.plant")
+heavy = [m for m in ("geovs_drake.loop.build", "pydrake.multibody.plant", "pandas")
          if m in sys.modules]
 sys.stdout.buffer.write(pickle.dumps((heavy, table.to_pandas())))
 """
 
 
 def test_a_worker_runs_its_part_without_building_or_importing_a_diagram():
-    """The client ships loop_parameters; a worker then needs the engine only (start-up)."""
+    """The client ships loop_parameters; a worker then needs the engine only (start-up),
+    and its part's table no pandas (pyarrow's own conversion imports it: 0.3-0.9 s)."""
     import pickle
     import subprocess
     import sys
@@ -534,6 +535,43 @@ def test_a_worker_runs_its_part_without_building_or_importing_a_diagram():
     text = yaml_dump_typed(config)
     _, here = run_part(Part(text, 0, 0, 3, 1.0, "batch", None, seed=4, velocity="bounded"))
     pd.testing.assert_frame_equal(table, here.to_pandas())
+
+
+def test_a_parts_file_is_byte_for_byte_pyarrows_own_conversion(tmp_path):
+    """The part's arrays, built from their buffers, write the same Parquet bytes as
+    pyarrow's own conversion of the same columns (pa.array): NaN, inf, strings, bools."""
+    import pyarrow as pa
+
+    from geovs_drake.analysis.sweep.parts import HOVER_FIELDS, ROW_FIELDS, _table
+
+    rng = np.random.default_rng(3)
+    n = 37
+    columns = {}
+    for k in (*ROW_FIELDS, *HOVER_FIELDS):
+        if k in ("status", "end"):
+            columns[k] = rng.choice(["converged", "left_domain", "not_converged", ""], n)
+        elif k in ("monotone", "torque_clamped"):
+            columns[k] = rng.random(n) > 0.5
+        elif k == "start":
+            columns[k] = np.arange(100, 100 + n)
+        else:
+            v = rng.normal(size=(n, 2))[:, 1]  # a strided column, as min_margins[:, j]
+            v[[2, 5]] = np.nan, np.inf
+            columns[k] = v
+    summary = {"finished": n}
+    ours = _table(columns, summary)
+    arrays = [
+        pa.array([str(s) for s in v], pa.string())
+        if k in ("status", "end")
+        else pa.array(np.asarray(v, bool if k in ("monotone", "torque_clamped") else None))
+        for k, v in columns.items()
+    ]
+    theirs = pa.Table.from_arrays(arrays, names=list(columns))
+    theirs = theirs.replace_schema_metadata(ours.schema.metadata)
+    assert ours.schema == theirs.schema
+    pq.write_table(ours, tmp_path / "ours.parquet")
+    pq.write_table(theirs, tmp_path / "theirs.parquet")
+    assert (tmp_path / "ours.parquet").read_bytes() == (tmp_path / "theirs.parquet").read_bytes()
 
 
 @pytest.mark.slow  # 4 s: make test's budget; the arm's camera sweep below keeps the engine in it
