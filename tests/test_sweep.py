@@ -316,17 +316,25 @@ def test_cli_end_to_end(tmp_path, run_cli):
     assert not [p for p in out_dir.rglob(".*")]  # no temporary file left
     assert len(progress) <= 2  # sparse progress lines, no bar off a TTY
 
-    # --resume of a finished sweep runs nothing and reports the same figures.
-    code, out, err = run_cli(
-        "sweep",
-        *("--starts", "6", "--duration", "2", "--workers", "1", "--chunk", "4"),
-        *("--seed", "3", "--out", str(out_dir), "--json", "--resume"),
-    )
-    assert code == 0, err
-    again = json.loads(out)
-    assert again["resumed_parts"] == 2
+    # --resume of a finished sweep runs nothing and reports the same figures; with
+    # --no-plots it draws none and removes the earlier run's, which the next --resume
+    # draws again from the parts' summaries, pixel for pixel.
+    drawn = {name: (out_dir / name).read_bytes() for name in ("t_converged.png", "starts.png")}
     ignore = {"wall_time_s": 0, "resumed_parts": 0}
-    assert again | ignore == summary | ignore
+    for plots in (["--no-plots"], []):
+        code, out, err = run_cli(
+            "sweep",
+            *("--starts", "6", "--duration", "2", "--workers", "1", "--chunk", "4"),
+            *("--seed", "3", "--out", str(out_dir), "--json", "--resume", *plots),
+        )
+        assert code == 0, err
+        again = json.loads(out)
+        assert again["resumed_parts"] == 2
+        assert again | ignore == summary | ignore
+        for name, image in drawn.items():
+            assert (out_dir / name).is_file() != bool(plots), (name, plots)
+            if not plots:
+                assert (out_dir / name).read_bytes() == image
 
 
 @pytest.mark.parametrize(
