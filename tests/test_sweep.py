@@ -276,16 +276,24 @@ def test_drake_engine_gives_the_batch_engine_statuses():
 
 # ----------------------------------------------------------------------------------- CLI
 def test_cli_end_to_end(tmp_path, run_cli):
+    import time
+
     out_dir = tmp_path / "sweep"
+    cpu_before = time.process_time()
     code, out, err = run_cli(
         "sweep",
         *("--starts", "6", "--duration", "2", "--workers", "1", "--chunk", "4"),
         *("--seed", "3", "--out", str(out_dir), "--json", "--csv", "--timings"),
     )
+    cpu_after = time.process_time()
     assert code == 0, err
     # --timings: one line of the phases; the parts' phase holds the sweep's own wall
-    # time (summary.json), the first part came before the parts ended.
+    # time (summary.json), the first part came before the parts ended; then the process's
+    # CPU time (this process: read between the clock's two readings here).
     *progress, timings = err.strip().splitlines()
+    timings, cpu = timings.split("; CPU ")
+    cpu = float(cpu.split(" s on all threads")[0])
+    assert cpu_before - 0.01 <= cpu <= cpu_after + 0.01
     line, first = timings.split("timings: ")[1].split("; the first part ")
     phases = {k.strip(): float(v) for k, v in re.findall(r"([a-z -]+) ([0-9.]+) s", line)}
     assert list(phases)[-3:] == ["set-up", "parts", "summary and plots"]

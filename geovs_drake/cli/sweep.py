@@ -168,7 +168,8 @@ def _add_speed_options(p: argparse.ArgumentParser) -> None:
         "--timings",
         action="store_true",
         help="also one line on stderr: where the command's wall time went (start-up and "
-        "imports, set-up, first part, all parts, summary and plots) (default: off)",
+        "imports, set-up, first part, all parts, summary and plots), its CPU time on all "
+        "threads and the load average (default: off)",
     )
 
 
@@ -223,14 +224,22 @@ class _Clock:
 
     def line(self) -> str:
         """The ``--timings`` line; the start-up (interpreter, imports) where the system
-        tells the process's start (Linux's /proc)."""
+        tells the process's start (Linux's /proc). It ends with the process's CPU time on
+        all its threads and the load average: on a shared machine the wall time follows
+        the load, the CPU time much less (numba's threads count in it, so on two free cores
+        the parts' wall time is about half their CPU time)."""
         started = _process_start()
         before = "" if started is None else f"start-up {self.start - started:.2f} s, "
         phases = ", ".join(f"{k} {v:.2f} s" for k, v in self.phases.items())
         first = ""
         if self.first_part is not None:
             first = f"; the first part {self.first_part:.2f} s after the start-up"
-        return f"geovs-drake sweep: timings: {before}{phases}{first}"
+        try:
+            load = f", load average {os.getloadavg()[0]:.1f}"
+        except OSError:  # no load average on this system
+            load = ""
+        cpu = f"; CPU {time.process_time():.2f} s on all threads{load}"
+        return f"geovs-drake sweep: timings: {before}{phases}{first}{cpu}"
 
 
 def _process_start() -> float | None:
