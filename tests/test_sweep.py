@@ -276,16 +276,24 @@ def test_drake_engine_gives_the_batch_engine_statuses():
 
 # ----------------------------------------------------------------------------------- CLI
 def test_cli_end_to_end(tmp_path, run_cli):
+    import time
+
     out_dir = tmp_path / "sweep"
+    cpu_before = time.process_time()
     code, out, err = run_cli(
         "sweep",
         *("--starts", "6", "--duration", "2", "--workers", "1", "--chunk", "4"),
         *("--seed", "3", "--out", str(out_dir), "--json", "--csv", "--timings"),
     )
+    cpu_after = time.process_time()
     assert code == 0, err
     # --timings: one line of the phases; the parts' phase holds the sweep's own wall
-    # time (summary.json), the first part came before the parts ended.
+    # time (summary.json), the first part came before the parts ended; then the process's
+    # CPU time (this process: read between the clock's two readings here).
     *progress, timings = err.strip().splitlines()
+    timings, cpu = timings.split("; CPU ")
+    cpu = float(cpu.split(" s on all threads")[0])
+    assert cpu_before - 0.01 <= cpu <= cpu_after + 0.01
     line, first = timings.split("timings: ")[1].split("; the first part ")
     phases = {k.strip(): float(v) for k, v in re.findall(r"([a-z -]+) ([0-9.]+) s", line)}
     assert list(phases)[-3:] == ["set-up", "parts", "summary and plots"]
@@ -316,17 +324,25 @@ def test_cli_end_to_end(tmp_path, run_cli):
     assert not [p for p in out_dir.rglob(".*")]  # no temporary file left
     assert len(progress) <= 2  # sparse progress lines, no bar off a TTY
 
-    # --resume of a finished sweep runs nothing and reports the same figures.
-    code, out, err = run_cli(
-        "sweep",
-        *("--starts", "6", "--duration", "2", "--workers", "1", "--chunk", "4"),
-        *("--seed", "3", "--out", str(out_dir), "--json", "--resume"),
-    )
-    assert code == 0, err
-    again = json.loads(out)
-    assert again["resumed_parts"] == 2
+    # --resume of a finished sweep runs nothing and reports the same figures; with
+    # --no-plots it draws none and removes the earlier run's, which the next --resume
+    # draws again from the parts' summaries, pixel for pixel.
+    drawn = {name: (out_dir / name).read_bytes() for name in ("t_converged.png", "starts.png")}
     ignore = {"wall_time_s": 0, "resumed_parts": 0}
-    assert again | ignore == summary | ignore
+    for plots in (["--no-plots"], []):
+        code, out, err = run_cli(
+            "sweep",
+            *("--starts", "6", "--duration", "2", "--workers", "1", "--chunk", "4"),
+            *("--seed", "3", "--out", str(out_dir), "--json", "--resume", *plots),
+        )
+        assert code == 0, err
+        again = json.loads(out)
+        assert again["resumed_parts"] == 2
+        assert again | ignore == summary | ignore
+        for name, image in drawn.items():
+            assert (out_dir / name).is_file() != bool(plots), (name, plots)
+            if not plots:
+                assert (out_dir / name).read_bytes() == image
 
 
 @pytest.mark.parametrize(
@@ -508,14 +524,15 @@ from geovs_drake.analysis.sweep.parts import Part, run_part
 text, parameters = pickle.loads(sys.stdin.buffer.read())
 part = Part(text, 0, 0, 3, 1.0, "batch", parameters, seed=4, velocity="bounded")
 summary, table = run_part(part)
-heavy = [m for m in ("geovs_drake.loop.build", "pydrake.multibody.plant")
+heavy = [m for m in ("geovs_drake.loop.build", "pydrake.multibody.plant", "pandas")
          if m in sys.modules]
 sys.stdout.buffer.write(pickle.dumps((heavy, table.to_pandas())))
 """
 
 
 def test_a_worker_runs_its_part_without_building_or_importing_a_diagram():
-    """The client ships loop_parameters; a worker then needs the engine only (start-up)."""
+    """The client ships loop_parameters; a worker then needs the engine only (start-up),
+    and its part's table no pandas (pyarrow's own conversion imports it: 0.3-0.9 s)."""
     import pickle
     import subprocess
     import sys
@@ -534,6 +551,43 @@ def test_a_worker_runs_its_part_without_building_or_importing_a_diagram():
     text = yaml_dump_typed(config)
     _, here = run_part(Part(text, 0, 0, 3, 1.0, "batch", None, seed=4, velocity="bounded"))
     pd.testing.assert_frame_equal(table, here.to_pandas())
+
+
+def test_a_parts_file_is_byte_for_byte_pyarrows_own_conversion(tmp_path):
+    """The part's arrays, built from their buffers, write the same Parquet bytes as
+    pyarrow's own conversion of the same columns (pa.array): NaN, inf, strings, bools."""
+    import pyarrow as pa
+
+    from geovs_drake.analysis.sweep.parts import HOVER_FIELDS, ROW_FIELDS, _table
+
+    rng = np.random.default_rng(3)
+    n = 37
+    columns = {}
+    for k in (*ROW_FIELDS, *HOVER_FIELDS):
+        if k in ("status", "end"):
+            columns[k] = rng.choice(["converged", "left_domain", "not_converged", ""], n)
+        elif k in ("monotone", "torque_clamped"):
+            columns[k] = rng.random(n) > 0.5
+        elif k == "start":
+            columns[k] = np.arange(100, 100 + n)
+        else:
+            v = rng.normal(size=(n, 2))[:, 1]  # a strided column, as min_margins[:, j]
+            v[[2, 5]] = np.nan, np.inf
+            columns[k] = v
+    summary = {"finished": n}
+    ours = _table(columns, summary)
+    arrays = [
+        pa.array([str(s) for s in v], pa.string())
+        if k in ("status", "end")
+        else pa.array(np.asarray(v, bool if k in ("monotone", "torque_clamped") else None))
+        for k, v in columns.items()
+    ]
+    theirs = pa.Table.from_arrays(arrays, names=list(columns))
+    theirs = theirs.replace_schema_metadata(ours.schema.metadata)
+    assert ours.schema == theirs.schema
+    pq.write_table(ours, tmp_path / "ours.parquet")
+    pq.write_table(theirs, tmp_path / "theirs.parquet")
+    assert (tmp_path / "ours.parquet").read_bytes() == (tmp_path / "theirs.parquet").read_bytes()
 
 
 @pytest.mark.slow  # 4 s: make test's budget; the arm's camera sweep below keeps the engine in it

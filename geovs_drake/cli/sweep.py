@@ -28,6 +28,9 @@ from geovs_drake.cli._options import (
 )
 from geovs_drake.progress import Progress
 
+#: The plots a sweep writes in its folder (:func:`~geovs_drake.analysis.sweep.plot_summary`).
+PLOTS = ("t_converged.png", "starts.png")
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """The ``sweep`` command."""
@@ -151,12 +154,22 @@ def _add_where_options(p: argparse.ArgumentParser) -> None:
 
 
 def _add_speed_options(p: argparse.ArgumentParser) -> None:
-    """``--timings``."""
+    """``--timings`` and ``--no-plots``."""
+    p.add_argument(
+        "--no-plots",
+        action="store_true",
+        help="write neither t_converged.png nor starts.png (and remove the ones an earlier "
+        "run left in DIR): matplotlib's import and drawing, about 0.6-1 s of a sweep's fixed "
+        "cost. The rows, sweep.json and summary.json are the same; --resume without "
+        "--no-plots draws the plots later from the parts' summaries, running no part again "
+        "(default: off, the plots drawn)",
+    )
     p.add_argument(
         "--timings",
         action="store_true",
         help="also one line on stderr: where the command's wall time went (start-up and "
-        "imports, set-up, first part, all parts, summary and plots) (default: off)",
+        "imports, set-up, first part, all parts, summary and plots), its CPU time on all "
+        "threads and the load average (default: off)",
     )
 
 
@@ -211,14 +224,22 @@ class _Clock:
 
     def line(self) -> str:
         """The ``--timings`` line; the start-up (interpreter, imports) where the system
-        tells the process's start (Linux's /proc)."""
+        tells the process's start (Linux's /proc). It ends with the process's CPU time on
+        all its threads and the load average: on a shared machine the wall time follows
+        the load, the CPU time much less (numba's threads count in it, so on two free cores
+        the parts' wall time is about half their CPU time)."""
         started = _process_start()
         before = "" if started is None else f"start-up {self.start - started:.2f} s, "
         phases = ", ".join(f"{k} {v:.2f} s" for k, v in self.phases.items())
         first = ""
         if self.first_part is not None:
             first = f"; the first part {self.first_part:.2f} s after the start-up"
-        return f"geovs-drake sweep: timings: {before}{phases}{first}"
+        try:
+            load = f", load average {os.getloadavg()[0]:.1f}"
+        except OSError:  # no load average on this system
+            load = ""
+        cpu = f"; CPU {time.process_time():.2f} s on all threads{load}"
+        return f"geovs-drake sweep: timings: {before}{phases}{first}{cpu}"
 
 
 def _process_start() -> float | None:
@@ -279,7 +300,10 @@ def run(args: argparse.Namespace) -> int:
     _write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     finished = result.summary.finished
     try:
-        if finished:
+        if args.no_plots:
+            for name in PLOTS:  # an earlier sweep's plots would not be this one's
+                (out / name).unlink(missing_ok=True)
+        elif finished:
             result.plot(out)
         if args.csv and code == 0:
             sweep.write_csv(result, out / "results.csv")

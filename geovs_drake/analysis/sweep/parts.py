@@ -487,22 +487,36 @@ def _arm_end(r) -> dict[str, float]:
 
 def _table(columns: dict[str, np.ndarray], summary: dict):
     """The columns as a pyarrow Table in :data:`ROW_FIELDS` order, with the summary in
-    its schema's metadata."""
+    its schema's metadata.
+
+    Each array is built from its buffers (:func:`_arrow_array`), not by ``pa.array``:
+    pyarrow's conversion of a NumPy array or a list imports pandas where pandas is
+    installed (its check for a categorical), 0.3-0.9 s of the sweep's start-up for
+    columns that hold no pandas object; the arrays are the same (a test compares them).
+    """
     pa = require("pyarrow", "sweep", "a sweep's part files")
-    arrays = []
     names = [*ROW_FIELDS, *(k for k in HOVER_FIELDS if k in columns)]
-    for name in names:
-        v = columns[name]
-        if name in ("status", "end"):
-            arrays.append(pa.array([str(s) for s in v], pa.string()))
-        elif name in ("monotone", "torque_clamped"):
-            arrays.append(pa.array(np.asarray(v, bool)))
-        elif name == "start":
-            arrays.append(pa.array(np.asarray(v, np.int64)))
-        else:
-            arrays.append(pa.array(np.asarray(v, np.float64)))
+    arrays = [_arrow_array(pa, name, columns[name]) for name in names]
     table = pa.Table.from_arrays(arrays, names=names)
     return table.replace_schema_metadata({SUMMARY_KEY: json.dumps(summary).encode()})
+
+
+def _arrow_array(pa, name: str, values):
+    """One column as a pyarrow Array of its Parquet type (strings for ``status`` and
+    ``end``, booleans for ``monotone`` and ``torque_clamped``, int64 for ``start``,
+    float64 for the rest, NaN kept as NaN, no nulls), from its buffers."""
+    if name in ("status", "end"):
+        data = [str(s).encode() for s in values]
+        offsets = np.zeros(len(data) + 1, np.int32)
+        np.cumsum([len(b) for b in data], out=offsets[1:])
+        buffers = [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))]
+        return pa.Array.from_buffers(pa.string(), len(data), buffers)
+    if name in ("monotone", "torque_clamped"):
+        bits = np.packbits(np.asarray(values, bool), bitorder="little")
+        return pa.Array.from_buffers(pa.bool_(), len(values), [None, pa.py_buffer(bits)])
+    kind, dtype = (pa.int64(), np.int64) if name == "start" else (pa.float64(), np.float64)
+    array = np.ascontiguousarray(values, dtype)
+    return pa.Array.from_buffers(kind, len(array), [None, pa.py_buffer(array)])
 
 
 def _write_atomically(table, path: Path) -> None:
