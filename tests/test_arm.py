@@ -614,3 +614,27 @@ def test_the_ur5_converges_with_the_30_hz_rendered_camera_from_the_small_move():
     result = simulate(config)
     assert result.status == "converged", result.message
     assert result.summary()["min_joint_limit_margin"] > 0
+
+
+def test_the_dynamic_arms_unset_integrator_is_rk5_the_kinematic_arms_rk3_a_given_one_kept():
+    """The resolver fills an unset simulator.integration_scheme from the arm's traits: RK5
+    on the dynamic plant, RK3 on the kinematic; a user's is kept; and the simulator runs
+    the filled-in one (its steps and evaluations are those of the scheme given by name)."""
+    from geovs_drake.loop.build import build_loop
+    from geovs_drake.simulation.monitor import make_simulator
+
+    def counts(plant: object, scheme: str | None) -> tuple[int, int]:
+        config = ScenarioConfig(carrier=Arm(), plant=plant, duration=0.05)
+        config.simulator.integration_scheme = scheme
+        simulator = make_simulator(build_loop(config))[0]
+        simulator.AdvanceTo(0.05)
+        integrator = simulator.get_integrator()
+        return integrator.get_num_steps_taken(), integrator.get_num_derivative_evaluations()
+
+    for plant, scheme in ((Dynamic(), "runge_kutta5"), (Kinematic(), "runge_kutta3")):
+        config = ScenarioConfig(carrier=Arm(), plant=plant)
+        assert resolve(config).config.simulator.integration_scheme == scheme
+        config.simulator.integration_scheme = "runge_kutta2"
+        assert resolve(config).config.simulator.integration_scheme == "runge_kutta2"
+    assert counts(Dynamic(), None) == counts(Dynamic(), "runge_kutta5")
+    assert counts(Dynamic(), None) != counts(Dynamic(), "runge_kutta3")

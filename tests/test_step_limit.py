@@ -12,10 +12,11 @@ import json
 
 import numpy as np
 import pytest
-from pydrake.systems.analysis import SimulatorConfig
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
+from pydrake.systems.primitives import LinearSystem
 
 from geovs_drake.goal.linear_model import closed_form_A
-from geovs_drake.goal.step_limit import STABILITY_MARGIN
+from geovs_drake.goal.step_limit import STABILITY_MARGIN, STABILITY_POLYNOMIALS
 from geovs_drake.loop import resolve
 from geovs_drake.scenario import (
     DEFAULT_MAX_STEP,
@@ -51,6 +52,23 @@ def test_the_stable_step_of_a_real_mode_is_rk3s_real_axis_bound():
         STABILITY_MARGIN * -edge, rel=1e-9
     )
     assert DEFAULT_MAX_STEP > limit.stable_step  # the old fixed 0.05 s was beyond it
+
+
+@pytest.mark.parametrize("scheme", ["runge_kutta2", "runge_kutta3", "runge_kutta5"])
+def test_each_stability_polynomial_is_drakes_own_step_on_a_linear_mode(scheme):
+    """One fixed step of Drake's integrator on x' = lambda x (a complex mode as a real
+    2x2 block) multiplies x by the scheme's R(h lambda), to rounding."""
+    lam, h = complex(-21.0, 60.0), 0.04  # the dynamic UR5's goal mode, its step's size
+    A = np.array([[lam.real, -lam.imag], [lam.imag, lam.real]])
+    system = LinearSystem(A, np.zeros((2, 0)), np.zeros((0, 2)), np.zeros((0, 0)))
+    simulator = Simulator(system)
+    fixed = SimulatorConfig(integration_scheme=scheme, max_step_size=h, use_error_control=False)
+    ApplySimulatorConfig(fixed, simulator)
+    simulator.get_mutable_context().SetContinuousState([1.0, 0.0])
+    simulator.AdvanceTo(h)
+    x = simulator.get_context().get_continuous_state_vector().CopyToVector()
+    R = np.polyval(STABILITY_POLYNOMIALS[scheme][::-1], h * lam)
+    assert complex(x[0], x[1]) == pytest.approx(R, abs=1e-13)
 
 
 def test_a_limit_the_user_sets_is_used_as_given():
@@ -123,7 +141,7 @@ def test_the_closed_forms_readers_refuse_a_loop_it_does_not_model_alike(carrier)
         assert str(error.value) == f"{who}: the closed form is the eye-in-hand free rig's {got}"
     limit = resolve(config).step_limit
     if isinstance(carrier, Arm):
-        assert limit.stable_step is not None and limit.max_step_size < DEFAULT_MAX_STEP
+        assert limit.stable_step is not None and limit.max_step_size <= DEFAULT_MAX_STEP
     else:
         assert limit.stable_step is None and limit.max_step_size == DEFAULT_MAX_STEP
 

@@ -4,8 +4,10 @@ mode and the remedy.
 
 Truths: the eigenvalues of Drake's own ``Linearize`` of the whole arm loop at the goal
 (``linearize_arm_at_goal``), the fixture's own numbers (the last link's inertia about its
-axis and the damping on that joint), RK3's stability polynomial, and the runs
-themselves: their step counts, with the explicit scheme and with the remedy.
+axis and the damping on that joint), the explicit schemes' stability polynomials (Drake's
+own steps on a linear mode: test_step_limit.py), and the runs themselves: their step
+counts, with the explicit scheme and with the remedy. The dynamic arm's default scheme is
+RK5 (its traits), so the warning and the bound are RK5's; the slow runs pin RK3.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ NEAR = PoseConfig(xyz=[0.02, -0.01, -0.52], rpy=[0.02, -0.01, 0.1])
 #: gain scale (10), through J_C, whose last column is that axis [N m s/rad].
 LAST_LINK_INERTIA = 0.3 * 0.03**2 / 2
 LAST_JOINT_DAMPING = Arm().joint_damping + 10 * ScenarioConfig().control.damping[0]
-RK3 = STABILITY_POLYNOMIALS["runge_kutta3"]
+RK3 = "runge_kutta3"
 
 
 def _stiff(**fields) -> ScenarioConfig:
@@ -58,13 +60,25 @@ def _drake_modes(config: ScenarioConfig) -> np.ndarray:
     return eigenvalues[np.abs(eigenvalues) > 1e-9 * np.abs(eigenvalues).max()]
 
 
-def _rk3_inside(h: float, modes: np.ndarray) -> bool:
-    return bool(np.all(np.abs(np.polyval(RK3[::-1], h * modes)) <= 1 + 1e-12))
+def _inside(scheme: str, h: float, modes: np.ndarray) -> bool:
+    R = STABILITY_POLYNOMIALS[scheme][::-1]
+    return bool(np.all(np.abs(np.polyval(R, h * modes)) <= 1 + 1e-12))
+
+
+def _real_edge(scheme: str) -> float:
+    """Where the scheme's real stability interval ends: the negative real root of
+    R(z) = +-1 nearest 0 (numpy's roots; RK3's is R = -1 at z = -2.5127)."""
+    R = np.array(STABILITY_POLYNOMIALS[scheme][::-1])
+    roots = np.concatenate([np.roots(R - np.eye(len(R))[-1] * s) for s in (1, -1)])
+    real = roots[(np.abs(roots.imag) < 1e-9) & (roots.real < -1e-9)].real
+    return float(real.max())
 
 
 def test_the_stiff_arms_fastest_mode_is_drakes_its_last_joints_damping_over_its_inertia():
     config = _stiff()
-    limit = resolve(config).step_limit
+    resolved = resolve(config)
+    limit, scheme = resolved.step_limit, resolved.config.simulator.integration_scheme
+    assert scheme == Arm.traits.dynamic_integration_scheme
     modes = _drake_modes(config)
     fastest, slowest = modes[np.argmax(np.abs(modes))], modes[np.argmin(np.abs(modes))]
     assert limit.fastest_mode == pytest.approx(complex(fastest), rel=1e-6)
@@ -75,37 +89,43 @@ def test_the_stiff_arms_fastest_mode_is_drakes_its_last_joints_damping_over_its_
     )
     assert limit.fastest_joint == "wrist_3_joint"
     assert limit.stiffness > STIFFNESS_RATIO and limit.stiff
-    # RK3's step is held at its real-axis edge (R(z) = -1 at z = -2.5127) over that mode,
-    # and the automatic limit stays the cap (the bound's share took more steps).
-    roots = np.roots([1 / 6, 1 / 2, 1, 2])
-    edge = roots[np.abs(roots.imag) < 1e-12].real[0]
-    assert limit.stable_step == pytest.approx(edge / fastest.real, rel=1e-6)
-    assert _rk3_inside(limit.stable_step, modes)
-    assert not _rk3_inside(1.01 * limit.stable_step, modes)
-    assert limit.automatic and limit.max_step_size == DEFAULT_MAX_STEP
+    # The scheme's step is held at its real-axis edge over that mode. On RK3 the automatic
+    # limit stays the cap (the bound's share took more steps); on RK5 it is the bound's
+    # share (its trial stages beyond the bound overflow before its error control rejects).
+    assert limit.stable_step == pytest.approx(_real_edge(scheme) / fastest.real, rel=1e-6)
+    assert _inside(scheme, limit.stable_step, modes)
+    assert not _inside(scheme, 1.01 * limit.stable_step, modes)
+    assert limit.automatic
+    assert limit.max_step_size == pytest.approx(STABILITY_MARGIN * limit.stable_step)
+    config.simulator.integration_scheme = RK3
+    assert resolve(config).step_limit.max_step_size == DEFAULT_MAX_STEP
 
 
+@pytest.mark.parametrize("scheme", [None, RK3])
 @pytest.mark.parametrize("model", ["default", "panda"])
-def test_the_named_arms_step_keeps_drakes_goal_modes_in_rk3s_region_and_no_warning(model):
+def test_the_named_arms_step_keeps_drakes_goal_modes_in_the_region_and_no_warning(model, scheme):
     """The UR5's cap (0.05 s) is beyond RK3's region at its goal: its step comes down to
-    the bound's share. The Panda's cap is inside: kept. Neither is stiff or warned."""
+    the bound's share; inside RK5's (the default's), kept. The Panda's cap is inside
+    both: kept. Neither is stiff or warned."""
     if model == "panda":
         try:
             importlib.metadata.distribution("example-robot-data")
         except importlib.metadata.PackageNotFoundError:
             pytest.skip('the Panda needs example-robot-data: pip install "geovs-drake[panda]"')
     config = ScenarioConfig(carrier=Arm(model=model))
-    limit = resolve(config).step_limit
+    config.simulator.integration_scheme = scheme
+    resolved = resolve(config)
+    limit, scheme = resolved.step_limit, resolved.config.simulator.integration_scheme
     modes = _drake_modes(config)
-    assert _rk3_inside(limit.max_step_size, modes)
+    assert _inside(scheme, limit.max_step_size, modes)
     assert not limit.stiff and limit.stiffness < 100
-    assert limit.warning("runge_kutta3") is None
-    if model == "default":
-        assert not _rk3_inside(DEFAULT_MAX_STEP, modes)
+    assert limit.warning(scheme) is None
+    if model == "default" and scheme == RK3:
+        assert not _inside(scheme, DEFAULT_MAX_STEP, modes)
         assert limit.max_step_size == pytest.approx(STABILITY_MARGIN * limit.stable_step)
         assert limit.max_step_size < DEFAULT_MAX_STEP
     else:
-        assert _rk3_inside(DEFAULT_MAX_STEP, modes)
+        assert _inside(scheme, DEFAULT_MAX_STEP, modes)
         assert limit.max_step_size == DEFAULT_MAX_STEP
 
 
@@ -135,9 +155,10 @@ def test_the_stiff_arm_gets_one_warning_line_naming_the_mode_and_the_remedy(run_
     warnings = [line for line in run.err.splitlines() if "warning: the loop is stiff" in line]
     assert run.code == 3 and len(warnings) == 1, run.err
     line = warnings[0]
-    limit = resolve(_stiff(duration=0.02)).step_limit
+    resolved = resolve(_stiff(duration=0.02))
+    limit, scheme = resolved.step_limit, resolved.config.simulator.integration_scheme
     assert f"fastest mode ({limit.fastest_mode.real:.4g} 1/s, mostly wrist_3_joint)" in line
-    assert f"runge_kutta3 is stable there only for steps below {limit.stable_step:.3g} s" in line
+    assert f"{scheme} is stable there only for steps below {limit.stable_step:.3g} s" in line
     # The remedy as the line writes it: a layer that loads, and names the implicit scheme.
     remedy = shlex.split(re.search(r'--scenario-text ("[^"]*")', line).group(1))[0]
     assert load_scenario(data=remedy).simulator.integration_scheme == IMPLICIT_REMEDY
@@ -153,6 +174,7 @@ def test_rk3s_steps_on_the_stiff_arm_are_held_by_the_bound_and_the_remedys_are_n
     bound holds them, whatever the accuracy asks) and at most 15% more; radau3 (the
     warning's remedy) takes five times fewer or less."""
     config = _stiff(duration=0.4, initial=NEAR)
+    config.simulator.integration_scheme = RK3
     explicit = simulate(config)
     limit = explicit.step_limit
     assert limit.explicit_steps == math.ceil(0.4 / limit.stable_step)
@@ -171,6 +193,7 @@ def test_thirty_seconds_of_the_stiff_arm_on_rk3_and_on_the_remedy():
     RK3 takes about duration / stable_step steps (measured 310,301 against 309,823; about
     3 min of wall), radau3 a hundred times fewer or less (measured 1,615); both converge."""
     config = _stiff(initial=PoseConfig(xyz=[0.05, -0.03, -0.55], rpy=[0.1, -0.05, 0.3]))
+    config.simulator.integration_scheme = RK3
     explicit = simulate(config)
     assert explicit.status == "converged", explicit.message
     assert explicit.steps == pytest.approx(explicit.step_limit.explicit_steps, rel=0.02)

@@ -24,7 +24,7 @@ from geovs_drake.geometry._ops import Ops
 from geovs_drake.geometry.camera import image_of_pose, inverse_pose
 from geovs_drake.geometry.rigid import apply, matmul, target_in_camera
 
-__all__ = ["target_from_frame", "predicted_image"]
+__all__ = ["image_from_target", "predicted_image", "target_from_frame"]
 
 
 def target_from_frame(
@@ -59,5 +59,22 @@ def predicted_image(
     """The 13 components of ``y(t)``: the frame ``y`` taken from the rig pose
     ``X_WR_frame``, seen from ``X_WR_now`` (the module's three steps)."""
     R_WB, p_WB = target_from_frame(y, rho, R_WR_frame, p_WR_frame, R_RC, p_RC, xp)
+    return image_from_target(R_WB, p_WB, rho, R_WR_now, p_WR_now, R_RC, p_RC, xp)
+
+
+def image_from_target(
+    R_WB: tuple,
+    p_WB: tuple,
+    rho: object,
+    R_WR_now: tuple,
+    p_WR_now: tuple,
+    R_RC: tuple,
+    p_RC: tuple,
+    xp: Ops,
+) -> tuple:
+    """The 13 components of ``y(t)``: the target at ``X_WB`` seen from the rig pose
+    ``X_WR_now``, ``c(X_WC^-1 X_WB)`` (Eqs. 3, 6, 7; the module's last step). A frame's
+    ``X_WB`` (:func:`target_from_frame`) holds until the next frame, so a caller may keep
+    it and call this alone at each evaluation: the same numbers as :func:`predicted_image`."""
     r2, r3, d = target_in_camera(R_WR_now, p_WR_now, R_RC, p_RC, R_WB, p_WB)
     return image_of_pose(r2, r3, d, rho, xp)

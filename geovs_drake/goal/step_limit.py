@@ -77,10 +77,13 @@ __all__ = [
 #: below the bound, not a step that sits on it.
 STABILITY_MARGIN = 0.8
 #: Each explicit scheme's stability polynomial's coefficients (R(z) = sum c_k z^k): the
-#: truncated exponential, since each has as many stages as its order.
+#: truncated exponential for RK2 and RK3, which have as many stages as their order;
+#: Drake's RK5 is Dormand and Prince's 5(4), whose six stages that advance the step give
+#: the exponential to z^5 and 1/600 z^6 (Hairer & Wanner, Solving ODEs II, Sec. IV.2).
 STABILITY_POLYNOMIALS: dict[str, tuple[float, ...]] = {
     "runge_kutta2": (1.0, 1.0, 1 / 2),
     "runge_kutta3": (1.0, 1.0, 1 / 2, 1 / 6),
+    "runge_kutta5": (1.0, 1.0, 1 / 2, 1 / 6, 1 / 24, 1 / 120, 1 / 600),
 }
 #: ``abs(fastest) / abs(slowest)`` of the goal's modes from which a loop is stiff for an
 #: explicit method: its stable step is then about 1/1000 of the slowest time constant,
@@ -91,6 +94,11 @@ STIFFNESS_RATIO = 1000.0
 #: radau3 took 1,615 steps (2.5 s), implicit_euler 11,462 (22.6 s: first order, its
 #: steps are held by the accuracy), RK3 310,301 (114 s); each ended within 5e-14 m.
 IMPLICIT_REMEDY = "radau3"
+#: The schemes whose step a stiff loop holds to the bound's share all the same: RK5's
+#: trial stages beyond its bound grow as (h lambda)^6 and reach inf before its error
+#: control rejects the step (the stiff arm of the tests, at 0.05 s: MultibodyPlant then
+#: refuses the state and aborts the process), where RK3's stay finite.
+_HELD_WHEN_STIFF = ("runge_kutta5",)
 #: Modes below this share of the fastest's modulus are a zero eigenvalue in rounding
 #: (a redundant arm's self-motion has no stiffness: the Panda's is 6e-15 1/s).
 _ZERO_MODE = 1e-9
@@ -218,9 +226,11 @@ def step_limit(config: ScenarioConfig, model: GoalModel | None) -> StepLimit:
         explicit_steps=math.ceil(config.duration / stable),
         fastest_joint=_fastest_joint(model, vectors[:, np.argmax(modulus)]),
     )
-    if automatic and not limit.stiff and DEFAULT_MAX_STEP > stable:
+    held = not limit.stiff or config.simulator.integration_scheme in _HELD_WHEN_STIFF
+    if automatic and held and DEFAULT_MAX_STEP > stable:
         # The bound, not the cap, sets the step: take its share. A stiff loop keeps the
-        # cap (its error control finds the edge itself, with fewer steps) and is warned.
+        # cap (its error control finds the edge itself, with fewer steps) and is warned,
+        # except on RK5 (below).
         limit = replace(limit, max_step_size=STABILITY_MARGIN * stable)
     return limit
 

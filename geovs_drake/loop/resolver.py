@@ -65,7 +65,11 @@ def resolve(
         config.initial = PoseConfig.from_rigid_transform(started[0])
     if config.simulator.integration_scheme is None:  # unset: the carrier's integrator
         config = copy.deepcopy(config)
-        config.simulator.integration_scheme = config.carrier.traits.integration_scheme
+        carrier = config.carrier.traits
+        dynamic = config.plant.traits.dynamic and carrier.dynamic_integration_scheme
+        config.simulator.integration_scheme = (
+            carrier.dynamic_integration_scheme if dynamic else carrier.integration_scheme
+        )
     why = refusal(config)  # a part with no registry entry: one line, before anything
     if why is not None:
         raise ValueError(why)

@@ -170,12 +170,12 @@ DEFAULT_MAX_STEP = 0.05
 class SimulatorSettings:
     """The simulator: Drake's ``SimulatorConfig`` fields, the same names in YAML, with the
     project's defaults (accuracy 1e-6). ``integration_scheme`` left unset (None, ``null``
-    in YAML) is the carrier's (its traits': RK3, the quadrotor's RK5), filled in by the
-    resolver; a name is the user's and is used as given. ``max_step_size`` [s] left unset (None,
-    ``null`` in YAML) is automatic: the goal's stability bound, at most
-    :data:`DEFAULT_MAX_STEP` (:func:`geovs_drake.goal.step_limit.step_limit`); a
-    value is the user's and is used as given. :meth:`to_drake` gives Drake's struct for
-    ``ApplySimulatorConfig``."""
+    in YAML) is the carrier's (its traits': RK3, the quadrotor's and the dynamic arm's
+    RK5), filled in by the resolver; a name is the user's and is used as given.
+    ``max_step_size`` [s] left unset (None, ``null`` in YAML) is automatic: the goal's
+    stability bound, at most :data:`DEFAULT_MAX_STEP`
+    (:func:`geovs_drake.goal.step_limit.step_limit`); a value is the user's and is used as
+    given. :meth:`to_drake` gives Drake's struct for ``ApplySimulatorConfig``."""
 
     integration_scheme: str | None = None
     max_step_size: float | None = None

@@ -41,7 +41,9 @@ class CarrierTraits:
     heading and a level hover). ``rotors``: a law may drive its rotors itself (a law
     whose traits' ``commands`` is ``"rotors"``, Hamel & Mahony's on the quadrotor).
     ``integration_scheme``: Drake's integrator for a loop on this carrier where the
-    scenario leaves ``simulator.integration_scheme`` unset (the resolver fills it).
+    scenario leaves ``simulator.integration_scheme`` unset (the resolver fills it);
+    ``dynamic_integration_scheme``: the same on a dynamic plant, where it differs (empty:
+    ``integration_scheme`` on both plants).
     ``hover``: it flies and holds a level hover only (the quadrotor): its start is a
     position and a heading, the body level, so a sweep draws its starts level and at
     rest, and its runs report the rotors' saturation and the peak tilt (the sweep's
@@ -60,6 +62,7 @@ class CarrierTraits:
     turning_target: bool = True
     rotors: bool = False
     integration_scheme: str = "runge_kutta3"
+    dynamic_integration_scheme: str = ""
     hover: bool = False
 
 
