@@ -37,6 +37,7 @@ from numba import njit
 
 from geovs_drake.batch import arm_kernels as _k
 from geovs_drake.batch.arm_tree import ArmTree, arm_tree
+from geovs_drake.systems.arm_model import ArmModel
 
 __all__ = [
     "IK_BIAS",
@@ -259,7 +260,8 @@ class StartSolver:
     :func:`~geovs_drake.goal.ik_choice.better_solution`, as Drake's
     :func:`~geovs_drake.goal.arm.solve_joints` keeps its own."""
 
-    def __init__(self, model) -> None:
+    def __init__(self, model: ArmModel) -> None:
+        """The solver of ``model``'s arm: its limits, seeds and kernels' arrays."""
         from geovs_drake.goal.ik_choice import ik_seeds
         from geovs_drake.systems.arm_model import arm_plant
 

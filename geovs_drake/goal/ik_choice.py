@@ -45,7 +45,9 @@ def ik_seeds(lower: np.ndarray, upper: np.ndarray, count: int = IK_SEEDS) -> np.
     return np.array([0.5 * (lower + upper)] + [rng.uniform(low, high) for _ in range(count)])
 
 
-def ik_score(joint_margin, singular_value):
+def ik_score(
+    joint_margin: float | np.ndarray, singular_value: float | np.ndarray
+) -> float | np.ndarray:
     """How far a solution is from trouble: the smaller of its nearest joint limit's
     margin [rad] and :data:`SINGULARITY_WEIGHT` sigma_min(J_C) (scalars or arrays)."""
     return np.minimum(joint_margin, SINGULARITY_WEIGHT * np.asarray(singular_value))

@@ -403,7 +403,9 @@ class _ArmStarts:
             for i, (X, t) in enumerate(zip(X_BC, twists, strict=True))
         ]
 
-    def joints(self, config: ScenarioConfig, X: np.ndarray, twist, q=None) -> tuple | None:
+    def joints(
+        self, config: ScenarioConfig, X: np.ndarray, twist, q: np.ndarray | None = None
+    ) -> tuple | None:
         """The start X_BC's joints ``(q, v)`` (v None at rest or on the kinematic arm):
         IK (``q`` where given, else ``solver``'s or Drake's) on the branch the NF's way to
         the goal carries along, the twist carried to the joints at the same E0 / k_p; None
