@@ -13,8 +13,9 @@ in two processes side by side (each kernel compiles in one process, on one core)
   (:func:`~geovs_drake.batch.engine.run_batch` on each plant, with the exact sensor and
   the sampled camera), and the arm's start path
   (:func:`~geovs_drake.batch.arm_ik.warm_arm_ik`): about 26 s of CPU cold without it;
-* :func:`warm_arm`: the arm's compiled loop and its batch integrators
-  (:func:`~geovs_drake.batch.arm_rhs.warm_arm_loop`,
+* :func:`warm_arm`: the sweep's compiled IK of the arm's starts
+  (:func:`~geovs_drake.batch.arm_ik.warm_start_solver`), the arm's compiled loop and its
+  batch integrators (:func:`~geovs_drake.batch.arm_rhs.warm_arm_loop`,
   :func:`~geovs_drake.batch.arm_engine.warm_arm_engine`): about 44 s.
 
 Measured on a fresh clone: 70 s of CPU in one process, so the halves side by side take
@@ -59,13 +60,17 @@ def warm_free() -> None:
 
 
 def warm_arm() -> None:
-    """Call the arm's compiled kernels once: its closed loop, its batch integrators and
-    its Drake loop's compiled checks."""
+    """Call the arm's compiled kernels once: the sweep's IK of its starts, its closed loop,
+    its batch integrators and its Drake loop's compiled checks."""
     from geovs_drake.batch.arm_engine import warm_arm_engine
+    from geovs_drake.batch.arm_ik import warm_start_solver
     from geovs_drake.batch.arm_rhs import warm_arm_loop
     from geovs_drake.scenario import Arm, Dynamic, Kinematic, ScenarioConfig
     from geovs_drake.simulation import simulate
 
+    # The sweep's compiled IK first (a few seconds): the arm sweep's tests and notebook,
+    # which run beside this half, find it in the cache early.
+    warm_start_solver()
     warm_arm_loop()
     warm_arm_engine()
     # The Drake arm loop's own compiled checks (the kinematic arm's singular zone and

@@ -30,6 +30,14 @@ from geovs_drake.geometry.navigation import (
     features_from_model,
     model_coordinates,
 )
+from geovs_drake.goal.ik_choice import (
+    IK_SCORE_TIE,
+    IK_SEEDS,
+    SINGULARITY_WEIGHT,
+    ik_score,
+    ik_seeds,
+)
+from geovs_drake.goal.ik_choice import better_solution as _better_solution
 from geovs_drake.scenario import ScenarioConfig
 from geovs_drake.systems.arm_camera import null_space_projector
 from geovs_drake.systems.arm_model import (
@@ -54,6 +62,7 @@ __all__ = [
     "arm_model",
     "camera_jacobians",
     "chart_path",
+    "chart_poses",
     "goal_on_branch",
     "initial_joints",
     "joint_barrier_values",
@@ -76,21 +85,6 @@ __all__ = [
 #: The camera pose an IK solution must reach [m] and [rad].
 IK_POSITION_TOLERANCE = 1e-6
 IK_ROTATION_TOLERANCE = 1e-6
-#: Random seeds tried besides the middle of the joint range: the solution kept is the
-#: one farthest from the joint limits (an arm has several inverse kinematics).
-IK_SEEDS = 12
-
-
-#: How IK weighs distance from a singularity (sigma_min of J_C) against distance from a
-#: joint limit [rad] when it picks among its solutions.
-SINGULARITY_WEIGHT = 10.0
-
-#: Scores closer than this [rad] tie. Two solutions that differ by 2 pi in a joint away
-#: from its limits have the same J_C and the same margin: their scores differ by rounding
-#: alone, which the BLAS kernel decides (the UR5's goal: wrist 1 at -2.54 or +3.74 rad).
-#: A tie goes to the solution nearer q = 0 (the smaller |q|), whatever the seeds' order.
-IK_SCORE_TIE = 1e-9
-
 #: Steps of the path along which a start's joints are carried to the goal's pose
 #: (:func:`chart_path`, :func:`goal_on_branch`): the pose moves 1/512 of the way per
 #: step (thousandths of a rad and of a metre on the sweep's starts), where a few Newton
@@ -294,10 +288,7 @@ def _solve_joints(model: ArmModel, X_key: tuple[float, ...]) -> np.ndarray:
     plant = arm_plant(model)
     camera = plant.GetFrameByName(CAMERA_FRAME)
     lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
-    rng = np.random.default_rng(0)
-    seeds = [0.5 * (lower + upper)] + [
-        rng.uniform(np.maximum(lower, -np.pi), np.minimum(upper, np.pi)) for _ in range(IK_SEEDS)
-    ]
+    seeds = ik_seeds(lower, upper)
     best, best_score, closest = None, -np.inf, (np.inf, np.inf)
     for seed in seeds:
         ik = InverseKinematics(plant)
@@ -332,23 +323,10 @@ def _solve_joints(model: ArmModel, X_key: tuple[float, ...]) -> np.ndarray:
 
 
 def _ik_score(model: ArmModel, q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> float:
-    """How far q is from trouble: the smaller of its nearest joint limit's margin [rad] and
-    :data:`SINGULARITY_WEIGHT` sigma_min(J_C) (IK's choice among its solutions, and
-    :func:`place_base`'s)."""
+    """How far q is from trouble (:func:`~geovs_drake.goal.ik_choice.ik_score`): IK's
+    choice among its solutions, and :func:`place_base`'s."""
     margin = float(np.min(np.minimum(q - lower, upper - q)))
-    return min(margin, SINGULARITY_WEIGHT * float(smallest_singular_values(model, q[None])[0]))
-
-
-def _better_solution(
-    q: np.ndarray, score: float, best: np.ndarray | None, best_score: float
-) -> bool:
-    """Whether IK's solution q (its score) replaces the best so far: a higher score, or a
-    tied one (:data:`IK_SCORE_TIE`) nearer q = 0."""
-    if best is None:
-        return True
-    if abs(score - best_score) <= IK_SCORE_TIE:
-        return bool(np.linalg.norm(q) < np.linalg.norm(best) - IK_SCORE_TIE)
-    return score > best_score
+    return float(ik_score(margin, smallest_singular_values(model, q[None])[0]))
 
 
 def _refine(plant, camera, q: np.ndarray, X_WC: RigidTransform, steps: int = 4) -> np.ndarray:
@@ -420,6 +398,17 @@ def chart_path(
     that the arm reaches. The rotation's geodesic in SE(3) need not wind so: from a start
     rolled 179 deg it can turn the other way round (docs/arm.md, "The barrier's spurious
     equilibria")."""
+    X_CB = _chart_X_CB(config, domain, X_BC, steps)
+    if X_CB is None:
+        return None
+    X_WB = config.X_WB  # once: the schema's property builds it anew at each read
+    return [X_WB @ RigidTransform(X).inverse() for X in X_CB]
+
+
+def _chart_X_CB(
+    config: ScenarioConfig, domain: SafeDomain, X_BC: RigidTransform, steps: int
+) -> np.ndarray | None:
+    """:func:`chart_path`'s poses as X_CB (steps + 1, 4, 4), or None."""
     radius = config.radius  # D is the resolved scenario's (``domain``)
     try:
         y0 = camera_map(X_BC.inverse(), radius)
@@ -439,15 +428,28 @@ def chart_path(
         (1 - w) * np.asarray(m0.w_occ) + w * np.asarray(m1.w_occ),
         np.stack([np.cos(a), np.sin(a)], axis=-1),
     )
-    X_CB = camera_map_inverse(features_from_model(chart, domain), radius)
-    X_WB = config.X_WB  # once: the schema's property builds it anew at each read
-    return [X_WB @ RigidTransform(X).inverse() for X in X_CB]
+    return camera_map_inverse(features_from_model(chart, domain), radius)
+
+
+def chart_poses(
+    config: ScenarioConfig, domain: SafeDomain, X_BC: RigidTransform, steps: int = GOAL_PATH_STEPS
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`chart_path`'s poses as arrays, (R_WC (n, 3, 3), p_WC (n, 3)), built without
+    a RigidTransform per pose (:func:`goal_on_branch`'s compiled ``follow`` takes them;
+    the sweep's starts, a few milliseconds less each). X_WC = X_WB X_CB^-1."""
+    X_CB = _chart_X_CB(config, domain, X_BC, steps)
+    if X_CB is None:
+        return None
+    X_WB = config.X_WB.GetAsMatrix4()
+    R_BC = np.swapaxes(X_CB[:, :3, :3], 1, 2)
+    p_BC = -(R_BC @ X_CB[:, :3, 3:])[:, :, 0]
+    return X_WB[:3, :3] @ R_BC, X_WB[:3, 3] + p_BC @ X_WB[:3, :3].T
 
 
 def goal_on_branch(
     model: ArmModel,
     q: np.ndarray,
-    path: list[RigidTransform],
+    path: list[RigidTransform] | tuple[np.ndarray, np.ndarray],
     follow: Callable[..., np.ndarray | None] | None = None,
 ) -> np.ndarray | None:
     """The joints at the end of ``path`` (camera poses X_WC, the camera at q at the
@@ -457,11 +459,13 @@ def goal_on_branch(
     crosses a singularity; None where they do not reach the last pose.
 
     ``follow``: the same steps compiled, :class:`~geovs_drake.batch.arm_ik.PathFollower`
-    of this model's arm; None: the plant's context, step by step (some 40 ms a path)."""
+    of this model's arm (``path`` may then be :func:`chart_poses`' arrays); None: the
+    plant's context, step by step (some 40 ms a path)."""
     if follow is not None:
-        R_p = [np.array([X.rotation().matrix() for X in path]), [X.translation() for X in path]]
+        if not isinstance(path, tuple):  # (chart_poses' arrays go as they are)
+            path = np.array([X.rotation().matrix() for X in path]), [X.translation() for X in path]
         tolerance = (IK_POSITION_TOLERANCE, IK_ROTATION_TOLERANCE)
-        return follow(q, *R_p, GOAL_PATH_DAMPING, GOAL_PATH_JUMP, 3, 4, tolerance)
+        return follow(q, *path, GOAL_PATH_DAMPING, GOAL_PATH_JUMP, 3, 4, tolerance)
     plant = arm_plant(model)
     context = plant.CreateDefaultContext()
     camera = plant.GetFrameByName(CAMERA_FRAME)
@@ -499,7 +503,7 @@ def start_branch(
     q: np.ndarray,
     X_WC: RigidTransform,
     X_WC_goal: RigidTransform,
-    path: list[RigidTransform] | None = None,
+    path: list[RigidTransform] | tuple[np.ndarray, np.ndarray] | None = None,
     follow: Callable[..., np.ndarray | None] | None = None,
 ) -> np.ndarray:
     """The start q with each joint whose range spans 2 pi or more on the branch (whole
@@ -593,10 +597,7 @@ def place_base(config: ScenarioConfig, seeds: int = BASE_PLACEMENT_SEEDS) -> Bas
     camera = plant.GetFrameByName(CAMERA_FRAME)
     context = plant.CreateDefaultContext()
     lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
-    rng = np.random.default_rng(0)
-    starts = [0.5 * (lower + upper)] + [
-        rng.uniform(np.maximum(lower, -np.pi), np.minimum(upper, np.pi)) for _ in range(seeds)
-    ]
+    starts = ik_seeds(lower, upper, seeds)
     candidates = []  # (score, the camera's position from the base)
     for seed in starts:
         ik = InverseKinematics(plant)

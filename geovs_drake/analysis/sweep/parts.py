@@ -258,10 +258,8 @@ def _arm_batch_columns(
     n = len(X_BC)
     q0, v0 = np.zeros((n, nv)), np.zeros((n, nv))
     reached = np.zeros(n, bool)
-    for i, (X, twist) in enumerate(zip(X_BC, twists, strict=True)):
-        c = copy.deepcopy(config)
-        c.initial = PoseConfig.from_rigid_transform(RigidTransform(X))
-        joints = starts.joints(c, X, twist if config.dynamic else np.zeros(6))
+    at_rest = twists if config.dynamic else np.zeros((n, 6))
+    for i, joints in enumerate(starts.part_joints(config, X_BC, at_rest)):
         if joints is not None:
             reached[i], q0[i] = True, joints[0]
             v0[i] = 0.0 if joints[1] is None else joints[1]
@@ -326,13 +324,15 @@ def _drake_columns(
     distribution (``velocity bounded``: E0 < k_p on the arm too)."""
     dynamic = config.dynamic
     arm = _ArmStarts.of(config, p) if config.carrier.traits.joints else None  # once per part
+    # The arm's starts all at once (the compiled IK), the same as the batch engine's.
+    joints = [None] * len(X_BC) if arm is None else arm.part_joints(config, X_BC, twists)
     rows = []
-    for X, twist in zip(X_BC, twists, strict=True):
+    for X, twist, q_v in zip(X_BC, twists, joints, strict=True):
         c = copy.deepcopy(config)
         c.duration = duration
         c.initial = PoseConfig.from_rigid_transform(RigidTransform(X))
         c.initial_velocity = [float(v) for v in twist] if dynamic else [0.0] * 6
-        rows.append(_drake_row(c) if arm is None else arm.row(c, X, twist))
+        rows.append(_drake_row(c) if arm is None else arm.row(c, q_v))
     names = [k for k in row_fields(config) if k not in ("start", *_POSE, *_TWIST, "end")]
     return {
         k: np.array([r[k] for r in rows], dtype=object if k == "status" else None) for k in names
@@ -350,7 +350,10 @@ def _stopped_row(status: str) -> dict:
 class _ArmStarts:
     """What carrying a part's starts to the arm needs, read once per part: the arm's
     model, the free rig's twin of the scenario (whose kinetic energy the sampler drew)
-    and the ratio of the loops' k_p (resolve() scales the arm's)."""
+    and the ratio of the loops' k_p (resolve() scales the arm's), the compiled IK
+    (``solver``, :class:`~geovs_drake.batch.arm_ik.StartSolver`; None: Drake's
+    ``InverseKinematics``, :func:`~geovs_drake.goal.arm.solve_joints`) and the compiled
+    branch path (``follow``; None: the plant's, step by step)."""
 
     model: ArmModel
     free: ScenarioConfig
@@ -358,10 +361,11 @@ class _ArmStarts:
     gain_ratio: float
     domain: SafeDomain
     follow: object = None  # the compiled path (goal_on_branch's follow), once per part
+    solver: object = None  # the compiled IK of the part's starts, once per part
 
     @classmethod
     def of(cls, config: ScenarioConfig, p: LoopParameters) -> _ArmStarts:
-        from geovs_drake.batch.arm_ik import PathFollower
+        from geovs_drake.batch.arm_ik import PathFollower, StartSolver
         from geovs_drake.batch.arm_tree import arm_tree
         from geovs_drake.goal.arm import arm_model
         from geovs_drake.loop.resolver import resolve
@@ -371,39 +375,66 @@ class _ArmStarts:
         ratio = k_p_arm / p.potential_gain
         model = arm_model(config)
         follow = PathFollower(arm_tree(model))
-        return cls(model, free_twin(config), p, ratio, resolved.domain, follow)
+        solver = StartSolver(model)
+        return cls(model, free_twin(config), p, ratio, resolved.domain, follow, solver)
 
-    def row(self, config: ScenarioConfig, X: np.ndarray, twist) -> dict:
-        """:func:`_drake_row` on the arm: IK for the joints, the twist to joint velocities."""
-        joints = self.joints(config, X, twist)
+    def row(self, config: ScenarioConfig, joints: tuple | None) -> dict:
+        """:func:`_drake_row` on the arm from the start's ``joints`` (:meth:`part_joints`):
+        the arm starts there (``carrier.initial_joints``, so that the Drake loop runs
+        from the batch engine's joints), the twist carried to joint velocities."""
         if joints is None:
             return _stopped_row("unreachable")
         q, v = joints
         config.initial_velocity = [0.0] * 6
+        config.carrier.initial_joints = [float(x) for x in q]
         if v is not None:
             config.carrier.initial_joint_velocity = [float(x) for x in v]
         return _drake_row(config)
 
-    def joints(self, config: ScenarioConfig, X: np.ndarray, twist) -> tuple | None:
+    def part_joints(self, config: ScenarioConfig, X_BC: np.ndarray, twists) -> list:
+        """:meth:`joints` of each of the part's starts X_BC (n, 4, 4), the IK of all of
+        them in one compiled call (with ``solver``)."""
+        if self.solver is None:
+            return [self.joints(config, X, t) for X, t in zip(X_BC, twists, strict=True)]
+        X_WC = config.X_WB.GetAsMatrix4() @ np.asarray(X_BC)
+        q, reached = self.solver(X_WC[:, :3, :3], X_WC[:, :3, 3])
+        return [
+            self.joints(config, X, t, q[i]) if reached[i] else None
+            for i, (X, t) in enumerate(zip(X_BC, twists, strict=True))
+        ]
+
+    def joints(
+        self, config: ScenarioConfig, X: np.ndarray, twist, q: np.ndarray | None = None
+    ) -> tuple | None:
         """The start X_BC's joints ``(q, v)`` (v None at rest or on the kinematic arm):
-        IK on the branch the NF's way to the goal carries along, the twist carried to the
-        joints at the same E0 / k_p; None where the arm cannot reach it."""
+        IK (``q`` where given, else ``solver``'s or Drake's) on the branch the NF's way to
+        the goal carries along, the twist carried to the joints at the same E0 / k_p; None
+        where the arm cannot reach it."""
         from geovs_drake.analysis.sweep.starts import kinetic_energy
         from geovs_drake.goal.arm import (
             Unreachable,
             chart_path,
+            chart_poses,
             joint_velocity_for,
             solve_joints,
             start_branch,
         )
 
         X_WC = config.X_WB @ RigidTransform(X)
-        try:
-            q = solve_joints(self.model, X_WC)
-        except Unreachable:
-            return None
-        # The start's whole turns from the joints carried along the NF's way to the goal.
-        path = chart_path(config, self.domain, RigidTransform(X))
+        if q is None and self.solver is not None:
+            q, reached = self.solver(X_WC.rotation().matrix()[None], X_WC.translation()[None])
+            if not reached[0]:
+                return None
+            q = q[0]
+        elif q is None:
+            try:
+                q = solve_joints(self.model, X_WC)
+            except Unreachable:
+                return None
+        # The start's whole turns from the joints carried along the NF's way to the goal
+        # (the compiled path takes the poses as arrays, the plant's as RigidTransforms).
+        chart = chart_path if self.follow is None else chart_poses
+        path = chart(config, self.domain, RigidTransform(X))
         goal = config.X_WB @ config.X_BC_goal
         q = start_branch(self.model, q, X_WC, goal, path, self.follow)
         v = None
