@@ -118,7 +118,9 @@ def run_cli(capsys: pytest.CaptureFixture[str]) -> Callable[..., CliRun]:
 #: The files whose tests run the arm's compiled batch kernels: last, since make test
 #: starts pytest while the warm-up's arm half still compiles them (about 45 s of CPU on a
 #: fresh clone), so that they find them in the cache rather than compile them again.
-ARM_KERNEL_FILES = ("test_arm_tree.py", "test_batch_arm.py", "test_batch_arm_pinhole.py")
+ARM_KERNEL_FILES = (
+    "test_arm_tree.py", "test_batch_arm.py", "test_batch_arm_pinhole.py", "test_arm_start_ik.py",
+)  # fmt: skip
 
 
 #: Items that run longest, started first so that pytest-xdist's workers finish together

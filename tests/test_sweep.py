@@ -177,6 +177,34 @@ def test_a_sweep_below_the_cluster_size_runs_here_on_workers_threads(monkeypatch
         sweep.run_sweep(config, starts, 1.0, engine="drake", workers=2)
 
 
+def test_in_process_the_next_parts_starts_are_prepared_while_a_part_runs(monkeypatch):
+    """Each part's starts are drawn once, on the helper thread (the arm's IK beside the
+    integration), and the rows are those of the parts run start to end one by one."""
+    import threading
+
+    prepare = sweep.run.prepare_part
+    threads: list[str] = []
+
+    def recording(part):
+        threads.append(threading.current_thread().name)
+        return prepare(part)
+
+    monkeypatch.setattr(sweep.run, "prepare_part", recording)
+    config = ScenarioConfig()
+    starts = sweep.SampledStarts(6, seed=2, velocity="bounded")
+    ahead = sweep.run_sweep(config, starts, 0.5, workers=1, chunk=2)
+    assert len(threads) == 3 and all(name.startswith("next-part") for name in threads)
+    from geovs_drake.analysis.sweep.parts import Part, run_part
+
+    text = yaml_dump_typed(config)
+    one_by_one = [
+        run_part(Part(text, i, 2 * i, 2 * i + 2, 0.5, "batch", seed=2, velocity="bounded"))[1]
+        for i in range(3)
+    ]
+    rows = pd.concat([t.to_pandas() for t in one_by_one], ignore_index=True)
+    pd.testing.assert_frame_equal(ahead.table.reset_index(drop=True), rows, check_like=True)
+
+
 def test_the_merged_summary_is_the_summary_of_the_rows():
     """Counts, extrema and the guarantee's counts exactly; the convergence-time
     quantiles within the histogram's stated bound of numpy's inverted-CDF quantiles."""

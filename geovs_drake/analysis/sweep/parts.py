@@ -48,6 +48,8 @@ __all__ = [
     "part_name",
     "read_part_summary",
     "row_fields",
+    "PartStarts",
+    "prepare_part",
     "run_part",
 ]
 
@@ -162,9 +164,40 @@ def _worker_parameters(config_yaml: str) -> LoopParameters:
     return loop_parameters(_worker_config(config_yaml))
 
 
-def run_part(part: Part, name: str | None = None) -> tuple[dict, object | None]:
+@dataclass(frozen=True)
+class PartStarts:
+    """A part's starts before it runs (:func:`prepare_part`): the camera poses ``X_BC``
+    (n, 4, 4), the body twists ``twists`` (n, 6) and, on an arm, each start's joints
+    ``joints`` (``(q, v)``, or None where the arm cannot reach it; None off the arm)."""
+
+    X_BC: np.ndarray
+    twists: np.ndarray
+    joints: list | None = None
+
+
+def prepare_part(part: Part) -> PartStarts:
+    """A part's starts: drawn (or given), and on an arm carried to its joints (IK, the
+    branch, the twist to the joints: :class:`_ArmStarts`). It calls no parallel kernel,
+    so a sweep in one process prepares the next part on a thread of its own while this
+    one integrates (the arm's IK is about half of its sweep's CPU time)."""
+    config = _worker_config(part.config_yaml)
+    p = part.parameters or _worker_parameters(part.config_yaml)
+    n = part.last - part.first
+    if part.X_BC is None:
+        X_BC, twists = sample_starts(config, n, part.seed, part.velocity, part.first, p)
+    else:
+        X_BC, twists = part.X_BC, part.twists
+    joints = None
+    if config.carrier.traits.joints:
+        joints = _ArmStarts.of(config, p).part_joints(config, X_BC, twists)
+    return PartStarts(X_BC, twists, joints)
+
+
+def run_part(
+    part: Part, name: str | None = None, starts: PartStarts | None = None
+) -> tuple[dict, object | None]:
     """Run one part: (its summary as JSON, its pyarrow Table or None when written to
-    ``part.results / name``)."""
+    ``part.results / name``). ``starts``: its :func:`prepare_part`, if made already."""
     if part.single_thread:
         import numba
 
@@ -173,16 +206,13 @@ def run_part(part: Part, name: str | None = None) -> tuple[dict, object | None]:
         numba.set_num_threads(1)
     config = _worker_config(part.config_yaml)
     p = part.parameters or _worker_parameters(part.config_yaml)
-    n = part.last - part.first
-    if part.X_BC is None:
-        X_BC, twists = sample_starts(config, n, part.seed, part.velocity, part.first, p)
-    else:
-        X_BC, twists = part.X_BC, part.twists
+    starts = starts or prepare_part(part)
+    X_BC, twists = starts.X_BC, starts.twists
     run = _batch_columns if part.engine == "batch" else _drake_columns
     columns = {"start": np.arange(part.first, part.last, dtype=np.int64)}
     columns.update(_pose_columns(X_BC))
     columns.update(zip(_TWIST, np.asarray(twists, float).T, strict=True))
-    columns.update(run(config, p, X_BC, twists, part.duration))
+    columns.update(run(config, p, starts, part.duration))
     columns["end"] = run_ends(columns)
     summary = SweepSummary.of_rows(config, part.duration, columns).to_json()
     table = _table(columns, summary)
@@ -210,11 +240,12 @@ def _pose_columns(X_BC: np.ndarray, prefix: str = "") -> dict[str, np.ndarray]:
 
 
 def _batch_columns(
-    config: ScenarioConfig, p: LoopParameters, X_BC, twists, duration: float
+    config: ScenarioConfig, p: LoopParameters, starts: PartStarts, duration: float
 ) -> dict[str, np.ndarray]:
     """The result columns of the batch engine's run."""
     if config.carrier.traits.joints:
-        return _arm_batch_columns(config, p, X_BC, twists, duration)
+        return _arm_batch_columns(config, starts, duration)
+    X_BC, twists = starts.X_BC, starts.twists
     dynamic = p.dynamic
     r = run_batch(config, X_BC, twists if dynamic else None, duration=duration, parameters=p)
     finite = np.all(np.isfinite(r.final_states), axis=1)
@@ -239,7 +270,7 @@ def _batch_columns(
 
 
 def _arm_batch_columns(
-    config: ScenarioConfig, p: LoopParameters, X_BC, twists, duration: float
+    config: ScenarioConfig, starts: PartStarts, duration: float
 ) -> dict[str, np.ndarray]:
     """The arm's columns from the batch engine (:mod:`geovs_drake.batch.arm_engine`):
     the same starts as the Drake engine's (:class:`_ArmStarts`: IK, the branch, the
@@ -253,13 +284,11 @@ def _arm_batch_columns(
     config.duration = duration
     resolved = resolve(config)
     arm_p = arm_loop_parameters(resolved)
-    starts = _ArmStarts.of(config, p)
     nv = arm_p.tree.nv
-    n = len(X_BC)
+    n = len(starts.X_BC)
     q0, v0 = np.zeros((n, nv)), np.zeros((n, nv))
     reached = np.zeros(n, bool)
-    at_rest = twists if config.dynamic else np.zeros((n, 6))
-    for i, joints in enumerate(starts.part_joints(config, X_BC, at_rest)):
+    for i, joints in enumerate(starts.joints):
         if joints is not None:
             reached[i], q0[i] = True, joints[0]
             v0[i] = 0.0 if joints[1] is None else joints[1]
@@ -311,7 +340,7 @@ def _final_joint_margin(tree, q: np.ndarray) -> np.ndarray:
 
 
 def _drake_columns(
-    config: ScenarioConfig, p: LoopParameters, X_BC, twists, duration: float
+    config: ScenarioConfig, p: LoopParameters, starts: PartStarts, duration: float
 ) -> dict[str, np.ndarray]:
     """The same columns, a start at a time through simulate() (slow: for cross-checks,
     and the only engine of the arm). Margins and energies are those of simulate()'s logs
@@ -323,20 +352,35 @@ def _drake_columns(
     twist times the ratio of the loops' k_p, so that E0 / k_p keeps the sampler's
     distribution (``velocity bounded``: E0 < k_p on the arm too)."""
     dynamic = config.dynamic
-    arm = _ArmStarts.of(config, p) if config.carrier.traits.joints else None  # once per part
-    # The arm's starts all at once (the compiled IK), the same as the batch engine's.
-    joints = [None] * len(X_BC) if arm is None else arm.part_joints(config, X_BC, twists)
+    X_BC, twists = starts.X_BC, starts.twists
+    # The arm's starts (the compiled IK, all at once), the same as the batch engine's.
+    arm = starts.joints is not None
+    joints = starts.joints if arm else [None] * len(X_BC)
     rows = []
     for X, twist, q_v in zip(X_BC, twists, joints, strict=True):
         c = copy.deepcopy(config)
         c.duration = duration
         c.initial = PoseConfig.from_rigid_transform(RigidTransform(X))
         c.initial_velocity = [float(v) for v in twist] if dynamic else [0.0] * 6
-        rows.append(_drake_row(c) if arm is None else arm.row(c, q_v))
+        rows.append(_arm_row(c, q_v) if arm else _drake_row(c))
     names = [k for k in row_fields(config) if k not in ("start", *_POSE, *_TWIST, "end")]
     return {
         k: np.array([r[k] for r in rows], dtype=object if k == "status" else None) for k in names
     }
+
+
+def _arm_row(config: ScenarioConfig, joints: tuple | None) -> dict:
+    """:func:`_drake_row` on the arm from the start's ``joints`` (:meth:`_ArmStarts.part_joints`):
+    the arm starts there (``carrier.initial_joints``, so that the Drake loop runs from the
+    batch engine's joints), the twist carried to joint velocities."""
+    if joints is None:
+        return _stopped_row("unreachable")
+    q, v = joints
+    config.initial_velocity = [0.0] * 6
+    config.carrier.initial_joints = [float(x) for x in q]
+    if v is not None:
+        config.carrier.initial_joint_velocity = [float(x) for x in v]
+    return _drake_row(config)
 
 
 def _stopped_row(status: str) -> dict:
@@ -377,19 +421,6 @@ class _ArmStarts:
         follow = PathFollower(arm_tree(model))
         solver = StartSolver(model)
         return cls(model, free_twin(config), p, ratio, resolved.domain, follow, solver)
-
-    def row(self, config: ScenarioConfig, joints: tuple | None) -> dict:
-        """:func:`_drake_row` on the arm from the start's ``joints`` (:meth:`part_joints`):
-        the arm starts there (``carrier.initial_joints``, so that the Drake loop runs
-        from the batch engine's joints), the twist carried to joint velocities."""
-        if joints is None:
-            return _stopped_row("unreachable")
-        q, v = joints
-        config.initial_velocity = [0.0] * 6
-        config.carrier.initial_joints = [float(x) for x in q]
-        if v is not None:
-            config.carrier.initial_joint_velocity = [float(x) for x in v]
-        return _drake_row(config)
 
     def part_joints(self, config: ScenarioConfig, X_BC: np.ndarray, twists) -> list:
         """:meth:`joints` of each of the part's starts X_BC (n, 4, 4), the IK of all of
