@@ -56,7 +56,7 @@ __all__ = [
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
 #: The compiled IK's Levenberg-Marquardt steps from a seed at most.
 IK_ITERATIONS = 100
-#: The bias of its damping, lambda = |e|^2 / 2 + bias [m^2, rad^2] (Sugihara 2011).
+#: The bias of its damping, ``lambda = |e|^2 / 2 + bias`` [m^2, rad^2] (Sugihara 2011).
 IK_BIAS = 1e-6
 #: Its Newton steps to rounding after a seed converges (goal.arm's refinement's).
 IK_REFINE = 4

@@ -32,7 +32,7 @@ SINGULARITY_WEIGHT = 10.0
 #: Scores closer than this [rad] tie. Two solutions that differ by 2 pi in a joint away
 #: from its limits have the same J_C and the same margin: their scores differ by rounding
 #: alone, which the BLAS kernel decides (the UR5's goal: wrist 1 at -2.54 or +3.74 rad).
-#: A tie goes to the solution nearer q = 0 (the smaller |q|), whatever the seeds' order.
+#: A tie goes to the solution nearer q = 0 (the smaller ``|q|``), whatever the seeds' order.
 IK_SCORE_TIE = 1e-9
 
 
