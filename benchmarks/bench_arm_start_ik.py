@@ -113,7 +113,10 @@ def main() -> None:
                    "Drake's InverseKinematics (solve_joints, 13 SNOPT solves)", drake * 1e3)
         )  # fmt: skip
     record(
-        "bench_arm_start_ik", "The sweep's compiled IK against Drake's", figures, "; ".join(notes)
+        "bench_arm_start_ik",
+        "The compiled IK of the sweep against Drake InverseKinematics",
+        figures,
+        "; ".join(notes),
     )
 
 
