@@ -6,6 +6,7 @@ parameters from the diagram and integrates with its own kernels.
 """
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from geovs_drake.analysis import sweep
@@ -136,3 +137,16 @@ def test_the_batch_engine_s_clamp_flag_is_drake_s_torque_against_the_effort_limi
         p, goal, r.states[0][None, :nv], None, 0.1, 1e-6, convergence_tolerance(resolved)
     )
     assert bool(b.torque_clamped[0]) is clamped
+
+
+@pytest.mark.parametrize("sensor", [Exact(), Pinhole()], ids=["exact", "pinhole"])
+def test_the_arm_integrators_give_the_same_rows_on_one_thread_and_on_two(sensor):
+    """The arm's batch integrators run their starts in slices on threads
+    (``batch._threads.over_starts``): the slices' rows are those of one thread's run,
+    bit for bit, the free engine's too (its pinhole integrator shares the slicing)."""
+    for config in (ScenarioConfig(carrier=Arm(), sensor=sensor), ScenarioConfig(sensor=sensor)):
+        starts = sweep.SampledStarts(6, seed=11, velocity="bounded")
+        one = sweep.run_sweep(config, starts, 0.3, workers=1, chunk=6).table
+        two = sweep.run_sweep(config, starts, 0.3, workers=2, chunk=6).table
+        assert (one["status"] != "unreachable").any()
+        pd.testing.assert_frame_equal(one, two)

@@ -124,12 +124,15 @@ MAX_MODULE_LINES, MAX_FUNCTION_LINES = 650, 100
 def _template_factory(node: ast.FunctionDef) -> bool:
     """A TemplateSystem factory (``@template_system(...)``): one system's whole class,
     its ports and calculations, exempt from the function size like generated code; and
-    a numba kernel's parallel loop (``@njit(parallel=True)``), kept whole: the batch
-    engine's integrator with its Bogacki-Shampine step as a kernel of its own ran the
-    kinematic 10^4 starts 1.6 times slower (2.65 s against 4.18 s in _integrate alone,
-    measured here; inline="always" did not recover it)."""
+    a batch integrator's loop over its starts (``@njit(parallel=True)``, or
+    ``@batch_kernel``, which ``geovs_drake.batch._threads.over_starts`` runs on threads),
+    kept whole: the batch engine's integrator with its Bogacki-Shampine step as a kernel
+    of its own ran the kinematic 10^4 starts 1.6 times slower (2.65 s against 4.18 s in
+    _integrate alone, measured here; inline="always" did not recover it)."""
     return any(
-        "template_system" in ast.unparse(d) or "parallel=True" in ast.unparse(d)
+        ast.unparse(d) == "batch_kernel"
+        or ast.unparse(d).startswith("template_system")
+        or "parallel=True" in ast.unparse(d)
         for d in node.decorator_list
     )
 

@@ -22,11 +22,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from geovs_drake.batch._checks import JOINT_LIMIT as _JOINT_LIMIT
 from geovs_drake.batch._checks import joint_margin as _joint_margin
 from geovs_drake.batch._checks import state_status as _state_status
+from geovs_drake.batch._threads import batch_kernel, over_starts
 from geovs_drake.batch.arm_rhs import (
     SCRATCH_ROWS,
     ArmLoopParameters,
@@ -87,7 +88,12 @@ def _camera_poses(dynamic, X, tree, p, ws_columns):
     return poses
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
+#: :func:`_advance_arm`'s arguments over the starts (:func:`~._threads.over_starts`
+#: splits them): X, H, POSES, Y, THEN, PRED, the records ``rec`` and min_m.
+_ADVANCE_PER_START = (1, 2, 3, 6, 7, 8, 9, 10)
+
+
+@batch_kernel
 def _advance_arm(
     dynamic, X, H, POSES, t0, t1, Y, THEN, PRED, rec, min_m, tree, p, ws_columns, settings
 ):
@@ -103,7 +109,7 @@ def _advance_arm(
     nv = tree[0].shape[0]
     joint = tree[6]
     adaptive = accuracy > 0
-    for i in prange(n):
+    for i in range(n):
         if status[i] != 1:
             continue
         scratch = _scratch(nv, ws_columns)
@@ -244,10 +250,11 @@ def run_arm_sampled(p: ArmLoopParameters, X0: np.ndarray, settings: dict, lost: 
     POSES = _camera_poses(p.dynamic, X, tree, vectors, columns)
 
     def advance(t0, t1, Y, THEN, PRED) -> None:
-        _advance_arm(
+        args = (
             p.dynamic, X, H, POSES, float(t0), float(t1), Y, THEN, PRED, rec, min_m, tree,
             vectors, columns, step,
         )  # fmt: skip
+        over_starts(_advance_arm, args, _ADVANCE_PER_START)
 
     frame_clock(cam, lambda: POSES, advance, status, t_stop, settings, lost)
     t_conv = np.full(n, np.nan)

@@ -39,10 +39,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from geovs_drake.batch._checks import state_status as _state_status
 from geovs_drake.batch._generated.predicted import predicted_image
+from geovs_drake.batch._threads import batch_kernel, over_starts
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
 
@@ -181,7 +182,12 @@ def _law_rhs(kinematic, x, y_held, then, predict, out, p_cam, p_nav, p_ctrl, p_b
     return cam, body[_KINETIC]
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
+#: :func:`_advance`'s arguments over the starts (:func:`~._threads.over_starts` splits
+#: them): X, H, Y, THEN, PRED and the records from status to err_r.
+_ADVANCE_PER_START = (1, 2, 5, 6, 7, *range(8, 19))
+
+
+@batch_kernel
 def _advance(
     kinematic,
     X,
@@ -220,7 +226,7 @@ def _advance(
     checks and records, the next step size kept in ``H``."""
     n, dim = X.shape
     adaptive = accuracy > 0
-    for i in prange(n):
+    for i in range(n):
         if status[i] != 1:
             continue
         x = X[i].copy()
@@ -423,12 +429,13 @@ def run_sampled(kinematic: bool, X0: np.ndarray, p, cam: SampledCamera, run: dic
     err_p, err_r = np.full(n, np.nan), np.full(n, np.nan)
 
     def advance(t0, t1, Y, THEN, PRED) -> None:
-        _advance(
+        args = (
             kinematic, X, H, t0, t1, Y, THEN, PRED, status, t_stop, steps, min_m, L0,
             max_ratio, max_rise, prev_L, inside, err_p, err_r, p.camera, p.navigation,
             p.controller, p.body, p.pose_error, cam.predictor, float(p.potential_gain),
             run["max_step"], run["accuracy"], run["tol_p2"], run["tol_r2"],
         )  # fmt: skip
+        over_starts(_advance, args, _ADVANCE_PER_START)
 
     frame_clock(cam, lambda: X[:, :_POSE], advance, status, t_stop, run)
     t_conv = np.full(n, np.nan)

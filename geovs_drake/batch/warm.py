@@ -12,14 +12,16 @@ in two processes side by side (each kernel compiles in one process, on one core)
   its cascade's and level view's) and the batch engine's for the free rig
   (:func:`~geovs_drake.batch.engine.run_batch` on each plant, with the exact sensor and
   the sampled camera), and the arm's start path
-  (:func:`~geovs_drake.batch.arm_ik.warm_arm_ik`): about 26 s of CPU cold without it;
+  (:func:`~geovs_drake.batch.arm_ik.warm_arm_ik`): about 32 s of CPU cold;
 * :func:`warm_arm`: the sweep's compiled IK of the arm's starts
   (:func:`~geovs_drake.batch.arm_ik.warm_start_solver`), the arm's compiled loop and its
   batch integrators (:func:`~geovs_drake.batch.arm_rhs.warm_arm_loop`,
-  :func:`~geovs_drake.batch.arm_engine.warm_arm_engine`): about 44 s.
+  :func:`~geovs_drake.batch.arm_engine.warm_arm_engine`), and the sweep's compiled IK:
+  about 34 s (50 s while the arm's integrators were ``prange`` loops:
+  :mod:`geovs_drake.batch._threads`).
 
-Measured on a fresh clone: 70 s of CPU in one process, so the halves side by side take
-the arm's 44 s of wall time on two cores. Running it changes no result: a warm cache is
+Measured with an empty cache (``NUMBA_CACHE_DIR``), one half after the other: 32 s and
+34 s of CPU, so the halves side by side take about 35 s of wall time on two free cores. Running it changes no result: a warm cache is
 what every later run of the same checkout uses anyway.
 """
 
