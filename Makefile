@@ -16,6 +16,13 @@ endif
 # make test stopped at the install, "invalid peer certificate: UnknownIssuer"). Exported:
 # the wheel check (tools/check_wheel.py) installs through uv too.
 export UV_SYSTEM_CERTS := 1
+# Python writes its bytecode beside the sources (in __pycache__, ignored by git, where
+# numba's cache already lives), whatever the calling shell says: with
+# PYTHONDONTWRITEBYTECODE set every one of make test's some forty Python processes
+# (pytest's workers, the notebooks' kernels, the CLI's subprocesses, the wheel check's)
+# compiled the package's and its dependencies' sources again (the CLI alone about 3 s of
+# CPU a start, measured here).
+unexport PYTHONDONTWRITEBYTECODE
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
