@@ -343,10 +343,11 @@ def _in_process(todo: list[tuple[Part, str]], threads: int) -> Iterator[tuple[di
     """The parts run here one after the other, each on ``threads`` numba threads (at
     most numba's pool); numba's thread count is restored afterwards.
 
-    While a part integrates (a parallel numba kernel that releases the GIL), a thread
-    prepares the next part's starts (:func:`~.parts.prepare_part`: no parallel kernel, so
-    never two launches into numba's pool at once). On the arm that is its IK and branch,
-    Python and serial kernels on one core, about half of the sweep's CPU time."""
+    While a part integrates (numba kernels on ``threads`` threads, the GIL released), a
+    thread prepares the next part's starts (:func:`~.parts.prepare_part`: it calls no
+    parallel kernel, so never two launches into numba's pool at once). On the arm that is
+    its IK and branch, Python and serial kernels on one core, about half of the sweep's
+    CPU time."""
     import numba
 
     before = numba.get_num_threads()
