@@ -37,6 +37,7 @@ from numba import njit
 
 from geovs_drake.batch import arm_kernels as _k
 from geovs_drake.batch.arm_tree import ArmTree, arm_tree
+from geovs_drake.geometry.so3 import rotation_to_quaternion
 from geovs_drake.systems.arm_model import ArmModel
 
 __all__ = [
@@ -85,7 +86,7 @@ def _newton_step(q, R_t, p_t, damping, tree, scratch):
             for k in range(3):
                 s += R_WC[k, r] * R_t[k, c]
             R_err[r, c] = s
-    _k.rotation_to_quaternion(R_err, quat)  # w >= 0
+    rotation_to_quaternion(R_err, quat)  # w >= 0
     s = math.sqrt(quat[1] * quat[1] + quat[2] * quat[2] + quat[3] * quat[3])
     angle = 2.0 * math.atan2(s, quat[0])
     scale = angle / s if s > 0.0 else 2.0  # (axis angle / |v|, its limit 2 at w = 1)

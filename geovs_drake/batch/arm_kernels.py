@@ -39,7 +39,6 @@ __all__ = [
     "inverse_dynamics",
     "mass_matrix",
     "min_singular_value",
-    "rotation_to_quaternion",
 ]
 
 #: Joint kinds in the tree's ``kind`` array.
@@ -305,49 +304,6 @@ def camera_jacobian_W(camera_body, parent, index, p_WC, ws, J):
         J[4, c] = ws[j, _S + 4] + s2 * p_WC[0] - s0 * p_WC[2]
         J[5, c] = ws[j, _S + 5] + s0 * p_WC[1] - s1 * p_WC[0]
         j = parent[j]
-
-
-@njit(**_JIT)
-def rotation_to_quaternion(R, out):
-    """The unit quaternion [w, x, y, z] of R (3 x 3) into ``out``, w >= 0, by the branch
-    on the largest of the trace and the diagonal (Shepperd's method, as Drake's
-    ``RotationMatrix::ToQuaternion``)."""
-    trace = R[0, 0] + R[1, 1] + R[2, 2]
-    if trace >= R[0, 0] and trace >= R[1, 1] and trace >= R[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + trace)
-        w, x, y, z = (
-            0.25 * s,
-            (R[2, 1] - R[1, 2]) / s,
-            (R[0, 2] - R[2, 0]) / s,
-            (R[1, 0] - R[0, 1]) / s,
-        )
-    elif R[0, 0] >= R[1, 1] and R[0, 0] >= R[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
-        w, x, y, z = (
-            (R[2, 1] - R[1, 2]) / s,
-            0.25 * s,
-            (R[0, 1] + R[1, 0]) / s,
-            (R[0, 2] + R[2, 0]) / s,
-        )
-    elif R[1, 1] >= R[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
-        w, x, y, z = (
-            (R[0, 2] - R[2, 0]) / s,
-            (R[0, 1] + R[1, 0]) / s,
-            0.25 * s,
-            (R[1, 2] + R[2, 1]) / s,
-        )
-    else:
-        s = 2.0 * math.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
-        w, x, y, z = (
-            (R[1, 0] - R[0, 1]) / s,
-            (R[0, 2] + R[2, 0]) / s,
-            (R[1, 2] + R[2, 1]) / s,
-            0.25 * s,
-        )
-    sign = -1.0 if w < 0.0 else 1.0
-    norm = sign / math.sqrt(w * w + x * x + y * y + z * z)
-    out[0], out[1], out[2], out[3] = w * norm, x * norm, y * norm, z * norm
 
 
 @njit(**_JIT)

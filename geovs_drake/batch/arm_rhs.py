@@ -41,6 +41,7 @@ from geovs_drake.batch import arm_kernels as _k
 from geovs_drake.batch._generated.predicted import predicted_image
 from geovs_drake.batch.arm_tree import ArmTree, arm_tree, warm_arm_kernels
 from geovs_drake.geometry import kernels
+from geovs_drake.geometry.so3 import rotation_to_quaternion
 
 if TYPE_CHECKING:
     from geovs_drake.batch.sampled import SampledCamera
@@ -224,7 +225,7 @@ def arm_rhs(parameters: ArmLoopParameters, x: np.ndarray) -> np.ndarray:
 def _camera_state(dynamic, x, n, R_WC, p_WC, J, state):
     """ArmCamera's ``camera_state`` [q_WC, p_WC, w_WC_W, v_WCo_W] (13) into ``state``:
     the pose from R_WC, the twist J_C v in W (zero on the kinematic arm)."""
-    _k.rotation_to_quaternion(R_WC, state)
+    rotation_to_quaternion(R_WC, state)
     for r in range(3):
         state[4 + r] = p_WC[r]
     for r in range(6):

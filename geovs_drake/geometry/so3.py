@@ -1,13 +1,19 @@
-"""SO(3) helpers: hat, vee, the exponential and its inverse (theta u), scalar-generic.
+"""SO(3) helpers: hat, vee, the exponential and its inverse (theta u), scalar-generic;
+and a rotation's quaternion, compiled.
 
 Used by the tests, the Hessian and the chart of :mod:`geovs_drake.analysis`,
 and by the position-based baselines' theta u (:mod:`geovs_drake.geometry.baselines`);
-not on the NF servo's hot path.
+not on the NF servo's hot path. :func:`rotation_to_quaternion` (numba) is the one
+Shepperd's method of the package: the arm's compiled kernels call it for a state, the
+loop's initial states (:func:`rotations_to_quaternions`) for a batch of poses.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 from geovs_drake.geometry._ops import namespace, to_float
 
@@ -107,3 +113,55 @@ def so3_log(R: np.ndarray) -> np.ndarray:
     if dot < 0 or (dot == 0 and float(to_float(u[np.argmax(np.abs(to_float(u)))])) < 0):
         u = -u
     return theta * u
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def rotation_to_quaternion(R, out):
+    """The unit quaternion [w, x, y, z] of R (3 x 3) into ``out``, w >= 0, by the branch
+    on the largest of the trace and the diagonal (Shepperd's method, as Drake's
+    ``RotationMatrix::ToQuaternion``)."""
+    trace = R[0, 0] + R[1, 1] + R[2, 2]
+    if trace >= R[0, 0] and trace >= R[1, 1] and trace >= R[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + trace)
+        w, x, y, z = (
+            0.25 * s,
+            (R[2, 1] - R[1, 2]) / s,
+            (R[0, 2] - R[2, 0]) / s,
+            (R[1, 0] - R[0, 1]) / s,
+        )
+    elif R[0, 0] >= R[1, 1] and R[0, 0] >= R[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
+        w, x, y, z = (
+            (R[2, 1] - R[1, 2]) / s,
+            0.25 * s,
+            (R[0, 1] + R[1, 0]) / s,
+            (R[0, 2] + R[2, 0]) / s,
+        )
+    elif R[1, 1] >= R[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
+        w, x, y, z = (
+            (R[0, 2] - R[2, 0]) / s,
+            (R[0, 1] + R[1, 0]) / s,
+            0.25 * s,
+            (R[1, 2] + R[2, 1]) / s,
+        )
+    else:
+        s = 2.0 * math.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
+        w, x, y, z = (
+            (R[1, 0] - R[0, 1]) / s,
+            (R[0, 2] + R[2, 0]) / s,
+            (R[1, 2] + R[2, 1]) / s,
+            0.25 * s,
+        )
+    sign = -1.0 if w < 0.0 else 1.0
+    norm = sign / math.sqrt(w * w + x * x + y * y + z * z)
+    out[0], out[1], out[2], out[3] = w * norm, x * norm, y * norm, z * norm
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def rotations_to_quaternions(R):
+    """:func:`rotation_to_quaternion` of each rotation R (N, 3, 3): the quaternions (N, 4)."""
+    out = np.empty((R.shape[0], 4))
+    for i in range(R.shape[0]):
+        rotation_to_quaternion(R[i], out[i])
+    return out

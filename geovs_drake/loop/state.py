@@ -22,6 +22,7 @@ from geovs_drake.geometry.rigid import (
     rig_velocity,
     target_twist_from_camera,
 )
+from geovs_drake.geometry.so3 import rotations_to_quaternions
 from geovs_drake.scenario import ScenarioConfig
 
 __all__ = [
@@ -82,11 +83,12 @@ def initial_body_states(
         return _initial_target_states(config, X_BC, twists)
     X_RC = config.X_RC if dynamic else RigidTransform()
     X_RC_inv = X_RC.inverse()
-    # X_W = X_WB X_BC X_RC^-1 for all starts at once (a sweep's 10^4: one RigidTransform
-    # each cost 22 us a start, twice per sweep, the sampler's energy and the engine's).
+    # X_W = X_WB X_BC X_RC^-1 for all starts at once, the quaternions compiled (a sweep's
+    # 10^4: one RigidTransform each cost 22 us a start, twice per sweep, the sampler's
+    # energy and the engine's).
     X_W = config.X_WB.GetAsMatrix4() @ X_BC @ X_RC_inv.GetAsMatrix4()
     states = np.zeros((n, 13 if dynamic else 7))
-    states[:, QUATERNION] = _quaternions(X_W[:, :3, :3])
+    states[:, QUATERNION] = rotations_to_quaternions(np.ascontiguousarray(X_W[:, :3, :3]))
     states[:, POSITION] = X_W[:, :3, 3]
     if dynamic and twists is not None:
         twists = np.asarray(twists, dtype=float).reshape(n, 6)
@@ -97,66 +99,6 @@ def initial_body_states(
         )
         states[:, VELOCITY] = np.stack(np.broadcast_arrays(*velocity), axis=-1)
     return states
-
-
-def _quaternions(R: np.ndarray) -> np.ndarray:
-    """The unit quaternions ``[w, x, y, z]`` (N, 4), w >= 0, of rotations R (N, 3, 3):
-    Drake's ``RotationMatrix::ToQuaternion`` on a batch (Shepperd's method: the branch on
-    the largest of the trace and the diagonal, then w made non-negative)."""
-    R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
-    d0, d1, d2 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
-    trace = d0 + d1 + d2
-    # The four candidates' 4 |q_k|^2 = 1 + 2 R_kk - trace (k = x, y, z), 1 + trace (w):
-    # the largest gives the best-conditioned square root.
-    big = np.argmax(np.stack([trace, d0, d1, d2], axis=-1), axis=-1)
-    q = np.empty((len(R), 4))
-    r = np.arange(len(R))
-    for k, (wq, xq, yq, zq) in enumerate(_SHEPPERD):
-        on = r[big == k]
-        if len(on) == 0:
-            continue
-        M = R[on]
-        s = 2.0 * np.sqrt(1.0 + _diagonal_sum(M, k))
-        q[on] = np.stack([f(M, s) for f in (wq, xq, yq, zq)], axis=-1)
-    q /= np.linalg.norm(q, axis=-1, keepdims=True)
-    return np.where(q[:, :1] < 0, -q, q)
-
-
-def _diagonal_sum(M: np.ndarray, k: int) -> np.ndarray:
-    """``trace`` (k = 0) or ``2 R_kk - trace`` (k = 1, 2, 3 for x, y, z): 4 |q_k|^2 - 1."""
-    d = (M[:, 0, 0], M[:, 1, 1], M[:, 2, 2])
-    if k == 0:
-        return d[0] + d[1] + d[2]
-    return 2 * d[k - 1] - (d[0] + d[1] + d[2])
-
-
-#: Shepperd's four branches: (w, x, y, z) from R and s = 4 |q_k| for the largest k.
-_SHEPPERD = (
-    (
-        lambda M, s: 0.25 * s,
-        lambda M, s: (M[:, 2, 1] - M[:, 1, 2]) / s,
-        lambda M, s: (M[:, 0, 2] - M[:, 2, 0]) / s,
-        lambda M, s: (M[:, 1, 0] - M[:, 0, 1]) / s,
-    ),
-    (
-        lambda M, s: (M[:, 2, 1] - M[:, 1, 2]) / s,
-        lambda M, s: 0.25 * s,
-        lambda M, s: (M[:, 0, 1] + M[:, 1, 0]) / s,
-        lambda M, s: (M[:, 0, 2] + M[:, 2, 0]) / s,
-    ),
-    (
-        lambda M, s: (M[:, 0, 2] - M[:, 2, 0]) / s,
-        lambda M, s: (M[:, 0, 1] + M[:, 1, 0]) / s,
-        lambda M, s: 0.25 * s,
-        lambda M, s: (M[:, 1, 2] + M[:, 2, 1]) / s,
-    ),
-    (
-        lambda M, s: (M[:, 1, 0] - M[:, 0, 1]) / s,
-        lambda M, s: (M[:, 0, 2] + M[:, 2, 0]) / s,
-        lambda M, s: (M[:, 1, 2] + M[:, 2, 1]) / s,
-        lambda M, s: 0.25 * s,
-    ),
-)
 
 
 def _initial_target_states(
