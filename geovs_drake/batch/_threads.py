@@ -1,23 +1,26 @@
-"""The pinhole's batch integrators' starts on threads: serial numba kernels that release
-the GIL.
+"""The batch integrators' starts on threads: serial numba kernels that release the GIL.
 
-The two integrators of the sampled camera (:mod:`~geovs_drake.batch.sampled`, the free
-rig's, and :mod:`~geovs_drake.batch.arm_sampled`, the arm's) are each one loop over
-independent starts. They were ``prange`` loops (``@njit(parallel=True)``), whose parfor
-passes cost some 8 s of compiling a kernel. Now each is a serial kernel
+Three batch integrators (:mod:`~geovs_drake.batch.sampled`,
+:mod:`~geovs_drake.batch.arm_engine`, :mod:`~geovs_drake.batch.arm_sampled`) are each
+one loop over independent starts. They were ``prange`` loops (``@njit(parallel=True)``),
+whose parfor passes cost some 8 s of compiling a kernel. Now each is a serial kernel
 (:data:`batch_kernel`, ``nogil``) and :func:`over_starts` runs it on slices of the
 starts side by side, one slice per numba thread (``numba.get_num_threads()``, which a
 sweep sets per part), the same static split as the ``prange`` loop's OpenMP schedule. A
 start's arithmetic is the same, so the results are the same bit for bit (eight sweeps,
-both carriers, plants and sensors: identical rows). Their runs are bound by each
-frame's measurement in Python, not by the kernel.
+both carriers, plants and sensors: identical rows). The warm-up's two halves went from
+36 s and 50 s of CPU on a cold cache to 32 s and 34 s. The price is the arm's exact
+integrator's speed: 10^4 UR5 starts x 10 s through the CLI took 50.8-52.6 s on threads
+against 42.4-47.4 s as a ``prange`` loop (alternating runs, load about 2). The
+``prange`` loop was tried back: its 18 s of compiling reached ``make test``'s critical
+path (pytest's workers compiled it again before the warm-up had), 233 s on a fresh
+clone against 201-214 s. The pinhole integrators' runs are bound by their frames'
+Python measurement, not by the kernel.
 
-The exact sensor's integrators (:func:`geovs_drake.batch.engine._integrate`,
-:func:`geovs_drake.batch.arm_engine._integrate_arm`) stay ``prange`` loops: the free
-rig's parfor loop ran 1.37 times faster than the same function serial (2000 starts x 10
-s on one thread: 1.86 s against 2.55 s), and 10^4 UR5 starts through the CLI took
-45.2-47.4 s with the arm's against 50.8-51.1 s on threads (alternating runs); they are
-the ones whose speed the sweep's targets name.
+The free rig's exact integrator (:func:`geovs_drake.batch.engine._integrate`) stays a
+``prange`` loop: there the parfor's compiled loop ran 1.37 times faster than the same
+function serial (2000 starts x 10 s on one thread: 1.86 s against 2.55 s), and its
+10^4 starts' 5-s target (docs/performance.md) has no room to give.
 """
 
 from __future__ import annotations

@@ -24,12 +24,13 @@ from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from geovs_drake.batch import arm_kernels as _k
 from geovs_drake.batch._checks import JOINT_LIMIT as _JOINT_LIMIT
 from geovs_drake.batch._checks import joint_margin as _joint_margin
 from geovs_drake.batch._checks import state_status as _state_status
+from geovs_drake.batch._threads import batch_kernel, over_starts
 from geovs_drake.batch.arm_rhs import (
     SCRATCH_ROWS,
     ArmLoopParameters,
@@ -70,7 +71,7 @@ def _rhs(dynamic, x, out, tree, p, scratch):
     )  # fmt: skip
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
+@batch_kernel
 def _integrate_arm(
     dynamic, X0, tree, p, ws_columns, k_p, p_err, h0, max_step, accuracy, t_end, tols
 ):
@@ -91,7 +92,7 @@ def _integrate_arm(
     steps = np.zeros(n, np.int64)
     final = X0.copy()
     adaptive = accuracy > 0
-    for i in prange(n):
+    for i in range(n):
         scratch = (
             np.zeros((nv, ws_columns)), np.zeros((6, nv)), np.zeros((nv, nv)),
             np.zeros((nv, nv)), np.zeros((6, 6)), np.zeros((6, 6)),
@@ -203,6 +204,12 @@ def _integrate_arm(
     )  # fmt: skip
 
 
+def _exact_arm(*args) -> tuple:
+    """:func:`_integrate_arm` with the exact sensor, X0's starts (its second argument) on
+    threads (:func:`~geovs_drake.batch._threads.over_starts`)."""
+    return over_starts(_integrate_arm, args, per_start=(1,))
+
+
 def run_arm_batch(
     p: ArmLoopParameters,
     X_WC_goal: np.ndarray,
@@ -233,7 +240,7 @@ def run_arm_batch(
     p_err = np.concatenate([np.eye(3).ravel(), np.zeros(3), goal[:3, :3].ravel(), goal[:3, 3]])
     max_step = p.max_step_size
     tols = np.array([tolerance[0] ** 2, 8.0 * math.sin(0.5 * tolerance[1]) ** 2])
-    names, integrate = ARM_STATUS_NAMES, _integrate_arm
+    names, integrate = ARM_STATUS_NAMES, _exact_arm
     if p.sampled is not None:  # the pinhole: the same arguments, its seeds and clock added
         names, integrate = (*ARM_STATUS_NAMES, "feature_lost"), partial(_sampled, p, seeds)
     out = integrate(

@@ -16,12 +16,11 @@ in two processes side by side (each kernel compiles in one process, on one core)
 * :func:`warm_arm`: the sweep's compiled IK of the arm's starts
   (:func:`~geovs_drake.batch.arm_ik.warm_start_solver`), the arm's compiled loop and its
   batch integrators (:func:`~geovs_drake.batch.arm_rhs.warm_arm_loop`,
-  :func:`~geovs_drake.batch.arm_engine.warm_arm_engine`): about 52 s, most of it the
-  exact integrator's ``prange`` loop (the pinhole's is a serial kernel on threads:
-  :mod:`geovs_drake.batch._threads`).
+  :func:`~geovs_drake.batch.arm_engine.warm_arm_engine`): about 34 s (50 s while the
+  arm's integrators were ``prange`` loops: :mod:`geovs_drake.batch._threads`).
 
 Measured with an empty cache (``NUMBA_CACHE_DIR``), one half after the other: 32 s and
-52 s of CPU, so the halves side by side take about 52 s of wall time on two free cores.
+34 s of CPU, so the halves side by side take about 35 s of wall time on two free cores.
 Running it changes no result: a warm cache is what every later run of the same checkout
 uses anyway.
 """
