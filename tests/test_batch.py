@@ -175,3 +175,32 @@ def test_the_warm_up_compiles_every_kernel_make_test_would_compile_side_by_side(
 
     for kernel in (quadrotor.cascade, quadrotor.level_image, quadrotor.level_state):
         assert quadrotor.for_scalar_type(kernel, float).signatures, kernel.__name__
+
+
+@pytest.mark.parametrize(
+    "scheme,order,steps",
+    # Steps in each pair's asymptotic range on the default start: above it the transient's
+    # stiffness, below it the tight run's own error (about 1e-9).
+    [("runge_kutta3", 3, (0.005, 0.0025)), ("runge_kutta5", 5, (0.02, 0.01))],
+)
+def test_the_pair_follows_the_loops_scheme_and_converges_at_its_order(scheme, order, steps):
+    """The loop's Drake scheme picks the engine's pair (Bogacki-Shampine 3(2) for RK3,
+    Dormand-Prince 5(4) for RK5), and its fixed-step error against the tight Drake run
+    shrinks at the pair's order: halving h divides it by about 2^order (8 or 32)."""
+    config = ScenarioConfig()
+    config.simulator.integration_scheme = scheme
+    p = loop_parameters(config)
+    assert p.fifth_order == (order == 5)
+    X_BC = config.X_BC_initial.GetAsMatrix4()[None]
+    truth = _drake_state_at(config, initial_body_states(config, X_BC)[0], 0.4)
+    errors = [
+        np.max(
+            np.abs(
+                run_batch(config, X_BC, duration=0.4, step=h, parameters=p).final_states[0] - truth
+            )
+        )
+        for h in steps
+    ]
+    ratio = errors[0] / errors[1]
+    print(f"\n{scheme}: fixed-step errors {errors[0]:.1e}, {errors[1]:.1e}: ratio {ratio:.1f}")
+    assert 0.6 * 2**order < ratio < 1.6 * 2**order
