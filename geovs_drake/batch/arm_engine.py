@@ -1,15 +1,17 @@
 """The arm in the batch engine: N starts of the arm's closed loop at once.
 
-The right-hand side is :func:`~geovs_drake.batch.arm_rhs.arm_loop_rhs` (the arm's
-tree kernels and the loop's, both plants, the effort limits clamped as MultibodyPlant
-clamps them); the integrator is the free rig's (:mod:`.engine`): Bogacki-Shampine 3(2),
-error-controlled per start at ``config.simulator.accuracy`` under the Drake loop's step
-limit, a step that would leave D rejected, every accepted state checked. The checks are
-the Drake loop's monitor's: the safe domain on the camera's pose (``left_domain``,
-``lost_visibility``, ``non_finite``) and the joints' position limits, which neither
-plant enforces (``joint_limit``: a joint outside ``[lower, upper]`` at an accepted
-state). The monitor's second joint check, a run pinned on a limit (500 steps within
-25 ms), is not made: a start that pins runs on to its horizon here, ``not_converged``.
+The right-hand side is :func:`~geovs_drake.batch.arm_rhs.arm_loop_rhs` (the arm's tree
+kernels and the loop's, both plants, the effort limits clamped as MultibodyPlant clamps
+them); the integrator is the free rig's (:mod:`.engine`): the pair of the loop's Drake
+scheme's order (Dormand-Prince 5(4) on the dynamic arm's RK5, Bogacki-Shampine 3(2) on
+the kinematic arm's RK3), error-controlled per start at ``config.simulator.accuracy``
+under the Drake loop's step limit, a step that would leave D rejected, every accepted
+state checked. The checks are the Drake loop's monitor's: the safe domain on the
+camera's pose (``left_domain``, ``lost_visibility``, ``non_finite``) and the joints'
+position limits, which neither plant enforces (``joint_limit``: a joint outside
+``[lower, upper]`` at an accepted state). The monitor's second joint check, a run pinned
+on a limit (500 steps within 25 ms), is not made: a start that pins runs on to its
+horizon here, ``not_converged``.
 
 The exact sensor or the pinhole camera (``sensor: !Pinhole``: its clock, latency,
 prediction and noise, :mod:`.arm_sampled`); the rendered camera on the arm runs through
@@ -30,6 +32,7 @@ from geovs_drake.batch import arm_kernels as _k
 from geovs_drake.batch._checks import JOINT_LIMIT as _JOINT_LIMIT
 from geovs_drake.batch._checks import joint_margin as _joint_margin
 from geovs_drake.batch._checks import state_status as _state_status
+from geovs_drake.batch._pairs import error_norm, pair_for, solution, stage_point
 from geovs_drake.batch._threads import batch_kernel, over_starts
 from geovs_drake.batch.arm_rhs import (
     SCRATCH_ROWS,
@@ -73,7 +76,7 @@ def _rhs(dynamic, x, out, tree, p, scratch):
 
 @batch_kernel
 def _integrate_arm(
-    dynamic, X0, tree, p, ws_columns, k_p, p_err, h0, max_step, accuracy, t_end, tols
+    dynamic, X0, tree, p, ws_columns, k_p, p_err, h0, max_step, accuracy, t_end, tols, pair
 ):
     n, dim = X0.shape
     nv = tree[0].shape[0]
@@ -92,6 +95,8 @@ def _integrate_arm(
     steps = np.zeros(n, np.int64)
     final = X0.copy()
     adaptive = accuracy > 0
+    A, B, E, exponent = pair
+    stages = B.shape[0]
     for i in range(n):
         scratch = (
             np.zeros((nv, ws_columns)), np.zeros((6, nv)), np.zeros((nv, nv)),
@@ -102,9 +107,7 @@ def _integrate_arm(
         x = X0[i].copy()
         xs = np.empty(dim)
         x_new = np.empty(dim)
-        k1 = np.empty(dim)
-        k2 = np.empty(dim)
-        k3 = np.empty(dim)
+        K = np.empty((stages, dim))  # the step's stages (geovs_drake.batch._pairs)
         d = np.empty(dim)
         nu, margins, phi, kinetic = _rhs(dynamic, x, d, tree, p, scratch)
         pose = vec[2, 0:_POSE].copy()  # the camera's [q_WC, p_WC] at x
@@ -146,33 +149,26 @@ def _integrate_arm(
             if t >= t_end:
                 break
             for j in range(dim):
-                k1[j] = d[j]
+                K[0, j] = d[j]
             accepted = False
             while True:
                 last = h >= t_end - t
                 if last:
                     h = t_end - t
                 h = min(h, max_step)
-                for j in range(dim):
-                    xs[j] = x[j] + 0.5 * h * k1[j]
-                _rhs(dynamic, xs, k2, tree, p, scratch)
-                for j in range(dim):
-                    xs[j] = x[j] + 0.75 * h * k2[j]
-                _rhs(dynamic, xs, k3, tree, p, scratch)
-                for j in range(dim):
-                    x_new[j] = x[j] + h * (2.0 / 9.0 * k1[j] + k2[j] / 3.0 + 4.0 / 9.0 * k3[j])
+                for s in range(1, stages):
+                    stage_point(A, s, x, h, K, xs)
+                    _rhs(dynamic, xs, K[s], tree, p, scratch)
+                solution(B, x, h, K, x_new)
                 nu, margins, phi, kinetic = _rhs(dynamic, x_new, d, tree, p, scratch)
                 grow = 1.0
                 if adaptive:
-                    err = 0.0
-                    for j in range(dim):
-                        ej = h * (-5.0 / 72.0 * k1[j] + k2[j] / 12.0 + k3[j] / 9.0 - d[j] / 8.0)
-                        err = max(err, abs(ej) / max(1.0, abs(x[j])))
+                    err = error_norm(E, x, h, K, d)
                     if not math.isfinite(err):
                         err = 1e300
                     outside = _state_status(x_new, nu, margins, phi) != 1
                     if err > accuracy or outside:
-                        shrink = 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** (1 / 3)
+                        shrink = 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** exponent
                         h *= max(0.2, shrink)
                         if h >= 1e-10:
                             continue
@@ -181,7 +177,7 @@ def _integrate_arm(
                         accepted = True
                         t += h
                         break
-                    grow = 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** (1.0 / 3.0))
+                    grow = 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** exponent)
                 accepted = True
                 t = t_end if last and h == t_end - t else t + h
                 h *= grow
@@ -247,7 +243,7 @@ def run_arm_batch(
         p.dynamic, X0, p.tree.kernel_args(),
         (p.camera, p.navigation, p.controller, p.arm, p.q_mid), _k.WS_COLUMNS,
         float(p.potential_gain), p_err, float(min(DEFAULT_STEP, max_step)), float(max_step),
-        float(accuracy), float(duration), tols,
+        float(accuracy), float(duration), tols, pair_for(p.scheme).kernel_args(),
     )  # fmt: skip
     status, t_stop, t_conv, err_p, err_r, min_m, L0, max_ratio, max_rise, steps, final = out[:11]
     return ArmBatchResult(
@@ -274,7 +270,7 @@ def run_arm_batch(
 
 def _sampled(
     p, seeds, dynamic, X0, tree, vectors, ws_columns, k_p, p_err, h0, max_step, accuracy,
-    duration, tols,
+    duration, tols, pair,
 ) -> tuple:  # fmt: skip
     """The pinhole's run (:func:`~geovs_drake.batch.arm_sampled.run_arm_sampled`) on
     :func:`_integrate_arm`'s arguments."""
@@ -286,7 +282,7 @@ def _sampled(
         raise ValueError(f"seeds must have one entry per start ({n}): shape {seeds.shape}")
     settings = dict(
         h0=h0, max_step=max_step, accuracy=accuracy, duration=duration, tols=tols,
-        p_err=p_err, ws_columns=ws_columns, seeds=seeds,
+        p_err=p_err, ws_columns=ws_columns, seeds=seeds, pair=pair,
     )  # fmt: skip
     return run_arm_sampled(p, X0, settings, len(ARM_STATUS_NAMES))
 

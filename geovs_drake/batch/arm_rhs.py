@@ -122,6 +122,9 @@ class ArmLoopParameters:
     max_step_size: float
     #: The pinhole camera's clock and measurement (:mod:`.sampled`); None: the exact y.
     sampled: SampledCamera | None = None
+    #: The loop's Drake integration scheme, as resolved: the engine steps with the pair
+    #: of its order (``geovs_drake.batch._pairs.pair_for``), under its step limit.
+    scheme: str = "runge_kutta3"
 
     @property
     def state_size(self) -> int:
@@ -208,6 +211,7 @@ def arm_loop_parameters(config) -> ArmLoopParameters:
         potential_gain=config.control.potential_gain if dynamic else 1.0,
         max_step_size=resolved.step_limit.max_step_size,
         sampled=sampled,
+        scheme=config.simulator.integration_scheme,
     )
 
 

@@ -1,21 +1,22 @@
 """The arm with the pinhole camera in the batch engine: the free rig's camera clock on the
 arm's loop.
 
-The Drake loop puts the pinhole sensor (:func:`geovs_drake.loop.sensors.add_pinhole_sensor`)
-on the arm's camera pose (``ArmCamera``'s or ``KinematicArm``'s, X_RC = I) and, with
-``prediction: odometry``, a :class:`~geovs_drake.systems.FramePredictor` on the same pose:
-the arm's own odometry, the camera pose from the joints. This module runs that on N starts
-with the sampled camera's clock, line, noise and refusals of :mod:`.sampled`
+The Drake loop puts the pinhole sensor
+(:func:`geovs_drake.loop.sensors.add_pinhole_sensor`) on the arm's camera pose
+(``ArmCamera``'s or ``KinematicArm``'s, X_RC = I) and, with ``prediction: odometry``, a
+:class:`~geovs_drake.systems.FramePredictor` on the same pose: the arm's own odometry,
+the camera pose from the joints. This module runs that on N starts with the sampled
+camera's clock, line, noise and refusals of :mod:`.sampled`
 (:func:`~geovs_drake.batch.sampled.frame_clock`: frames at the camera's rate and capture
 offset, each start's integration stopping at every frame, latency in frames, pixel noise
 from ``default_rng([seeds[i], k])``), measuring each frame at the camera pose the joints
 give, and between frames the arm's right-hand side with the law on the held (or
 predicted) frame (:func:`~geovs_drake.batch.arm_rhs.arm_loop_rhs_held`). The integrator,
-its checks and records are :mod:`.arm_engine`'s (Bogacki-Shampine 3(2) per start, a step
-that would leave D rejected, the joint limits checked at each accepted state); the safe
-domain, the energy and the pose error are the exact camera's at the state, as the Drake
-loop's monitor reads them. A start whose frames stay lost stops ``feature_lost``.
-"""
+its checks and records are :mod:`.arm_engine`'s (the pair of the loop's scheme's order
+per start, a step that would leave D rejected, the joint limits checked at each accepted
+state); the safe domain, the energy and the pose error are the exact camera's at the
+state, as the Drake loop's monitor reads them. A start whose frames stay lost stops
+``feature_lost``."""
 
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ from numba import njit
 from geovs_drake.batch._checks import JOINT_LIMIT as _JOINT_LIMIT
 from geovs_drake.batch._checks import joint_margin as _joint_margin
 from geovs_drake.batch._checks import state_status as _state_status
+from geovs_drake.batch._pairs import error_norm, solution, stage_point
 from geovs_drake.batch._threads import batch_kernel, over_starts
 from geovs_drake.batch.arm_rhs import (
     SCRATCH_ROWS,
@@ -104,7 +106,9 @@ def _advance_arm(
     camera pose at the last state in ``POSES`` (the next frame's)."""
     status, t_stop, steps, L0, prev_L, max_ratio, max_rise, inside, err_p, err_r, min_q = rec[:11]
     clamped = rec[11]
-    p_pred, p_err, tols, k_p, max_step, accuracy = settings
+    p_pred, p_err, tols, k_p, max_step, accuracy, pair = settings
+    A, B, E, exponent = pair
+    stages = B.shape[0]
     n, dim = X.shape
     nv = tree[0].shape[0]
     joint = tree[6]
@@ -117,7 +121,7 @@ def _advance_arm(
         x = X[i].copy()
         y, then, pred = Y[i], THEN[i], PRED[i]
         xs, x_new = np.empty(dim), np.empty(dim)
-        k1, k2, k3, d = np.empty(dim), np.empty(dim), np.empty(dim), np.empty(dim)
+        K, d = np.empty((stages, dim)), np.empty(dim)  # the stages (geovs_drake.batch._pairs)
         nu, margins, phi, kinetic = _rhs(dynamic, x, d, y, then, pred, p_pred, tree, p, scratch)
         pose = vec[_ROW_STATE, 0:_POSE].copy()
         t = t0
@@ -157,34 +161,27 @@ def _advance_arm(
             if t >= t1:
                 break
             for j in range(dim):
-                k1[j] = d[j]
+                K[0, j] = d[j]
             accepted = False
             while True:
                 h_try = min(h, max_step)
                 last = h_try >= t1 - t
                 hh = t1 - t if last else h_try
-                for j in range(dim):
-                    xs[j] = x[j] + 0.5 * hh * k1[j]
-                _rhs(dynamic, xs, k2, y, then, pred, p_pred, tree, p, scratch)
-                for j in range(dim):
-                    xs[j] = x[j] + 0.75 * hh * k2[j]
-                _rhs(dynamic, xs, k3, y, then, pred, p_pred, tree, p, scratch)
-                for j in range(dim):
-                    x_new[j] = x[j] + hh * (2.0 / 9.0 * k1[j] + k2[j] / 3.0 + 4.0 / 9.0 * k3[j])
+                for s in range(1, stages):
+                    stage_point(A, s, x, hh, K, xs)
+                    _rhs(dynamic, xs, K[s], y, then, pred, p_pred, tree, p, scratch)
+                solution(B, x, hh, K, x_new)
                 nu, margins, phi, kinetic = _rhs(
                     dynamic, x_new, d, y, then, pred, p_pred, tree, p, scratch
                 )
                 grow = 1.0
                 if adaptive:
-                    err = 0.0
-                    for j in range(dim):
-                        ej = hh * (-5.0 / 72.0 * k1[j] + k2[j] / 12.0 + k3[j] / 9.0 - d[j] / 8.0)
-                        err = max(err, abs(ej) / max(1.0, abs(x[j])))
+                    err = error_norm(E, x, hh, K, d)
                     if not math.isfinite(err):
                         err = 1e300
                     outside = _state_status(x_new, nu, margins, phi) != 1
                     if err > accuracy or outside:
-                        shrink = 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** (1 / 3)
+                        shrink = 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** exponent
                         h = hh * max(0.2, shrink)
                         if h >= 1e-10:
                             continue
@@ -193,7 +190,7 @@ def _advance_arm(
                         accepted = True
                         t += hh
                         break
-                    grow = 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** (1.0 / 3.0))
+                    grow = 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** exponent)
                 accepted = True
                 if last:
                     t = t1
@@ -242,7 +239,7 @@ def run_arm_sampled(p: ArmLoopParameters, X0: np.ndarray, settings: dict, lost: 
     columns = settings["ws_columns"]
     step = (
         cam.predictor, settings["p_err"], settings["tols"], float(p.potential_gain),
-        float(settings["max_step"]), float(settings["accuracy"]),
+        float(settings["max_step"]), float(settings["accuracy"]), settings["pair"],
     )  # fmt: skip
 
     # The camera poses at t = 0, then each interval's last (the running starts' only:

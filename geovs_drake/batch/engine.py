@@ -2,9 +2,10 @@
 
 Each start is integrated by an embedded Runge-Kutta pair of the order of the loop's
 Drake scheme (first same as last): Dormand and Prince's 5(4), the tableau of Drake's
-RK5, where the loop's scheme is fifth-order (the dynamic plant's default,
-:data:`FIFTH_ORDER_SCHEMES`: six new evaluations a step), else Bogacki and Shampine's
-3(2) (three). Each start's step is error-controlled by default or fixed, in a compiled
+RK5, where the loop's scheme is fifth-order (the dynamic plant's default: six new
+evaluations a step), else Bogacki and Shampine's 3(2) (three); the tableaux are data
+(``geovs_drake.batch._pairs``), one step's arithmetic shared by every batch
+integrator. Each start's step is error-controlled by default or fixed, in a compiled
 loop, the starts spread over the cores by numba's ``prange``. The right-hand side is
 the diagram's, kernel for kernel:
 
@@ -55,6 +56,7 @@ import numpy as np
 from numba import njit, prange
 
 from geovs_drake.batch._checks import state_status as _state_status
+from geovs_drake.batch._pairs import error_norm, pair_for, solution, stage_point
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
 from geovs_drake.loop.state import initial_body_states
@@ -72,7 +74,6 @@ if TYPE_CHECKING:  # the record only: the workers import no loop
 
 __all__ = [
     "DEFAULT_STEP",
-    "FIFTH_ORDER_SCHEMES",
     "STATUS_NAMES",
     "BatchResult",
     "LoopParameters",
@@ -80,11 +81,6 @@ __all__ = [
     "run_batch",
 ]
 
-#: Drake's schemes whose order the engine meets with Dormand and Prince's 5(4) pair
-#: (Drake's RK5 is that pair): a loop resolved to one of them runs it, any other the
-#: Bogacki-Shampine 3(2) pair, so that the batch's step limit, read from the Drake
-#: loop's, is the stability bound of a method of its own order.
-FIFTH_ORDER_SCHEMES = ("runge_kutta5",)
 #: Default fixed step [s] (module docstring).
 DEFAULT_STEP = 0.01
 #: Per-start statuses, indexed by the engine's status codes.
@@ -123,9 +119,9 @@ class LoopParameters:
     #: Within these (position [m], rotation [rad]) a start counts as converged: a
     #: camera's are coarser (:func:`~geovs_drake.simulation.result.convergence_tolerance`).
     tolerance: tuple[float, float] = (CONVERGENCE_POSITION_M, CONVERGENCE_ROTATION_RAD)
-    #: The pair's order: Dormand and Prince's 5(4) where the loop's Drake scheme is
-    #: fifth-order (:data:`FIFTH_ORDER_SCHEMES`), else Bogacki and Shampine's 3(2).
-    fifth_order: bool = False
+    #: The loop's Drake integration scheme, as resolved: the engine steps with the pair
+    #: of its order (``geovs_drake.batch._pairs.pair_for``), under its step limit.
+    scheme: str = "runge_kutta3"
 
 
 def loop_parameters(config: ScenarioConfig | ResolvedScenario) -> LoopParameters:
@@ -188,7 +184,7 @@ def loop_parameters(config: ScenarioConfig | ResolvedScenario) -> LoopParameters
         max_step_size=resolved.step_limit.max_step_size,
         sampled=sampled,
         tolerance=convergence_tolerance(resolved),
-        fifth_order=config.simulator.integration_scheme in FIFTH_ORDER_SCHEMES,
+        scheme=config.simulator.integration_scheme,
     )
 
 
@@ -266,84 +262,10 @@ def _rhs(kinematic, x, out, p_cam, p_nav, p_ctrl, p_body):
     return cam[_NU], cam[_M0:_M1], nav[_PHI], body[_KINETIC]
 
 
-# Dormand and Prince's 5(4) pair (Drake's RK5 advances with the same fifth-order
-# solution): its Butcher tableau, the fifth-order weights B and the error weights E =
-# B - B*, whose last stage is the new state's derivative (first same as last).
-_A21 = 1 / 5
-_A31, _A32 = 3 / 40, 9 / 40
-_A41, _A42, _A43 = 44 / 45, -56 / 15, 32 / 9
-_A51, _A52, _A53, _A54 = 19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729
-_A61, _A62, _A63, _A64, _A65 = 9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656
-_B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
-_E1, _E3, _E4 = 71 / 57600, -71 / 16695, 71 / 1920
-_E5, _E6, _E7 = -17253 / 339200, 22 / 525, -1 / 40
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _bs3_stages(kinematic, x, h, k1, k2, k3, xs, x_new, p_cam, p_nav, p_ctrl, p_body):
-    """Bogacki and Shampine's stages 2-3 from x and k1, and its third-order x_new."""
-    dim = x.shape[0]
-    for j in range(dim):
-        xs[j] = x[j] + 0.5 * h * k1[j]
-    _rhs(kinematic, xs, k2, p_cam, p_nav, p_ctrl, p_body)
-    for j in range(dim):
-        xs[j] = x[j] + 0.75 * h * k2[j]
-    _rhs(kinematic, xs, k3, p_cam, p_nav, p_ctrl, p_body)
-    for j in range(dim):
-        x_new[j] = x[j] + h * (2.0 / 9.0 * k1[j] + k2[j] / 3.0 + 4.0 / 9.0 * k3[j])
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _bs3_error(x, h, k1, k2, k3, d):
-    """Its local error estimate (the embedded second-order solution's difference; d is
-    the derivative at x_new), each component relative to max(1, abs(x_j)), the largest."""
-    err = 0.0
-    for j in range(x.shape[0]):
-        ej = h * (-5.0 / 72.0 * k1[j] + k2[j] / 12.0 + k3[j] / 9.0 - d[j] / 8.0)
-        err = max(err, abs(ej) / max(1.0, abs(x[j])))
-    return err
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _dp5_stages(kinematic, x, h, k1, k2, k3, k4, k5, k6, xs, x_new, p_cam, p_nav, p_ctrl, p_body):
-    """Dormand and Prince's stages 2-6 from x and k1, and its fifth-order x_new."""
-    dim = x.shape[0]
-    for j in range(dim):
-        xs[j] = x[j] + h * _A21 * k1[j]
-    _rhs(kinematic, xs, k2, p_cam, p_nav, p_ctrl, p_body)
-    for j in range(dim):
-        xs[j] = x[j] + h * (_A31 * k1[j] + _A32 * k2[j])
-    _rhs(kinematic, xs, k3, p_cam, p_nav, p_ctrl, p_body)
-    for j in range(dim):
-        xs[j] = x[j] + h * (_A41 * k1[j] + _A42 * k2[j] + _A43 * k3[j])
-    _rhs(kinematic, xs, k4, p_cam, p_nav, p_ctrl, p_body)
-    for j in range(dim):
-        xs[j] = x[j] + h * (_A51 * k1[j] + _A52 * k2[j] + _A53 * k3[j] + _A54 * k4[j])
-    _rhs(kinematic, xs, k5, p_cam, p_nav, p_ctrl, p_body)
-    for j in range(dim):
-        xs[j] = x[j] + h * (
-            _A61 * k1[j] + _A62 * k2[j] + _A63 * k3[j] + _A64 * k4[j] + _A65 * k5[j]
-        )
-    _rhs(kinematic, xs, k6, p_cam, p_nav, p_ctrl, p_body)
-    for j in range(dim):
-        x_new[j] = x[j] + h * (_B1 * k1[j] + _B3 * k3[j] + _B4 * k4[j] + _B5 * k5[j] + _B6 * k6[j])
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _dp5_error(x, h, k1, k3, k4, k5, k6, d):
-    """Its local error estimate (the embedded fourth-order solution's difference; d,
-    the derivative at x_new, is its seventh stage), as :func:`_bs3_error`."""
-    err = 0.0
-    for j in range(x.shape[0]):
-        ej = h * (_E1 * k1[j] + _E3 * k3[j] + _E4 * k4[j] + _E5 * k5[j] + _E6 * k6[j] + _E7 * d[j])
-        err = max(err, abs(ej) / max(1.0, abs(x[j])))
-    return err
-
-
 @njit(cache=True, error_model="numpy", parallel=True)
 def _integrate(
     kinematic,
-    fifth,
+    pair,
     X0,
     p_cam,
     p_nav,
@@ -371,18 +293,13 @@ def _integrate(
     steps = np.zeros(n, np.int64)
     final = X0.copy()
     adaptive = accuracy > 0
-    # The step-size rule's exponent: 1 / (the error estimate's order + 1).
-    exponent = 1.0 / 5.0 if fifth else 1.0 / 3.0
+    A, B, E, exponent = pair
+    stages = B.shape[0]
     for i in prange(n):
         x = X0[i].copy()
         xs = np.empty(dim)
         x_new = np.empty(dim)
-        k1 = np.empty(dim)
-        k2 = np.empty(dim)
-        k3 = np.empty(dim)
-        k4 = np.empty(dim)  # k4-k6: the fifth-order pair's stages only
-        k5 = np.empty(dim)
-        k6 = np.empty(dim)
+        K = np.empty((stages, dim))
         d = np.empty(dim)
         nu, margins, phi, kinetic = _rhs(kinematic, x, d, p_cam, p_nav, p_ctrl, p_body)
         t = 0.0
@@ -416,46 +333,24 @@ def _integrate(
                 inside_since = t
             if t >= t_end:
                 break
-            # One step of the pair (first same as last): Bogacki-Shampine 3(2), or
-            # Dormand-Prince 5(4) where the loop's scheme is fifth-order; a fixed h
+            # One step of the pair (first same as last, :mod:`._pairs`); a fixed h
             # when accuracy <= 0, else error-controlled like Drake's integrators.
             for j in range(dim):
-                k1[j] = d[j]
+                K[0, j] = d[j]
             accepted = False
             while True:
                 last = h >= t_end - t
                 if last:
                     h = t_end - t
                 h = min(h, max_step)
-                if fifth:
-                    _dp5_stages(
-                        kinematic,
-                        x,
-                        h,
-                        k1,
-                        k2,
-                        k3,
-                        k4,
-                        k5,
-                        k6,
-                        xs,
-                        x_new,
-                        p_cam,
-                        p_nav,
-                        p_ctrl,
-                        p_body,
-                    )
-                else:
-                    _bs3_stages(
-                        kinematic, x, h, k1, k2, k3, xs, x_new, p_cam, p_nav, p_ctrl, p_body
-                    )
+                for s in range(1, stages):
+                    stage_point(A, s, x, h, K, xs)
+                    _rhs(kinematic, xs, K[s], p_cam, p_nav, p_ctrl, p_body)
+                solution(B, x, h, K, x_new)
                 nu, margins, phi, kinetic = _rhs(kinematic, x_new, d, p_cam, p_nav, p_ctrl, p_body)
                 grow = 1.0
                 if adaptive:
-                    if fifth:
-                        err = _dp5_error(x, h, k1, k3, k4, k5, k6, d)
-                    else:
-                        err = _bs3_error(x, h, k1, k2, k3, d)
+                    err = error_norm(E, x, h, K, d)
                     if not math.isfinite(err):
                         err = 1e300  # a trial stage left the maps' domain: shrink the step
                     # The exact flow of a start with E0 < k_p never leaves D: a step
@@ -579,9 +474,10 @@ def run_batch(
 
 def _exact(p, X0, h0, max_step, step, accuracy, duration, tol_p2, tol_r2) -> tuple:
     """The exact sensor's run: :func:`_integrate` on ``p``'s vectors."""
+    pair = pair_for(p.scheme)
     return _integrate(
         not p.dynamic,
-        p.fifth_order,
+        pair.kernel_args(),
         X0,
         p.camera,
         p.navigation,

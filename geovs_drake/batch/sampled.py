@@ -43,6 +43,7 @@ from numba import njit
 
 from geovs_drake.batch._checks import state_status as _state_status
 from geovs_drake.batch._generated.predicted import predicted_image
+from geovs_drake.batch._pairs import error_norm, pair_for, solution, stage_point
 from geovs_drake.batch._threads import batch_kernel, over_starts
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
@@ -219,13 +220,16 @@ def _advance(
     accuracy,
     tol_p2,
     tol_r2,
+    pair,
 ):
     """Every running start (status 1) from t0 to t1, the law on its frame ``Y[i]``
-    (moved from the rig pose ``THEN[i]`` where ``PRED[i]``): the engine's
-    Bogacki-Shampine step (:func:`geovs_drake.batch.engine._integrate`), its state
-    checks and records, the next step size kept in ``H``."""
+    (moved from the rig pose ``THEN[i]`` where ``PRED[i]``): the engine's step of the
+    pair of the loop's scheme's order (:func:`geovs_drake.batch.engine._integrate`), its
+    state checks and records, the next step size kept in ``H``."""
     n, dim = X.shape
     adaptive = accuracy > 0
+    A, B, E, exponent = pair
+    stages = B.shape[0]
     for i in range(n):
         if status[i] != 1:
             continue
@@ -233,9 +237,7 @@ def _advance(
         y, then, pred = Y[i], THEN[i], PRED[i]
         xs = np.empty(dim)
         x_new = np.empty(dim)
-        k1 = np.empty(dim)
-        k2 = np.empty(dim)
-        k3 = np.empty(dim)
+        K = np.empty((stages, dim))  # the step's stages (geovs_drake.batch._pairs)
         d = np.empty(dim)
         cam, kinetic = _law_rhs(
             kinematic, x, y, then, pred, d, p_cam, p_nav, p_ctrl, p_body, p_pred
@@ -271,35 +273,30 @@ def _advance(
             if t >= t1:
                 break
             for j in range(dim):
-                k1[j] = d[j]
+                K[0, j] = d[j]
             accepted = False
             while True:
                 h_try = min(h, max_step)
                 last = h_try >= t1 - t
                 hh = t1 - t if last else h_try
-                for j in range(dim):
-                    xs[j] = x[j] + 0.5 * hh * k1[j]
-                _law_rhs(kinematic, xs, y, then, pred, k2, p_cam, p_nav, p_ctrl, p_body, p_pred)
-                for j in range(dim):
-                    xs[j] = x[j] + 0.75 * hh * k2[j]
-                _law_rhs(kinematic, xs, y, then, pred, k3, p_cam, p_nav, p_ctrl, p_body, p_pred)
-                for j in range(dim):
-                    x_new[j] = x[j] + hh * (2.0 / 9.0 * k1[j] + k2[j] / 3.0 + 4.0 / 9.0 * k3[j])
+                for s in range(1, stages):
+                    stage_point(A, s, x, hh, K, xs)
+                    _law_rhs(
+                        kinematic, xs, y, then, pred, K[s], p_cam, p_nav, p_ctrl, p_body, p_pred
+                    )
+                solution(B, x, hh, K, x_new)
                 cam, kinetic = _law_rhs(
                     kinematic, x_new, y, then, pred, d, p_cam, p_nav, p_ctrl, p_body, p_pred
                 )
                 grow = 1.0
                 if adaptive:
-                    err = 0.0
-                    for j in range(dim):
-                        ej = hh * (-5.0 / 72.0 * k1[j] + k2[j] / 12.0 + k3[j] / 9.0 - d[j] / 8.0)
-                        err = max(err, abs(ej) / max(1.0, abs(x[j])))
+                    err = error_norm(E, x, hh, K, d)
                     if not math.isfinite(err):
                         err = 1e300
                     phi_new = _navigation(cam[_Y0:_Y1], p_nav)[_PHI]
                     outside = _state_status(x_new, cam[_NU], cam[_M0:_M1], phi_new) != 1
                     if err > accuracy or outside:
-                        shrink = 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** (1 / 3)
+                        shrink = 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** exponent
                         h = hh * max(0.2, shrink)
                         if h >= 1e-10:
                             continue
@@ -308,7 +305,7 @@ def _advance(
                         accepted = True
                         t += hh
                         break
-                    grow = 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** (1.0 / 3.0))
+                    grow = 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** exponent)
                 accepted = True
                 if last:
                     t = t1
@@ -434,6 +431,7 @@ def run_sampled(kinematic: bool, X0: np.ndarray, p, cam: SampledCamera, run: dic
             max_ratio, max_rise, prev_L, inside, err_p, err_r, p.camera, p.navigation,
             p.controller, p.body, p.pose_error, cam.predictor, float(p.potential_gain),
             run["max_step"], run["accuracy"], run["tol_p2"], run["tol_r2"],
+            pair_for(p.scheme).kernel_args(),
         )  # fmt: skip
         over_starts(_advance, args, _ADVANCE_PER_START)
 
