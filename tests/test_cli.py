@@ -502,6 +502,31 @@ def test_a_closed_pipe_ends_quietly_with_its_own_exit_code(buffered):
     assert "Traceback" not in err and "BrokenPipeError" not in err, err
 
 
+def test_the_commands_exit_keeps_its_code_its_output_its_threads_and_atexit(tmp_path):
+    """The console script leaves without CPython's finalisation (cli.entry), but only
+    after what a normal exit does that a user can see: a worker thread's work finished,
+    the atexit handlers run, a pipe's block-buffered stdout flushed, the exit code kept."""
+    code = (
+        "import atexit, sys, threading, time\n"
+        "from pathlib import Path\n"
+        "from geovs_drake import cli\n"
+        f"out = Path({str(tmp_path)!r})\n"
+        "atexit.register(lambda: (out / 'atexit').write_text('ran'))\n"
+        "def work():\n"
+        "    time.sleep(0.3)\n"
+        "    (out / 'thread').write_text('done')\n"
+        "threading.Thread(target=work).start()\n"
+        "sys.argv = ['geovs-drake', 'simulate', '--duration', '0.01', '--initial', 'x']\n"
+        "print('buffered line')\n"
+        "cli.entry()\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 2, proc.stderr  # bad input's code, through the fast exit
+    assert proc.stdout == "buffered line\n" and "--initial" in proc.stderr
+    assert (tmp_path / "atexit").read_text() == "ran"
+    assert (tmp_path / "thread").read_text() == "done"
+
+
 # ------------------------------------------ simulate's JSON and its one-line errors
 JSON_FIELDS = {
     "converged",

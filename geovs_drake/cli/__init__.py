@@ -34,8 +34,10 @@ needs dask[distributed]: pip install "geovs-drake[sweep]"``, and exits with 2.
 from __future__ import annotations
 
 import argparse
+import atexit
 import os
 import sys
+import threading
 
 from geovs_drake import __version__
 from geovs_drake._optional import MissingExtra
@@ -130,6 +132,39 @@ def help_text(command: str | None = None, columns: int = 88) -> str:
             del os.environ["COLUMNS"]
         else:
             os.environ["COLUMNS"] = saved
+
+
+#: How long the command's exit waits for a worker thread still running [s] before it
+#: leaves the exit to Python's own finalisation (:func:`entry`).
+THREAD_JOIN_S = 5.0
+
+
+def entry() -> None:
+    """The ``geovs-drake`` console script (and ``python -m geovs_drake.cli``): :func:`main`,
+    then the process's exit without CPython's finalisation.
+
+    That finalisation frees every module and runs pydrake's and numba's C++ static
+    destructors: 0.15-0.3 s of a command's wall time (a 200-start sweep, alternating
+    runs: 1.15-1.49 s against 0.95-1.02 s), when every output is written, closed and
+    renamed into place already. What registered for the exit still runs (the threads
+    still working are joined, then the ``atexit`` handlers: a Dask cluster's shutdown,
+    logging's flush), and stdout and stderr are flushed. A thread still running after
+    :data:`THREAD_JOIN_S` leaves the exit to Python as usual.
+    """
+    code = main()
+    main_thread = threading.main_thread()
+    workers = [t for t in threading.enumerate() if t is not main_thread and not t.daemon]
+    for thread in workers:
+        thread.join(THREAD_JOIN_S)
+    if any(thread.is_alive() for thread in workers):
+        sys.exit(code)
+    atexit._run_exitfuncs()  # CPython's own call at exit, before the modules go
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a reader gone (main() said so) or a closed stream
+            pass
+    os._exit(code)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,7 +1,5 @@
 """``python -m geovs_drake.cli``: the ``geovs-drake`` command."""
 
-import sys
+from geovs_drake.cli import entry
 
-from geovs_drake.cli import main
-
-sys.exit(main())
+entry()
