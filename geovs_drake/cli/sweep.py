@@ -7,6 +7,7 @@ import copy
 import json
 import os
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -274,6 +275,13 @@ def run(args: argparse.Namespace) -> int:
         progress.update(count)
 
     clock.mark("set-up")
+    if not args.no_plots:
+        # matplotlib's import (about 0.4 s) on a thread of its own while the parts
+        # integrate on numba's threads with the GIL released: the plots, drawn at the
+        # end, find it done (docs/performance.md, The sweep's start-up).
+        from geovs_drake.plotting import pyplot
+
+        threading.Thread(target=pyplot, name="import-pyplot", daemon=True).start()
     code = 0
     try:
         result = sweep.run_sweep(
