@@ -16,20 +16,26 @@ step's last stage: first same as last).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
 __all__ = [
+    "ACCEPT",
     "BOGACKI_SHAMPINE",
     "DORMAND_PRINCE",
     "FIFTH_ORDER_SCHEMES",
+    "MIN_STEP",
+    "RETRY",
+    "UNDERFLOW",
     "Pair",
     "error_norm",
     "pair_for",
     "solution",
     "stage_point",
+    "step_control",
 ]
 
 #: Drake's schemes whose order the engine meets with Dormand and Prince's pair.
@@ -125,3 +131,31 @@ def error_norm(E, x, h, K, d):
             acc += E[m] * K[m, j]
         err = max(err, abs(h * acc) / max(1.0, abs(x[j])))
     return err
+
+
+#: :func:`step_control`'s verdicts on a tried step: accepted; rejected, to be tried again
+#: shorter; no accurate step at all (the step size underflowed away from D's boundary).
+ACCEPT, RETRY, UNDERFLOW = 0, 1, 2
+#: The shortest step tried [s]: a shorter one has underflowed.
+MIN_STEP = 1e-10
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def step_control(err, accuracy, outside, h, exponent):
+    """The error control's verdict on a step of ``h`` whose local error is ``err`` and
+    whose new state is ``outside`` D or not, and the factor on h for the next try.
+
+    Rejected where the error exceeds the accuracy (a non-finite error, a stage outside
+    the maps' domain, counts as huge) or the state left D: the exact flow of a start
+    with E0 < k_p never leaves D, so a start leaves D only where the step size
+    underflows at the boundary, and that last step is accepted for the state check to
+    stop the start. Growth and shrinkage as Drake's error control: 0.9 (accuracy /
+    err)^exponent, within [0.2, 5]."""
+    if not math.isfinite(err):
+        err = 1e300
+    if err > accuracy or outside:
+        shrink = max(0.2, 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** exponent)
+        if h * shrink >= MIN_STEP:
+            return RETRY, shrink
+        return (ACCEPT if outside else UNDERFLOW), shrink
+    return ACCEPT, 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** exponent)

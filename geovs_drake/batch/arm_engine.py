@@ -32,7 +32,15 @@ from geovs_drake.batch import arm_kernels as _k
 from geovs_drake.batch._checks import JOINT_LIMIT as _JOINT_LIMIT
 from geovs_drake.batch._checks import joint_margin as _joint_margin
 from geovs_drake.batch._checks import state_status as _state_status
-from geovs_drake.batch._pairs import error_norm, pair_for, solution, stage_point
+from geovs_drake.batch._pairs import (
+    RETRY,
+    UNDERFLOW,
+    error_norm,
+    pair_for,
+    solution,
+    stage_point,
+    step_control,
+)
 from geovs_drake.batch._threads import batch_kernel, over_starts
 from geovs_drake.batch.arm_rhs import (
     SCRATCH_ROWS,
@@ -163,21 +171,14 @@ def _integrate_arm(
                 nu, margins, phi, kinetic = _rhs(dynamic, x_new, d, tree, p, scratch)
                 grow = 1.0
                 if adaptive:
-                    err = error_norm(E, x, h, K, d)
-                    if not math.isfinite(err):
-                        err = 1e300
                     outside = _state_status(x_new, nu, margins, phi) != 1
-                    if err > accuracy or outside:
-                        shrink = 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** exponent
-                        h *= max(0.2, shrink)
-                        if h >= 1e-10:
-                            continue
-                        if not outside:
-                            break
-                        accepted = True
-                        t += h
+                    err = error_norm(E, x, h, K, d)
+                    verdict, grow = step_control(err, accuracy, outside, h, exponent)
+                    if verdict == RETRY:
+                        h *= grow
+                        continue
+                    if verdict == UNDERFLOW:
                         break
-                    grow = 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** exponent)
                 accepted = True
                 t = t_end if last and h == t_end - t else t + h
                 h *= grow

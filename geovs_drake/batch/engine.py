@@ -56,7 +56,15 @@ import numpy as np
 from numba import njit, prange
 
 from geovs_drake.batch._checks import state_status as _state_status
-from geovs_drake.batch._pairs import error_norm, pair_for, solution, stage_point
+from geovs_drake.batch._pairs import (
+    RETRY,
+    UNDERFLOW,
+    error_norm,
+    pair_for,
+    solution,
+    stage_point,
+    step_control,
+)
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
 from geovs_drake.loop.state import initial_body_states
@@ -350,24 +358,14 @@ def _integrate(
                 nu, margins, phi, kinetic = _rhs(kinematic, x_new, d, p_cam, p_nav, p_ctrl, p_body)
                 grow = 1.0
                 if adaptive:
-                    err = error_norm(E, x, h, K, d)
-                    if not math.isfinite(err):
-                        err = 1e300  # a trial stage left the maps' domain: shrink the step
-                    # The exact flow of a start with E0 < k_p never leaves D: a step
-                    # that does is rejected too, so a start leaves D only where the
-                    # step size underflows at the boundary (then the check stops it).
                     outside = _state_status(x_new, nu, margins, phi) != 1
-                    if err > accuracy or outside:
-                        shrink = 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** exponent
-                        h *= max(0.2, shrink)
-                        if h >= 1e-10:
-                            continue
-                        if not outside:
-                            break  # no accurate step exists here: non_finite below
-                        accepted = True  # at the boundary: accept, the check stops it
-                        t += h
-                        break
-                    grow = 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** exponent)
+                    err = error_norm(E, x, h, K, d)
+                    verdict, grow = step_control(err, accuracy, outside, h, exponent)
+                    if verdict == RETRY:
+                        h *= grow
+                        continue
+                    if verdict == UNDERFLOW:
+                        break  # no accurate step exists here: non_finite below
                 accepted = True
                 t = t_end if last and h == t_end - t else t + h
                 h *= grow

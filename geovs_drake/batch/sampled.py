@@ -43,7 +43,15 @@ from numba import njit
 
 from geovs_drake.batch._checks import state_status as _state_status
 from geovs_drake.batch._generated.predicted import predicted_image
-from geovs_drake.batch._pairs import error_norm, pair_for, solution, stage_point
+from geovs_drake.batch._pairs import (
+    RETRY,
+    UNDERFLOW,
+    error_norm,
+    pair_for,
+    solution,
+    stage_point,
+    step_control,
+)
 from geovs_drake.batch._threads import batch_kernel, over_starts
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, FREE_BODY, NAVIGATION, SERVO_FORCE
@@ -290,22 +298,15 @@ def _advance(
                 )
                 grow = 1.0
                 if adaptive:
-                    err = error_norm(E, x, hh, K, d)
-                    if not math.isfinite(err):
-                        err = 1e300
                     phi_new = _navigation(cam[_Y0:_Y1], p_nav)[_PHI]
                     outside = _state_status(x_new, cam[_NU], cam[_M0:_M1], phi_new) != 1
-                    if err > accuracy or outside:
-                        shrink = 0.5 if err <= accuracy else 0.9 * (accuracy / err) ** exponent
-                        h = hh * max(0.2, shrink)
-                        if h >= 1e-10:
-                            continue
-                        if not outside:
-                            break
-                        accepted = True
-                        t += hh
+                    err = error_norm(E, x, hh, K, d)
+                    verdict, grow = step_control(err, accuracy, outside, hh, exponent)
+                    if verdict == RETRY:
+                        h = hh * grow
+                        continue
+                    if verdict == UNDERFLOW:
                         break
-                    grow = 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** exponent)
                 accepted = True
                 if last:
                     t = t1
