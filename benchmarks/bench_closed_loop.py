@@ -18,8 +18,9 @@ Reported:
 * the real-time factor of both loops, on the default scenario, with the
   monitor and (a) ``simulate()``'s step recorder, (b) Drake's periodic
   ``LogVectorOutput`` loggers, (c) no logging; (d) a bare ``Simulator``
-  with neither, at the scenario's integrator (RK3, accuracy 1e-6, the step
-  limit of ``simulation.step_limit``), whose ratio to (a) is what the monitor
+  with neither, at the scenario's integrator (the carrier's: RK5 on the dynamic loop,
+  RK3 on the kinematic one; accuracy 1e-6, the step limit of
+  ``simulation.step_limit``), whose ratio to (a) is what the monitor
   and the logging cost; and (e) Drake's default ``Simulator`` (``Simulator(diagram)``
   as constructed: RK3 at accuracy 1e-4, max step 0.1 s), neither, whose ratio
   to (d) is what the scenario's tighter accuracy costs;

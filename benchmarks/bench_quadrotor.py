@@ -41,8 +41,8 @@ def main() -> None:
     parser.add_argument("--note", default="", help="a word on the run for the record")
     args = parser.parse_args()
     free = ScenarioConfig(duration=DURATION_S)
-    # Each scheme by name: the quadrotor's unset scheme is RK5 (its carrier's), RK3 the
-    # one the other carriers run.
+    # Each scheme by name: the quadrotor's unset scheme is RK5 (its carrier's, as every
+    # dynamic plant's since 2026-11-28), RK3 the one it ran before.
     quad = ScenarioConfig(carrier=Quadrotor(), initial=LEVEL_START, duration=DURATION_S)
     quad.simulator.integration_scheme = "runge_kutta3"
     rk5 = dataclasses.replace(
