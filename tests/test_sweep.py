@@ -156,13 +156,13 @@ def test_a_sweep_below_the_cluster_size_runs_here_on_workers_threads(monkeypatch
 
     monkeypatch.setattr(sweep.run, "_connect", no_cluster)
     threads: list[int] = []
-    integrate_part = sweep.run.integrate_part
+    run_part = sweep.run.run_part
 
     def counting(*args):
         threads.append(numba.get_num_threads())
-        return integrate_part(*args)
+        return run_part(*args)
 
-    monkeypatch.setattr(sweep.run, "integrate_part", counting)
+    monkeypatch.setattr(sweep.run, "run_part", counting)
     before = numba.get_num_threads()
     config = ScenarioConfig()
     starts = sweep.SampledStarts(6, seed=2, velocity="bounded")
@@ -178,9 +178,8 @@ def test_a_sweep_below_the_cluster_size_runs_here_on_workers_threads(monkeypatch
 
 
 def test_in_process_the_next_parts_starts_are_prepared_while_a_part_runs(monkeypatch):
-    """Each part's starts are drawn once, and each part's table and summary made once,
-    on the helper thread (beside the integration), and the rows are those of the parts
-    run start to end one by one."""
+    """Each part's starts are drawn once, on the helper thread (the arm's IK beside the
+    integration), and the rows are those of the parts run start to end one by one."""
     import threading
 
     prepare = sweep.run.prepare_part
@@ -190,20 +189,11 @@ def test_in_process_the_next_parts_starts_are_prepared_while_a_part_runs(monkeyp
         threads.append(threading.current_thread().name)
         return prepare(part)
 
-    finish = sweep.run.finish_part
-    finished: list[str] = []
-
-    def finishing(*args):
-        finished.append(threading.current_thread().name)
-        return finish(*args)
-
     monkeypatch.setattr(sweep.run, "prepare_part", recording)
-    monkeypatch.setattr(sweep.run, "finish_part", finishing)
     config = ScenarioConfig()
     starts = sweep.SampledStarts(6, seed=2, velocity="bounded")
     ahead = sweep.run_sweep(config, starts, 0.5, workers=1, chunk=2)
     assert len(threads) == 3 and all(name.startswith("next-part") for name in threads)
-    assert len(finished) == 3 and all(name.startswith("next-part") for name in finished)
     from geovs_drake.analysis.sweep.parts import Part, run_part
 
     text = yaml_dump_typed(config)

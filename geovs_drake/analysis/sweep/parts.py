@@ -49,8 +49,6 @@ __all__ = [
     "read_part_summary",
     "row_fields",
     "PartStarts",
-    "finish_part",
-    "integrate_part",
     "prepare_part",
     "run_part",
 ]
@@ -200,11 +198,6 @@ def run_part(
 ) -> tuple[dict, object | None]:
     """Run one part: (its summary as JSON, its pyarrow Table or None when written to
     ``part.results / name``). ``starts``: its :func:`prepare_part`, if made already."""
-    return finish_part(part, name, integrate_part(part, starts))
-
-
-def integrate_part(part: Part, starts: PartStarts | None = None) -> dict[str, np.ndarray]:
-    """A part's rows as columns, integrated (the first half of :func:`run_part`)."""
     if part.single_thread:
         import numba
 
@@ -221,17 +214,6 @@ def integrate_part(part: Part, starts: PartStarts | None = None) -> dict[str, np
     columns.update(zip(_TWIST, np.asarray(twists, float).T, strict=True))
     columns.update(run(config, p, starts, part.duration))
     columns["end"] = run_ends(columns)
-    return columns
-
-
-def finish_part(
-    part: Part, name: str | None, columns: dict[str, np.ndarray]
-) -> tuple[dict, object | None]:
-    """A part's summary and table from its columns, the table written to ``part.results /
-    name`` where given (the second half of :func:`run_part`: Python and pyarrow, no
-    parallel kernel, so a sweep in one process finishes a part on its helper thread
-    while the next integrates)."""
-    config = _worker_config(part.config_yaml)
     summary = SweepSummary.of_rows(config, part.duration, columns).to_json()
     table = _table(columns, summary)
     if part.results is None:

@@ -45,8 +45,6 @@ from geovs_drake.analysis.sweep.parts import (
     HOVER_FIELDS,
     ROW_FIELDS,
     Part,
-    finish_part,
-    integrate_part,
     part_name,
     prepare_part,
     read_part_summary,
@@ -346,35 +344,23 @@ def _in_process(todo: list[tuple[Part, str]], threads: int) -> Iterator[tuple[di
     most numba's pool); numba's thread count is restored afterwards.
 
     While a part integrates (numba kernels on ``threads`` threads, the GIL released), a
-    helper thread finishes the part before (:func:`~.parts.finish_part`: its summary, its
-    table and its Parquet write) and prepares the next part's starts
-    (:func:`~.parts.prepare_part`); neither calls a parallel kernel, so never two launches
-    into numba's pool at once. On the arm the preparing is its IK and branch, about half
-    of the sweep's CPU time; on the free rig the finishing is most of the parts' Python.
-    So each part's result comes one part late; on an interrupt during an integration the
-    part before it is still written (a resume finds it)."""
+    thread prepares the next part's starts (:func:`~.parts.prepare_part`: it calls no
+    parallel kernel, so never two launches into numba's pool at once). On the arm that is
+    its IK and branch, Python and serial kernels on one core, about half of the sweep's
+    CPU time."""
     import numba
 
     before = numba.get_num_threads()
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     ahead = ThreadPoolExecutor(max_workers=1, thread_name_prefix="next-part")
-    finishing = None
     try:
         following = ahead.submit(prepare_part, todo[0][0]) if todo else None
         for i, (part, name) in enumerate(todo):
             starts = following.result()
             if i + 1 < len(todo):
                 following = ahead.submit(prepare_part, todo[i + 1][0])
-            columns = integrate_part(part, starts)
-            if finishing is not None:
-                yield finishing.result()
-            finishing = ahead.submit(finish_part, part, name, columns)
-        if finishing is not None:
-            done, finishing = finishing, None
-            yield done.result()
+            yield run_part(part, name, starts)
     finally:
-        if finishing is not None and not finishing.cancel():
-            finishing.exception()  # its part on disk before the sweep stops
         ahead.shutdown(wait=False, cancel_futures=True)
         numba.set_num_threads(before)
 
