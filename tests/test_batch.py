@@ -6,6 +6,7 @@ simulate()'s statuses.
 """
 
 import copy
+import dataclasses
 
 import numpy as np
 import pytest
@@ -15,7 +16,7 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from geovs_drake.analysis.studies.monte_carlo import random_initial_poses
 from geovs_drake.batch import STATUS_NAMES, loop_parameters, run_batch
 from geovs_drake.batch._pairs import DORMAND_PRINCE, pair_for
-from geovs_drake.loop import build_loop
+from geovs_drake.loop import build_loop, resolve
 from geovs_drake.loop.state import initial_body_states
 from geovs_drake.scenario import PLANT_VARIANTS, PoseConfig, ScenarioConfig
 from geovs_drake.simulation import simulate
@@ -205,3 +206,30 @@ def test_the_pair_follows_the_loops_scheme_and_converges_at_its_order(scheme, or
     ratio = errors[0] / errors[1]
     print(f"\n{scheme}: fixed-step errors {errors[0]:.1e}, {errors[1]:.1e}: ratio {ratio:.1f}")
     assert 0.6 * 2**order < ratio < 1.6 * 2**order
+
+
+def test_at_the_step_limit_the_third_order_pair_steps_where_rk3s_bound_allows():
+    """Variable order: where the step limit holds the step (a converged start), the
+    engine takes Bogacki-Shampine's steps, half the evaluations, if the limit is within
+    the share of RK3's bound at the goal. The runs agree with Dormand-Prince's alone and
+    with the tight Drake run to the accuracy, and differ from the former (it was used)."""
+    config = ScenarioConfig(duration=10.0)
+    p = loop_parameters(config)
+    limit = resolve(config).step_limit
+    rk3 = copy.deepcopy(config)
+    rk3.simulator.integration_scheme = "runge_kutta3"
+    assert limit.third_order_step == pytest.approx(resolve(rk3).step_limit.stable_step)
+    assert p.third_order_at_limit and pair_for(p.scheme) is DORMAND_PRINCE
+    X_BC = _starts(config, 3, seed=4)
+    X0 = initial_body_states(config, X_BC)
+    hybrid = run_batch(config, X_BC, parameters=p)
+    fifth = run_batch(config, X_BC, parameters=dataclasses.replace(p, third_order_at_limit=False))
+    assert list(hybrid.status) == list(fifth.status) == ["converged"] * 3
+    difference = np.max(np.abs(hybrid.final_states - fifth.final_states))
+    assert 0 < difference < 1e-6
+    truth = np.stack([_drake_state_at(config, x0, 10.0) for x0 in X0])
+    assert np.max(np.abs(hybrid.final_states - truth)) < 1e-6
+    # A step limit beyond RK3's share keeps the fifth-order pair throughout.
+    wide = copy.deepcopy(config)
+    wide.simulator.max_step_size = 0.9 * limit.third_order_step
+    assert not loop_parameters(wide).third_order_at_limit

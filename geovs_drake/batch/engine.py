@@ -57,6 +57,7 @@ from numba import njit, prange
 
 from geovs_drake.batch._checks import state_status as _state_status
 from geovs_drake.batch._pairs import (
+    BOGACKI_SHAMPINE,
     RETRY,
     UNDERFLOW,
     error_norm,
@@ -78,6 +79,7 @@ from geovs_drake.systems.spherical_camera import CAMERA_OFFSET
 
 if TYPE_CHECKING:  # the record only: the workers import no loop
     from geovs_drake.batch.sampled import SampledCamera
+    from geovs_drake.goal.step_limit import StepLimit
     from geovs_drake.loop.resolved import ResolvedScenario
 
 __all__ = [
@@ -130,6 +132,12 @@ class LoopParameters:
     #: The loop's Drake integration scheme, as resolved: the engine steps with the pair
     #: of its order (``geovs_drake.batch._pairs.pair_for``), under its step limit.
     scheme: str = "runge_kutta3"
+    #: A step at the step limit may be Bogacki-Shampine's (variable order): the limit is
+    #: within the share of RK3's stability bound at the goal that the step limit keeps
+    #: (``geovs_drake.goal.step_limit.STABILITY_MARGIN``), so both pairs are stable
+    #: there, and where the limit holds the step both meet the accuracy; the third-order
+    #: step takes three evaluations against six.
+    third_order_at_limit: bool = False
 
 
 def loop_parameters(config: ScenarioConfig | ResolvedScenario) -> LoopParameters:
@@ -193,7 +201,16 @@ def loop_parameters(config: ScenarioConfig | ResolvedScenario) -> LoopParameters
         sampled=sampled,
         tolerance=convergence_tolerance(resolved),
         scheme=config.simulator.integration_scheme,
+        third_order_at_limit=_third_order_at_limit(resolved.step_limit),
     )
+
+
+def _third_order_at_limit(limit: StepLimit) -> bool:
+    """The step limit is within the stability margin of RK3's bound at the goal."""
+    from geovs_drake.goal.step_limit import STABILITY_MARGIN
+
+    bound = limit.third_order_step
+    return bound is not None and limit.max_step_size <= STABILITY_MARGIN * bound
 
 
 @dataclass
@@ -274,6 +291,8 @@ def _rhs(kinematic, x, out, p_cam, p_nav, p_ctrl, p_body):
 def _integrate(
     kinematic,
     pair,
+    low,
+    low_at_cap,
     X0,
     p_cam,
     p_nav,
@@ -301,8 +320,7 @@ def _integrate(
     steps = np.zeros(n, np.int64)
     final = X0.copy()
     adaptive = accuracy > 0
-    A, B, E, exponent = pair
-    stages = B.shape[0]
+    stages = max(pair[1].shape[0], low[1].shape[0])
     for i in prange(n):
         x = X0[i].copy()
         xs = np.empty(dim)
@@ -312,6 +330,7 @@ def _integrate(
         nu, margins, phi, kinetic = _rhs(kinematic, x, d, p_cam, p_nav, p_ctrl, p_body)
         t = 0.0
         h = h0
+        capped = False  # the last step was the step limit's, and the next one will be
         inside_since = np.nan  # the first time after which the pose error stayed small
         previous = 0.0
         while True:
@@ -342,7 +361,9 @@ def _integrate(
             if t >= t_end:
                 break
             # One step of the pair (first same as last, :mod:`._pairs`); a fixed h
-            # when accuracy <= 0, else error-controlled like Drake's integrators.
+            # when accuracy <= 0, else error-controlled like Drake's integrators. At the
+            # step limit the low-order pair where allowed (``LoopParameters``): both
+            # pairs meet the accuracy there, and it takes half the evaluations.
             for j in range(dim):
                 K[0, j] = d[j]
             accepted = False
@@ -351,7 +372,8 @@ def _integrate(
                 if last:
                     h = t_end - t
                 h = min(h, max_step)
-                for s in range(1, stages):
+                A, B, E, exponent = low if capped else pair
+                for s in range(1, B.shape[0]):
                     stage_point(A, s, x, h, K, xs)
                     _rhs(kinematic, xs, K[s], p_cam, p_nav, p_ctrl, p_body)
                 solution(B, x, h, K, x_new)
@@ -363,9 +385,11 @@ def _integrate(
                     verdict, grow = step_control(err, accuracy, outside, h, exponent)
                     if verdict == RETRY:
                         h *= grow
+                        capped = False
                         continue
                     if verdict == UNDERFLOW:
                         break  # no accurate step exists here: non_finite below
+                    capped = low_at_cap and h == max_step and h * grow >= max_step
                 accepted = True
                 t = t_end if last and h == t_end - t else t + h
                 h *= grow
@@ -476,6 +500,8 @@ def _exact(p, X0, h0, max_step, step, accuracy, duration, tol_p2, tol_r2) -> tup
     return _integrate(
         not p.dynamic,
         pair.kernel_args(),
+        BOGACKI_SHAMPINE.kernel_args(),
+        p.third_order_at_limit and pair is not BOGACKI_SHAMPINE,
         X0,
         p.camera,
         p.navigation,

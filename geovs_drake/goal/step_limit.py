@@ -126,8 +126,10 @@ class StepLimit:
     Im >= 0); ``stable_step``: the largest h with every ``h lambda`` in the method's
     region [s]; ``explicit_steps``: ``ceil(duration / stable_step)``, the fewest steps
     the explicit method takes over the run where the bound holds it; ``fastest_joint``:
-    on the arm, the joint that moves most in the fastest mode. All None where the bound
-    does not apply (see the module).
+    on the arm, the joint that moves most in the fastest mode; ``third_order_step``: the
+    same bound as ``stable_step`` for RK3's polynomial, whatever the scheme (the batch
+    engine's third-order pair steps at the limit where this bound allows it). All None
+    where the bound does not apply (see the module).
     """
 
     max_step_size: float
@@ -137,6 +139,7 @@ class StepLimit:
     slowest_mode: complex | None = None
     explicit_steps: int | None = None
     fastest_joint: str | None = None
+    third_order_step: float | None = None
 
     @property
     def beyond_bound(self) -> bool:
@@ -225,6 +228,7 @@ def step_limit(config: ScenarioConfig, model: GoalModel | None) -> StepLimit:
         slowest_mode=_upper(eigenvalues[nonzero][np.argmin(modulus[nonzero])]),
         explicit_steps=math.ceil(config.duration / stable),
         fastest_joint=_fastest_joint(model, vectors[:, np.argmax(modulus)]),
+        third_order_step=_bound(STABILITY_POLYNOMIALS["runge_kutta3"], eigenvalues[nonzero])[1],
     )
     held = not limit.stiff or config.simulator.integration_scheme in _HELD_WHEN_STIFF
     if automatic and held and DEFAULT_MAX_STEP > stable:
