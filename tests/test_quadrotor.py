@@ -24,7 +24,7 @@ from geovs_drake.geometry.camera import camera_map
 from geovs_drake.loop import resolve
 from geovs_drake.loop.assembly import assemble_loop
 from geovs_drake.loop.carriers.quadrotor import rotor_layout
-from geovs_drake.scenario import Dynamic, Kinematic, PoseConfig, Quadrotor, ScenarioConfig
+from geovs_drake.scenario import Dynamic, Kinematic, Pbvs, PoseConfig, Quadrotor, ScenarioConfig
 from geovs_drake.scenario.carriers import GRAVITY
 from geovs_drake.simulation import simulate
 from geovs_drake.systems.attitude_cascade import allocate, mixer
@@ -302,8 +302,8 @@ def test_each_bad_input_gets_one_line_and_exit_2(name, run_cli):
 
 def test_an_unset_integrator_is_the_carriers_and_a_given_one_is_kept() -> None:
     # The resolver fills simulator.integration_scheme from the carrier's traits where the
-    # scenario leaves it unset (RK5 on the quadrotor and on the dynamic free rig and arm, RK3
-    # on the kinematic plant); a user's is kept, and
+    # scenario leaves it unset (RK5 on the quadrotor and on the dynamic free rig and arm
+    # under the NF's law, RK3 elsewhere); a user's is kept, and
     # the simulator runs the filled-in one: its steps are those of RK5 given by name.
     from geovs_drake.loop.build import build_loop
     from geovs_drake.simulation.monitor import make_simulator
@@ -320,6 +320,9 @@ def test_an_unset_integrator_is_the_carriers_and_a_given_one_is_kept() -> None:
     assert resolve(ScenarioConfig()).config.simulator.integration_scheme == "runge_kutta5"
     kinematic = resolve(ScenarioConfig(plant=Kinematic()))
     assert kinematic.config.simulator.integration_scheme == "runge_kutta3"
+    # The dynamic scheme is the NF law's: another law on the same plant keeps RK3.
+    pbvs = resolve(ScenarioConfig(controller=Pbvs()))
+    assert pbvs.config.simulator.integration_scheme == "runge_kutta3"
     quad = resolve(ScenarioConfig(carrier=Quadrotor()))
     assert quad.config.simulator.integration_scheme == "runge_kutta5"
     given = ScenarioConfig(carrier=Quadrotor())

@@ -66,7 +66,15 @@ def resolve(
     if config.simulator.integration_scheme is None:  # unset: the carrier's integrator
         config = copy.deepcopy(config)
         carrier = config.carrier.traits
-        dynamic = config.plant.traits.dynamic and carrier.dynamic_integration_scheme
+        # The dynamic scheme under the NF's law only: there the step limit knows the
+        # scheme's stability bound at the goal (its model), and RK5 takes a quarter to a
+        # third of RK3's steps; under the other laws the limit is the cap, and RK5's
+        # seven evaluations a step took 1.3-1.5x RK3's time (tests/test_loop.py's runs).
+        dynamic = (
+            config.plant.traits.dynamic
+            and config.controller.traits.navigation
+            and carrier.dynamic_integration_scheme
+        )
         config.simulator.integration_scheme = (
             carrier.dynamic_integration_scheme if dynamic else carrier.integration_scheme
         )

@@ -94,9 +94,6 @@ class FixedCamera(RigidBodyConfig):
         gain_scale=False,
         effort_limits=False,
         takes=(("dynamic", "wrench"), ("kinematic", "twist")),
-        # RK5 on the dynamic plant, as the free rig's: the default start's 10 s in 676
-        # steps against RK3's 3401, 1.8x less CPU.
-        dynamic_integration_scheme="runge_kutta5",
     )
 
 

@@ -170,9 +170,9 @@ DEFAULT_MAX_STEP = 0.05
 class SimulatorSettings:
     """The simulator: Drake's ``SimulatorConfig`` fields, the same names in YAML, with the
     project's defaults (accuracy 1e-6). ``integration_scheme`` left unset (None, ``null``
-    in YAML) is the carrier's (its traits': RK5 on the dynamic plant and on the quadrotor,
-    RK3 on the kinematic plant), filled in by the resolver; a name is the user's and is
-    used as given.
+    in YAML) is the carrier's (its traits': RK5 on the quadrotor, and on the free rig's
+    and the arm's dynamic plant under the NF's law; RK3 elsewhere), filled in by the
+    resolver; a name is the user's and is used as given.
     ``max_step_size`` [s] left unset (None, ``null`` in YAML) is automatic: the goal's
     stability bound, at most :data:`DEFAULT_MAX_STEP`
     (:func:`geovs_drake.goal.step_limit.step_limit`); a value is the user's and is used as

@@ -42,8 +42,8 @@ class CarrierTraits:
     whose traits' ``commands`` is ``"rotors"``, Hamel & Mahony's on the quadrotor).
     ``integration_scheme``: Drake's integrator for a loop on this carrier where the
     scenario leaves ``simulator.integration_scheme`` unset (the resolver fills it);
-    ``dynamic_integration_scheme``: the same on a dynamic plant, where it differs (empty:
-    ``integration_scheme`` on both plants).
+    ``dynamic_integration_scheme``: the same on a dynamic plant under the NF's law, where
+    it differs (empty: ``integration_scheme`` on both plants and under every law).
     ``hover``: it flies and holds a level hover only (the quadrotor): its start is a
     position and a heading, the body level, so a sweep draws its starts level and at
     rest, and its runs report the rotors' saturation and the peak tilt (the sweep's
