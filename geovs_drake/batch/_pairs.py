@@ -5,7 +5,9 @@ sampled camera) steps with the pair of the order of the loop's Drake scheme, fir
 as last: Dormand and Prince's 5(4), the tableau of Drake's RK5, where that scheme is
 fifth-order (:data:`FIFTH_ORDER_SCHEMES`), else Bogacki and Shampine's 3(2). So the
 batch's step limit, read from the Drake loop's, is the stability bound of a method of
-its own order (:mod:`geovs_drake.goal.step_limit`).
+its own order (:mod:`geovs_drake.goal.step_limit`). The free rig's exact-sensor engine
+also takes the third-order pair's step where the step limit holds the step and RK3's
+bound allows it (variable order: ``LoopParameters.third_order_at_limit``).
 
 A pair is data, not code: each integrator calls its own right-hand side at the points
 :func:`stage_point` builds and takes :func:`solution` and :func:`error_norm`, so one

@@ -2,9 +2,9 @@
 
 Each start is integrated by an embedded Runge-Kutta pair of the order of the loop's
 Drake scheme (first same as last): Dormand and Prince's 5(4), the tableau of Drake's
-RK5, where the loop's scheme is fifth-order (the dynamic plant's default: six new
-evaluations a step), else Bogacki and Shampine's 3(2) (three); the tableaux are data
-(``geovs_drake.batch._pairs``), one step's arithmetic shared by every batch
+RK5, where the loop's scheme is fifth-order (the dynamic plant's default under the NF's
+law: six new evaluations a step), else Bogacki and Shampine's 3(2) (three); the tableaux
+are data (``geovs_drake.batch._pairs``), one step's arithmetic shared by every batch
 integrator. Each start's step is error-controlled by default or fixed, in a compiled
 loop, the starts spread over the cores by numba's ``prange``. The right-hand side is
 the diagram's, kernel for kernel:
@@ -35,8 +35,9 @@ works too (``step=``; :data:`DEFAULT_STEP` = 0.01 s was exact to the
 tolerance on 400 starts; the linearisation's largest eigenvalue has modulus
 about 37, so explicit third-order steps are stable up to about 0.06 s).
 Error control is also the faster here: about 730 steps per start over 10 s
-against 1000 on the third-order pair; the fifth-order pair takes about 300 (200 of
-them at the step limit, once the start has converged).
+against 1000 on the third-order pair; the fifth-order pair takes about 300, about 140
+of them at the step limit once the start has converged, where a step is the
+third-order pair's if RK3's stability bound allows it (``third_order_at_limit``).
 
 **Per-sample masking.** Each start stops on its own, with its own status
 and time, when its state leaves D (a margin < 0: ``left_domain``), the
