@@ -35,6 +35,7 @@ from geovs_drake.scenario import (
 )
 from geovs_drake.scenario.traits import LawTraits
 from geovs_drake.simulation import StartOutsideDomain, make_simulator, pose_error, simulate
+from geovs_drake.simulation.result import convergence_tolerance
 
 OFFSET = PoseConfig(xyz=[0.03, -0.02, 0.05], rpy=[0.1, 0.2, -0.3])
 
@@ -478,3 +479,18 @@ def test_a_baseline_runs_through_the_camera_model():
     result = simulate(config)
     assert result.status == "converged", result.message
     assert result.summary()["sensor"] == "pinhole"
+
+
+def test_a_camera_runs_convergence_time_is_read_at_its_own_tolerance():
+    """A pinhole run counts as converged within the camera's coarser tolerance
+    (convergence_tolerance); its convergence time is the first logged time from which
+    the pose error stays within that same tolerance, never NaN for a converged run."""
+    config = ScenarioConfig(sensor=Pinhole(), duration=12.0)
+    r = simulate(config)
+    assert r.status == "converged", r.message
+    tol_p, tol_r = convergence_tolerance(r.resolved)
+    assert (tol_p, tol_r) > (1e-3, 1e-3)  # coarser than the exact sensor's
+    errors = np.array([pose_error(RigidTransform(X), config.X_BC_goal) for X in r.X_BC])
+    inside = (errors[:, 0] <= tol_p) & (errors[:, 1] <= tol_r)
+    k = int(np.searchsorted(r.times, r.convergence_time))
+    assert np.isfinite(r.convergence_time) and np.all(inside[k:]) and not inside[k - 1]

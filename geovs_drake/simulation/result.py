@@ -397,14 +397,16 @@ class SimulationResult:
 
     @property
     def convergence_time(self) -> float:
-        """The first logged time from which the pose error stays within the
-        convergence tolerances to the end; NaN unless the run converged."""
+        """The first logged time from which the pose error stays within the run's
+        convergence tolerances (:func:`convergence_tolerance`, :attr:`converged`'s: a
+        camera's are coarser) to the end; NaN unless the run converged."""
         if self.status != "converged":
             return math.nan
+        tol_p, tol_r = convergence_tolerance(self.resolved)
         t_converged = math.nan
         for t, X in zip(self.times[::-1], self.X_BC[::-1], strict=True):
             dp, dr = pose_error(RigidTransform(X), self.config.X_BC_goal)
-            if dp > CONVERGENCE_POSITION_M or dr > CONVERGENCE_ROTATION_RAD:
+            if dp > tol_p or dr > tol_r:
                 break
             t_converged = float(t)
         return t_converged
