@@ -9,10 +9,12 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 
 from geovs_drake.geometry._ops import MATH
-from geovs_drake.geometry.prediction import image_from_target, target_from_frame
+from geovs_drake.geometry.domain import DEFAULT_DOMAIN
+from geovs_drake.geometry.kernels import CAMERA_IMAGE, camera_image
+from geovs_drake.geometry.prediction import target_from_frame
 from geovs_drake.geometry.rigid import quaternion_to_rotation
 from geovs_drake.systems._memo import LastCall
-from geovs_drake.systems._parameters import POSE_SIZE, pose_to_param
+from geovs_drake.systems._parameters import POSE_SIZE, domain_to_param, pose_to_param
 from geovs_drake.systems._template import template_system
 
 __all__ = ["FramePredictor", "FramePredictor_"]
@@ -21,6 +23,12 @@ __all__ = ["FramePredictor", "FramePredictor_"]
 _RADIUS, _R_RC, _P_RC = 0, slice(1, 10), slice(10, 13)
 #: The rig pose's components in ``body_pose``: the quaternion, then the position.
 _QUATERNION, _POSITION = slice(0, 4), slice(4, 7)
+#: The compiled camera kernel: the view from the pose now of the target a frame implies
+#: is :func:`~geovs_drake.geometry.prediction.image_from_target`, the exact camera's
+#: formula with that target pose (its visibility and margins unused: a domain to fill
+#: its parameter vector).
+_camera_image = camera_image.compiled
+_DOMAIN_PARAMS = domain_to_param(DEFAULT_DOMAIN)
 
 
 @template_system("FramePredictor_", T_list=[float])
@@ -162,7 +170,7 @@ def FramePredictor_(T):
             if key != self._target[0]:  # a new frame: X_WB = X_WR X_RC c^-1(y) (Eq. 23)
                 then = line[:POSE_SIZE].tolist()
                 R_WR = quaternion_to_rotation(then[_QUATERNION], MATH)
-                X_WB = target_from_frame(
+                R_WB, p_WB = target_from_frame(
                     tuple(y.tolist()),
                     p[_RADIUS],
                     R_WR,
@@ -171,17 +179,11 @@ def FramePredictor_(T):
                     tuple(p[_P_RC]),
                     MATH,
                 )
-                self._target = (key, X_WB)
-            now = now.tolist()
-            return image_from_target(
-                *self._target[1],
-                p[_RADIUS],
-                quaternion_to_rotation(now[_QUATERNION], MATH),
-                tuple(now[_POSITION]),
-                tuple(p[_R_RC]),
-                tuple(p[_P_RC]),
-                MATH,
-            )
+                # SphericalCamera's parameter layout: [rho, X_WB, X_RC, domain].
+                camera = np.array([p[_RADIUS], *R_WB, *p_WB, *p[_R_RC], *p[_P_RC], *_DOMAIN_PARAMS])
+                self._target = (key, camera)
+            # image_from_target at the pose now, compiled: c((X_WR X_RC)^-1 X_WB).
+            return _camera_image(now, self._target[1])[CAMERA_IMAGE.y]
 
     return Impl
 
