@@ -9,7 +9,6 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_
 
 from geovs_drake.geometry.joint_barrier import joint_barrier, per_joint
 from geovs_drake.geometry.target_motion import lie_bracket
-from geovs_drake.systems._memo import LastCall
 from geovs_drake.systems._parameters import STATE_SIZE, param_vector
 from geovs_drake.systems._template import template_system
 from geovs_drake.systems.arm_model import (
@@ -152,8 +151,6 @@ def ArmCamera_(T):
             # The arm state last set in the private context (its bytes) and the
             # camera_state computed there, or None (float only: _set).
             self._last: tuple = (None, None)
-            # Float only: the last torque by the bytes of all it reads (systems._memo).
-            self._memo = LastCall()
             self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
             self._world = self._plant.world_frame()
             float_plant = arm_plant(model)
@@ -283,27 +280,6 @@ def ArmCamera_(T):
             return v_ff, M @ a_r + 0.25 * (coriolis[0] - coriolis[1])
 
         def CalcActuation(self, context, output) -> None:
-            F_C = self.wrench_C_input.Eval(context)
-            p = param_vector(context, self._params_index, T)
-            if T is not float:
-                output.SetFromVector(self._actuation(context, F_C, p))
-                return
-            # RK5's first stage repeats the last one's state and wrench (_memo): the key
-            # is every input and parameter the torque reads.
-            key = self.arm_state_input.Eval(context).tobytes() + F_C.tobytes() + p.tobytes()
-            if self.feedforward_twist_input.HasValue(context):
-                key += self.feedforward_twist_input.Eval(context).tobytes()
-            if self._barrier is not None:
-                key += self.phi_input.Eval(context).tobytes()
-                key += self.potential_gain_input.Eval(context).tobytes()
-            tau = self._memo.get(key)
-            if tau is None:
-                tau = self._memo.put(key, self._actuation(context, F_C, p))
-            output.SetFromVector(tau)
-
-        def _actuation(self, context, F_C, p) -> np.ndarray:
-            """The joint torque (the class docstring's tau), B^T applied; ``p`` the
-            parameters."""
             v = self._set(context)[self._nq :]  # the state is (q, v)
             J_C = self._plant.CalcJacobianSpatialVelocity(
                 self._context,
@@ -313,6 +289,8 @@ def ArmCamera_(T):
                 self._world,
                 self._camera,
             )  # camera_jacobian's, its arguments built once
+            F_C = self.wrench_C_input.Eval(context)
+            p = param_vector(context, self._params_index, T)
             damping, null_damping = p[:-1], p[-1]
             tau = -self._plant.CalcGravityGeneralizedForces(self._context)
             if self.feedforward_twist_input.HasValue(context):  # a moving target's
@@ -332,7 +310,7 @@ def ArmCamera_(T):
                 phi = self.phi_input.Eval(context)[0]
                 tau = tau + (1 - phi_q) * (J_C.T @ F_C) - k_p * (1 - phi) * np.asarray(dphi_q)
             # B a permutation: its inverse B^T picks tau's entries (none to pick for I).
-            return tau if self._identity else tau[self._actuated]
+            output.SetFromVector(tau if self._identity else tau[self._actuated])
 
     return Impl
 

@@ -13,7 +13,6 @@ from geovs_drake.geometry.domain import DEFAULT_DOMAIN
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, camera_image
 from geovs_drake.geometry.prediction import target_from_frame
 from geovs_drake.geometry.rigid import quaternion_to_rotation
-from geovs_drake.systems._memo import LastCall
 from geovs_drake.systems._parameters import POSE_SIZE, domain_to_param, pose_to_param
 from geovs_drake.systems._template import template_system
 
@@ -95,13 +94,11 @@ def FramePredictor_(T):
             if not (math.isfinite(offset) and offset >= 0):
                 raise ValueError(f"offset must be finite and >= 0 [s], got {offset}")
             self._defaults = (radius, X_RC, period, latency_frames, offset)
-            # The target's pose X_WB the held frame implies (Eq. 23), by the bytes of what
-            # it is computed from (the frame's y, the pose it was taken from, the
-            # parameters): it changes once a frame, and an evaluation then costs the view
-            # from the pose now alone (about half the predictor's 30 us).
+            # The target's pose X_WB the held frame implies (Eq. 23), as the camera
+            # kernel's parameter vector, by the bytes of what it is computed from (the
+            # frame's y, the pose it was taken from, the parameters): it changes once a
+            # frame, and an evaluation then costs the compiled view from the pose now.
             self._target: tuple = (None, None)
-            # The last prediction by the bytes of all it reads (systems._memo).
-            self._memo = LastCall()
             self._line = latency_frames + 1
             self._params_index = self.DeclareNumericParameter(
                 BasicVector_[T]([radius] + pose_to_param(X_RC))
@@ -155,19 +152,8 @@ def FramePredictor_(T):
             params = context.get_numeric_parameter(self._params_index).get_value()
             line = context.get_discrete_state(self._poses).get_value()
             key = y.tobytes() + line[:POSE_SIZE].tobytes() + params.tobytes()
-            now = self.body_pose_input.Eval(context)
-            # RK5's first stage repeats the last one's pose (_memo).
-            predicted = self._memo.get(key + now.tobytes())
-            if predicted is None:
-                predicted = self._memo.put(
-                    key + now.tobytes(), self._predict(y, line, params, key, now)
-                )
-            output.SetFromVector(predicted)
-
-        def _predict(self, y, line, params, key: bytes, now) -> tuple:
-            """The held frame ``y`` moved to the pose ``now``; ``key`` names the frame."""
-            p = params.tolist()
             if key != self._target[0]:  # a new frame: X_WB = X_WR X_RC c^-1(y) (Eq. 23)
+                p = params.tolist()
                 then = line[:POSE_SIZE].tolist()
                 R_WR = quaternion_to_rotation(then[_QUATERNION], MATH)
                 R_WB, p_WB = target_from_frame(
@@ -183,7 +169,8 @@ def FramePredictor_(T):
                 camera = np.array([p[_RADIUS], *R_WB, *p_WB, *p[_R_RC], *p[_P_RC], *_DOMAIN_PARAMS])
                 self._target = (key, camera)
             # image_from_target at the pose now, compiled: c((X_WR X_RC)^-1 X_WB).
-            return _camera_image(now, self._target[1])[CAMERA_IMAGE.y]
+            now = self.body_pose_input.Eval(context)
+            output.SetFromVector(_camera_image(now, self._target[1])[CAMERA_IMAGE.y])
 
     return Impl
 

@@ -9,7 +9,6 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 
 from geovs_drake.geometry.kernels import for_scalar_type, servo_force
-from geovs_drake.systems._memo import LastCall
 from geovs_drake.systems._parameters import (
     STATE_SIZE,
     inputs_and_parameters,
@@ -86,8 +85,6 @@ def ImageJacobianForce_(T):
             if not (math.isfinite(potential_gain) and potential_gain > 0):
                 raise ValueError(f"potential gain must be finite and > 0, got {potential_gain}")
             self._defaults = (radius, potential_gain, damping, X_RC)
-            # Float only: the kernel's last result by its inputs' bytes (systems._memo).
-            self._memo = LastCall()
             self._params_index = self.DeclareNumericParameter(
                 BasicVector_[T]([radius, potential_gain] + damping + pose_to_param(X_RC))
             )
@@ -138,15 +135,12 @@ def ImageJacobianForce_(T):
 
         def _force(self, context) -> tuple:
             """(*F_C, *tau_Ro_W, *f_W) by the generated kernel (compiled for floats)."""
-            x = self.body_state_input.Eval(context)
-            y = self.image_features_input.Eval(context)
-            dphi = self.dphi_input.Eval(context)
-            p = param_vector(context, self._params_index, T)
-            if T is float:  # RK5's first stage repeats the last one's inputs (_memo)
-                key = x.tobytes() + y.tobytes() + dphi.tobytes() + p.tobytes()
-                out = self._memo.get(key)
-                return self._memo.put(key, _servo_force(x, y, dphi, p)) if out is None else out
-            return _servo_force(x, y, dphi, p)
+            return _servo_force(
+                self.body_state_input.Eval(context),
+                self.image_features_input.Eval(context),
+                self.dphi_input.Eval(context),
+                param_vector(context, self._params_index, T),
+            )
 
         def CalcWrenchC(self, context, output) -> None:
             output.SetFromVector(self._force(context)[0:6])

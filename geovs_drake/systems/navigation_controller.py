@@ -17,7 +17,6 @@ from geovs_drake.geometry.navigation import (
     NavigationGains,
     navigation_parameters,
 )
-from geovs_drake.systems._memo import LastCall
 from geovs_drake.systems._parameters import (
     domain_to_param,
     floats,
@@ -139,8 +138,6 @@ def NavigationController_(T):
             self._defaults = (goal_vector, domain, gains)
             # Float only: the parameters' bytes and the NF's 16 numbers made of them.
             self._nf_of: tuple = (None, None)
-            # Float only: the kernel's last result by y's and the parameters' bytes (_memo).
-            self._memo = LastCall()
             self._params_index = self.DeclareNumericParameter(
                 BasicVector_[T](goal_vector.tolist() + domain_to_param(domain) + list(gains.params))
             )
@@ -174,14 +171,11 @@ def NavigationController_(T):
         def navigation_parameters(self, context) -> tuple:
             """The 16 floats the NF formulas take (:func:`navigation_parameters`)."""
             if T is float:  # keyed on the raw bytes: no list, no tuple of 21 floats
-                return self._parameters_of(param_vector(context, self._params_index, T).tobytes())
+                key = param_vector(context, self._params_index, T).tobytes()
+                if key != self._nf_of[0]:
+                    self._nf_of = (key, _nf_parameters_of_bytes(key))
+                return self._nf_of[1]
             return _nf_parameters(self._values(context))
-
-        def _parameters_of(self, key: bytes) -> tuple:
-            """The NF's 16 numbers from the parameter vector's bytes (float)."""
-            if key != self._nf_of[0]:
-                self._nf_of = (key, _nf_parameters_of_bytes(key))
-            return self._nf_of[1]
 
         def navigation_function(self, context) -> NavigationFunction:
             """A float NavigationFunction with this context's parameters."""
@@ -216,18 +210,11 @@ def NavigationController_(T):
             """(1 - phi, *dphi, phi) by the generated kernel, or None if y is not in I."""
             y = self.image_features_input.Eval(context)
             if T is float:
-                # RK5's first stage repeats the last one's y (_memo); the parameters'
-                # bytes name the NF's 16 numbers (navigation_parameters' own key).
-                p = param_vector(context, self._params_index, T).tobytes()
-                key = y.tobytes() + p
-                out = self._memo.get(key)
-                if out is not None:
-                    return out[0]
                 # The compiled check passes a y well inside I; any other y (near I's
                 # boundary, NaN) gets image_violation's verdict, as every y once did.
                 if not _surely_in_image(y) and image_violation(tuple(y.tolist())) is not None:
-                    return self._memo.put(key, (None,))[0]
-                return self._memo.put(key, (_navigation(y, self._parameters_of(p)),))[0]
+                    return None
+                return _navigation(y, self.navigation_parameters(context))
             values = values_or_none(y.tolist())
             if values is not None and image_violation(values) is not None:
                 return None

@@ -12,7 +12,6 @@ from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.domain import DEFAULT_DOMAIN, SafeDomain
 from geovs_drake.geometry.kernels import CAMERA_IMAGE, camera_image, for_scalar_type
 from geovs_drake.geometry.rigid import cross, quaternion_to_rotation, target_in_camera
-from geovs_drake.systems._memo import LastCall
 from geovs_drake.systems._parameters import (
     POSE_SIZE,
     domain_to_param,
@@ -94,8 +93,6 @@ def SphericalCamera_(T):
             if not (math.isfinite(radius) and radius > 0):
                 raise ValueError(f"radius must be finite and > 0: radius = {radius}")
             self._defaults = (radius, X_WB, X_RC, domain)
-            # Float only: the kernel's last result by its inputs' bytes (systems._memo).
-            self._memo = LastCall()
             self._params_index = self.DeclareNumericParameter(
                 BasicVector_[T](
                     [radius] + pose_to_param(X_WB) + pose_to_param(X_RC) + domain_to_param(domain)
@@ -193,10 +190,6 @@ def SphericalCamera_(T):
             """(nu, *y) by the generated kernel (compiled for floats)."""
             x = self.body_pose(context)
             p = param_vector(context, self._params_index, T)
-            if T is float:  # RK5's first stage repeats the last one's state (_memo)
-                key = x.tobytes() + p.tobytes()
-                out = self._memo.get(key)
-                return self._memo.put(key, _camera_image(x, p)) if out is None else out
             return _camera_image(x, p)
 
         def CalcImageFeatures(self, context, output) -> None:
