@@ -39,9 +39,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geovs_drake.geometry._ops import MATH
+from geovs_drake.geometry._ops import MATH, NUMPY
 from geovs_drake.geometry.camera import image_of_pose, image_violation, inward_normal, ray_terms
-from geovs_drake.geometry.pinhole import PinholeIntrinsics
+from geovs_drake.geometry.pinhole import PinholeIntrinsics, pixel_ray, ray_pixel
+from geovs_drake.geometry.rigid import cross
 
 __all__ = [
     "FEATURE_FAILURES",
@@ -126,10 +127,12 @@ def limb_points(d: np.ndarray, rho: float, n: int) -> np.ndarray:
         raise ValueError(f"the camera is inside the sphere: |d| = {dist:.6g} <= rho = {rho}")
     s = d / dist
     lam = rho / dist
-    a = np.array([1.0, 0.0, 0.0]) if abs(s[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(s, a)
+    a = (1.0, 0.0, 0.0) if abs(s[0]) < 0.9 else (0.0, 1.0, 0.0)
+    # rigid.cross on floats: np.cross's products and differences, without its
+    # array machinery (about 25 us a call, twice a frame).
+    e1 = np.array(cross(tuple(s.tolist()), a))
     e1 /= np.linalg.norm(e1)
-    e2 = np.cross(s, e1)
+    e2 = np.array(cross(tuple(s.tolist()), tuple(e1.tolist())))
     t = 2 * np.pi * np.arange(n) / n
     radius = rho * math.sqrt(1 - lam * lam)
     return (1 - lam * lam) * d + radius * (np.outer(np.cos(t), e1) + np.outer(np.sin(t), e2))
@@ -231,19 +234,25 @@ def pinhole_measurement(
     limb = limb_points(d, rho, max(16, math.ceil(perimeter)))
     if np.any(limb[:, 2] <= 0):
         return None, _CUT
-    uv = camera.ray_to_pixel(limb)
+    # The formulas on the columns (ray_to_pixel's, without its checks: z > 0 above).
+    uv = np.stack(ray_pixel(limb[:, 0], limb[:, 1], limb[:, 2], camera.K), axis=-1)
     if not np.all(camera.contains(uv, border_px=0.5)):  # a pixel of background around it
         return None, _CUT
     if not _visible(b, d):
         return None, _NO_MARK
     if not _visible(m, d):
         return None, _NO_ARROW
-    points = np.vstack([uv, camera.ray_to_pixel(np.stack([b, m]))])
+    marks_uv = (
+        [ray_pixel(*b.tolist(), camera.K), ray_pixel(*m.tolist(), camera.K)]
+        if b[2] > 0 and m[2] > 0
+        else camera.ray_to_pixel(np.stack([b, m]))  # says which is behind the camera
+    )
+    points = np.vstack([uv, marks_uv])
     if pixel_noise > 0:
         if noise is None:
             raise ValueError("pixel_noise > 0 needs a noise generator")
         points = points + noise.normal(0.0, pixel_noise, size=points.shape)
-    rays = believed.pixel_to_ray(points)
+    rays = np.stack(pixel_ray(points[:, 0], points[:, 1], believed.K, NUMPY), axis=-1)
     cone = silhouette_cone(rays[:-2])
     if cone is None:
         return None, _SPHERE_NOT_FOUND

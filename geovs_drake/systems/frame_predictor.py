@@ -9,9 +9,11 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 
 from geovs_drake.geometry._ops import MATH
-from geovs_drake.geometry.prediction import image_from_target, target_from_frame
+from geovs_drake.geometry.domain import DEFAULT_DOMAIN
+from geovs_drake.geometry.kernels import CAMERA_IMAGE, camera_image
+from geovs_drake.geometry.prediction import target_from_frame
 from geovs_drake.geometry.rigid import quaternion_to_rotation
-from geovs_drake.systems._parameters import POSE_SIZE, pose_to_param
+from geovs_drake.systems._parameters import POSE_SIZE, domain_to_param, pose_to_param
 from geovs_drake.systems._template import template_system
 
 __all__ = ["FramePredictor", "FramePredictor_"]
@@ -20,6 +22,12 @@ __all__ = ["FramePredictor", "FramePredictor_"]
 _RADIUS, _R_RC, _P_RC = 0, slice(1, 10), slice(10, 13)
 #: The rig pose's components in ``body_pose``: the quaternion, then the position.
 _QUATERNION, _POSITION = slice(0, 4), slice(4, 7)
+#: The compiled camera kernel: the view from the pose now of the target a frame implies
+#: is :func:`~geovs_drake.geometry.prediction.image_from_target`, the exact camera's
+#: formula with that target pose (its visibility and margins unused: a domain to fill
+#: its parameter vector).
+_camera_image = camera_image.compiled
+_DOMAIN_PARAMS = domain_to_param(DEFAULT_DOMAIN)
 
 
 @template_system("FramePredictor_", T_list=[float])
@@ -86,10 +94,10 @@ def FramePredictor_(T):
             if not (math.isfinite(offset) and offset >= 0):
                 raise ValueError(f"offset must be finite and >= 0 [s], got {offset}")
             self._defaults = (radius, X_RC, period, latency_frames, offset)
-            # The target's pose X_WB the held frame implies (Eq. 23), by the bytes of what
-            # it is computed from (the frame's y, the pose it was taken from, the
-            # parameters): it changes once a frame, and an evaluation then costs the view
-            # from the pose now alone (about half the predictor's 30 us).
+            # The target's pose X_WB the held frame implies (Eq. 23), as the camera
+            # kernel's parameter vector, by the bytes of what it is computed from (the
+            # frame's y, the pose it was taken from, the parameters): it changes once a
+            # frame, and an evaluation then costs the compiled view from the pose now.
             self._target: tuple = (None, None)
             self._line = latency_frames + 1
             self._params_index = self.DeclareNumericParameter(
@@ -144,11 +152,11 @@ def FramePredictor_(T):
             params = context.get_numeric_parameter(self._params_index).get_value()
             line = context.get_discrete_state(self._poses).get_value()
             key = y.tobytes() + line[:POSE_SIZE].tobytes() + params.tobytes()
-            p = params.tolist()
             if key != self._target[0]:  # a new frame: X_WB = X_WR X_RC c^-1(y) (Eq. 23)
+                p = params.tolist()
                 then = line[:POSE_SIZE].tolist()
                 R_WR = quaternion_to_rotation(then[_QUATERNION], MATH)
-                X_WB = target_from_frame(
+                R_WB, p_WB = target_from_frame(
                     tuple(y.tolist()),
                     p[_RADIUS],
                     R_WR,
@@ -157,19 +165,12 @@ def FramePredictor_(T):
                     tuple(p[_P_RC]),
                     MATH,
                 )
-                self._target = (key, X_WB)
-            now = self.body_pose_input.Eval(context).tolist()
-            output.SetFromVector(
-                image_from_target(
-                    *self._target[1],
-                    p[_RADIUS],
-                    quaternion_to_rotation(now[_QUATERNION], MATH),
-                    tuple(now[_POSITION]),
-                    tuple(p[_R_RC]),
-                    tuple(p[_P_RC]),
-                    MATH,
-                )
-            )
+                # SphericalCamera's parameter layout: [rho, X_WB, X_RC, domain].
+                camera = np.array([p[_RADIUS], *R_WB, *p_WB, *p[_R_RC], *p[_P_RC], *_DOMAIN_PARAMS])
+                self._target = (key, camera)
+            # image_from_target at the pose now, compiled: c((X_WR X_RC)^-1 X_WB).
+            now = self.body_pose_input.Eval(context)
+            output.SetFromVector(_camera_image(now, self._target[1])[CAMERA_IMAGE.y])
 
     return Impl
 

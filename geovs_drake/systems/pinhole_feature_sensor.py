@@ -111,6 +111,8 @@ def PinholeFeatureSensor_(T):
             self._size = (intrinsics.width, intrinsics.height)
             self._period, self._offset = period, offset
             self._marks = marks
+            # The marks and intrinsics the parameters give, by their values (_camera).
+            self._camera_of: tuple = (None, None)
             self._params_index = self.DeclareNumericParameter(
                 BasicVector_[T](
                     [radius]
@@ -147,18 +149,20 @@ def PinholeFeatureSensor_(T):
                 noise = np.random.default_rng(
                     [int(p[_SEED]), frame_index(context.get_time(), self._period, self._offset)]
                 )
-            marks = TargetMarks(
-                self._marks.mark_radius, p[_ARROW_ANGLE], self._marks.arrow_mark_radius
-            )
-            return pinhole_measurement(
-                X_CB,
-                p[_RADIUS],
-                marks,
-                PinholeIntrinsics(*self._size, *p[_K]),
-                PinholeIntrinsics(*self._size, *p[_K_BELIEVED]),
-                noise,
-                sigma,
-            )
+            return pinhole_measurement(X_CB, p[_RADIUS], *self._camera(p), noise, sigma)
+
+        def _camera(self, p: list) -> tuple:
+            """``(marks, intrinsics, believed intrinsics)`` of the parameters ``p``, made
+            (and validated) once per value, not at every frame."""
+            key = (p[_ARROW_ANGLE], *p[_K], *p[_K_BELIEVED])
+            if key != self._camera_of[0]:
+                marks = TargetMarks(
+                    self._marks.mark_radius, p[_ARROW_ANGLE], self._marks.arrow_mark_radius
+                )
+                camera = PinholeIntrinsics(*self._size, *p[_K])
+                believed = PinholeIntrinsics(*self._size, *p[_K_BELIEVED])
+                self._camera_of = (key, (marks, camera, believed))
+            return self._camera_of[1]
 
     return Impl
 
