@@ -38,6 +38,7 @@ __all__ = [
     "solution",
     "stage_point",
     "step_control",
+    "step_to_frame",
 ]
 
 #: Drake's schemes whose order the engine meets with Dormand and Prince's pair.
@@ -161,3 +162,13 @@ def step_control(err, accuracy, outside, h, exponent):
             return RETRY, shrink
         return (ACCEPT if outside else UNDERFLOW), shrink
     return ACCEPT, 5.0 if err == 0.0 else min(5.0, 0.9 * (accuracy / err) ** exponent)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def step_to_frame(t, t1, hh, h_try, grow, last):
+    """The clock and the next step after an accepted step ``hh`` of a sampled camera's
+    integrator, whose steps end at the frame ``t1``: a step clipped there (``last``) says
+    nothing of the next one, which keeps at least the step it would have tried."""
+    if last:
+        return t1, max(hh * grow, h_try)
+    return t + hh, hh * grow

@@ -35,6 +35,7 @@ from geovs_drake.batch._pairs import (
     solution,
     stage_point,
     step_control,
+    step_to_frame,
 )
 from geovs_drake.batch._threads import batch_kernel, over_starts
 from geovs_drake.batch.arm_rhs import (
@@ -192,12 +193,7 @@ def _advance_arm(
                     if verdict == UNDERFLOW:
                         break
                 accepted = True
-                if last:
-                    t = t1
-                    h = max(hh * grow, h_try)  # the clipped step says nothing of the next
-                else:
-                    t += hh
-                    h = hh * grow
+                t, h = step_to_frame(t, t1, hh, h_try, grow, last)
                 break
             if not accepted:
                 status[i] = 4

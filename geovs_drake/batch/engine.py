@@ -140,7 +140,8 @@ class LoopParameters:
     #: The loop's Drake integration scheme, as resolved: the engine steps with the pair
     #: of its order (``geovs_drake.batch._pairs.pair_for``), under its step limit.
     scheme: str = "runge_kutta3"
-    #: A step at the step limit may be Bogacki-Shampine's (variable order): the limit is
+    #: A step at the step limit may be Bogacki-Shampine's (variable order), on the
+    #: fifth-order pair only (the third-order one takes such steps anyway): the limit is
     #: within the share of RK3's stability bound at the goal that the step limit keeps
     #: (``geovs_drake.goal.step_limit.STABILITY_MARGIN``), so both pairs are stable
     #: there, and where the limit holds the step both meet the accuracy; the third-order
@@ -209,7 +210,10 @@ def loop_parameters(config: ScenarioConfig | ResolvedScenario) -> LoopParameters
         sampled=sampled,
         tolerance=convergence_tolerance(resolved),
         scheme=config.simulator.integration_scheme,
-        third_order_at_limit=_third_order_at_limit(resolved.step_limit),
+        third_order_at_limit=(
+            pair_for(config.simulator.integration_scheme) is not BOGACKI_SHAMPINE
+            and _third_order_at_limit(resolved.step_limit)
+        ),
     )
 
 
@@ -510,7 +514,7 @@ def _exact(p, X0, h0, max_step, step, accuracy, duration, tol_p2, tol_r2) -> tup
             not p.dynamic,
             pair.kernel_args(),
             BOGACKI_SHAMPINE.kernel_args(),
-            p.third_order_at_limit and pair is not BOGACKI_SHAMPINE,
+            p.third_order_at_limit,
             X0,
             p.camera,
             p.navigation,

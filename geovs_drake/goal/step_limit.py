@@ -228,7 +228,11 @@ def step_limit(config: ScenarioConfig, model: GoalModel | None) -> StepLimit:
         slowest_mode=_upper(eigenvalues[nonzero][np.argmin(modulus[nonzero])]),
         explicit_steps=math.ceil(config.duration / stable),
         fastest_joint=_fastest_joint(model, vectors[:, np.argmax(modulus)]),
-        third_order_step=_bound(STABILITY_POLYNOMIALS["runge_kutta3"], eigenvalues[nonzero])[1],
+        third_order_step=(
+            stable
+            if coefficients == STABILITY_POLYNOMIALS["runge_kutta3"]
+            else _bound(STABILITY_POLYNOMIALS["runge_kutta3"], eigenvalues[nonzero])[1]
+        ),
     )
     held = not limit.stiff or config.simulator.integration_scheme in _HELD_WHEN_STIFF
     if automatic and held and DEFAULT_MAX_STEP > stable:
