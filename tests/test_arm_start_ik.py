@@ -19,12 +19,12 @@ from pydrake.math import RigidTransform
 from geovs_drake.analysis.sweep.parts import _ArmStarts
 from geovs_drake.analysis.sweep.starts import sample_starts
 from geovs_drake.batch import loop_parameters
-from geovs_drake.batch.arm_tree import arm_tree
 from geovs_drake.goal.arm import Unreachable, _ik_score, solve_joints
 from geovs_drake.goal.ik_choice import IK_SCORE_TIE
 from geovs_drake.loop.resolved import exact_twin, free_twin
 from geovs_drake.scenario import Arm, ScenarioConfig
 from geovs_drake.systems.arm_model import CAMERA_FRAME, arm_plant
+from geovs_drake.systems.arm_tree import arm_tree
 
 #: The camera's pose at a compiled solution against the target, entrywise in X_WC.
 POSE_TOLERANCE = 1e-9

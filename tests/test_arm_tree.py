@@ -1,4 +1,4 @@
-"""The arm's generated tree and kernels (geovs_drake.batch.arm_tree, arm_kernels) against
+"""The arm's generated tree and kernels (geovs_drake.systems.arm_tree, arm_kernels) against
 Drake's MultibodyPlant, the independent truth: ``CalcMassMatrix`` (reflected rotor
 inertia included), ``CalcBiasTerm``, ``CalcGravityGeneralizedForces``,
 ``CalcJacobianSpatialVelocity`` (kV, frame C at Co, expressed in W) and the camera's
@@ -17,10 +17,10 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import FixedOffsetFrame, JacobianWrtVariable
 
-from geovs_drake.batch.arm_tree import ArmTreeError, arm_tree
 from geovs_drake.goal.arm import arm_model
 from geovs_drake.scenario import Arm, Dynamic, Kinematic, ScenarioConfig
 from geovs_drake.systems.arm_model import CAMERA_FRAME, ArmError, arm_plant
+from geovs_drake.systems.arm_tree import ArmTreeError, arm_tree
 
 #: The check's tolerance: norm of the difference over the norm of Drake's.
 RELATIVE = 1e-10
@@ -270,3 +270,65 @@ def test_the_compiled_arm_loop_refuses_the_barrier_in_one_line():
 
     with pytest.raises(ValueError, match="joint_barrier_fraction = 0.1$"):
         arm_loop_parameters(ScenarioConfig(carrier=Arm(joint_barrier_fraction=0.1)))
+
+
+#: ArmCamera's check: random states per arm and case, and its tolerance (relative).
+CAMERA_STATES, CAMERA_RELATIVE = 40, 1e-10
+
+
+@pytest.mark.parametrize("name", ARM_PARAMS)
+def test_arm_cameras_compiled_kinematics_are_drakes(name):
+    """ArmCamera (float) reads the camera's state, J_C (expressed in C) and tau_g from the
+    compiled kernels (CameraTerms); with ``compiled=False`` from Drake's ``CalcPose``,
+    ``CalcSpatialVelocity``, ``CalcJacobianSpatialVelocity`` and
+    ``CalcGravityGeneralizedForces`` on its private plant. On random states with a random
+    wrench, joint damping and phi, both systems' ``camera_state`` and ``actuation`` agree
+    to 1e-10 relative: the plain torque (its compiled call), with the joint-limit barrier,
+    and behind a moving target's feed-forward twist (every other state)."""
+    from geovs_drake.systems import ArmCamera
+
+    model = arm_model(ScenarioConfig(carrier=ARMS[name]))
+    plant = arm_plant(model)
+    nv = plant.num_velocities()
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    lower, upper = np.maximum(lower, -np.pi), np.minimum(upper, np.pi)
+    rng = np.random.default_rng(46)
+    damping = rng.uniform(0.1, 2.0, nv)
+    for barrier in (0.0, 0.5):
+        systems = [
+            ArmCamera(
+                model=model,
+                joint_damping=damping,
+                joint_barrier_width=barrier,
+                null_space_damping=0.7,
+                compiled=compiled,
+            )
+            for compiled in (True, False)
+        ]
+        assert systems[0]._terms is not None and systems[1]._terms is None
+        for k in range(CAMERA_STATES):
+            contexts = [system.CreateDefaultContext() for system in systems]
+            x = np.concatenate(
+                [rng.uniform(lower, upper), VELOCITY_SCALE * rng.standard_normal(nv)]
+            )
+            inputs = {
+                "arm_state": x,
+                "wrench_C": rng.standard_normal(6),
+                "phi": [rng.uniform(0.0, 0.9)],
+                "potential_gain": [rng.uniform(0.5, 5.0)],
+            }
+            if k % 2:
+                inputs["feedforward_twist"] = 0.1 * rng.standard_normal(6)
+            outputs = []
+            for system, context in zip(systems, contexts, strict=True):
+                for port, value in inputs.items():
+                    system.GetInputPort(port).FixValue(context, value)
+                outputs.append(
+                    [
+                        system.camera_state_output.Eval(context),
+                        system.actuation_output.Eval(context),
+                    ]
+                )
+            (state, tau), (state_drake, tau_drake) = outputs
+            assert _relative(state, state_drake) < CAMERA_RELATIVE, (barrier, k)
+            assert _relative(tau, tau_drake) < CAMERA_RELATIVE, (barrier, k)

@@ -163,9 +163,9 @@ def test_the_warm_up_compiles_every_kernel_make_test_would_compile_side_by_side(
     side) runs its two halves, each in a process of its own; here both in this process:
     each numba dispatcher then holds a compiled signature (the batch engine's, the
     loop's generated kernels, the arm's kernels and its closed loop's, the quadrotor's)."""
-    from geovs_drake.batch import arm_kernels, arm_rhs, engine
+    from geovs_drake.batch import arm_rhs, engine
     from geovs_drake.batch.warm import warm_arm, warm_free
-    from geovs_drake.geometry import kernels
+    from geovs_drake.geometry import arm_kernels, kernels
 
     if not kernels.NUMBA:
         pytest.skip("numba is not installed: nothing is compiled")

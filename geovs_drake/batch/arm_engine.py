@@ -28,7 +28,6 @@ from functools import partial
 import numpy as np
 from numba import njit
 
-from geovs_drake.batch import arm_kernels as _k
 from geovs_drake.batch._checks import JOINT_LIMIT as _JOINT_LIMIT
 from geovs_drake.batch._checks import joint_margin as _joint_margin
 from geovs_drake.batch._checks import state_status as _state_status
@@ -49,6 +48,7 @@ from geovs_drake.batch.arm_rhs import (
     effort_clamped,
 )
 from geovs_drake.batch.engine import DEFAULT_STEP, STATUS_NAMES, BatchResult
+from geovs_drake.geometry import arm_kernels as _k
 from geovs_drake.geometry import kernels
 
 __all__ = ["ARM_STATUS_NAMES", "ArmBatchResult", "run_arm_batch", "warm_arm_engine"]

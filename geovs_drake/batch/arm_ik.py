@@ -4,7 +4,7 @@
 chart path to the goal (512 poses, three damped Newton steps each, then Newton to
 rounding at the last) to choose the start's whole turns. Through MultibodyPlant's
 context each step costs tens of microseconds of Python; here the whole path is one
-numba call on :mod:`~geovs_drake.batch.arm_kernels`' forward kinematics and J_C.
+numba call on :mod:`~geovs_drake.geometry.arm_kernels`' forward kinematics and J_C.
 
 The steps are the same least-squares steps, written in W rather than in C: with
 R~ = diag(R_WC, R_WC) orthogonal, ``J_C = R~^T J_W`` and the pose error ``e_C`` as a twist
@@ -35,10 +35,10 @@ import math
 import numpy as np
 from numba import njit
 
-from geovs_drake.batch import arm_kernels as _k
-from geovs_drake.batch.arm_tree import ArmTree, arm_tree
+from geovs_drake.geometry import arm_kernels as _k
 from geovs_drake.geometry.so3 import rotation_to_quaternion
 from geovs_drake.systems.arm_model import ArmModel
+from geovs_drake.systems.arm_tree import ArmTree, arm_tree
 
 __all__ = [
     "IK_BIAS",

@@ -19,7 +19,8 @@ target and the exact sensor under the NF:
 :func:`arm_loop_parameters` reads the systems' own parameter vectors from a diagram
 built from the same config (as :func:`~geovs_drake.batch.engine.loop_parameters` does
 for the free rig), so the two cannot drift apart; :func:`arm_loop_rhs` is the compiled
-right-hand side (one state; the tree's kernels of :mod:`.arm_kernels`, the loop's of
+right-hand side (one state; the tree's kernels of
+:mod:`~geovs_drake.geometry.arm_kernels`, the loop's of
 :mod:`geovs_drake.geometry.kernels`), :func:`arm_rhs` its allocating Python form.
 With the pinhole camera (``sensor: !Pinhole``) the camera's ``camera_image`` feeds the
 monitor only, and the law reads the sensor's held frame, or that frame moved by the
@@ -37,11 +38,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
-from geovs_drake.batch import arm_kernels as _k
 from geovs_drake.batch._generated.predicted import predicted_image
-from geovs_drake.batch.arm_tree import ArmTree, arm_tree, warm_arm_kernels
+from geovs_drake.geometry import arm_kernels as _k
 from geovs_drake.geometry import kernels
 from geovs_drake.geometry.so3 import rotation_to_quaternion
+from geovs_drake.systems.arm_tree import ArmTree, arm_tree, warm_arm_kernels
 
 if TYPE_CHECKING:
     from geovs_drake.batch.sampled import SampledCamera
@@ -447,7 +448,7 @@ def arm_loop_rhs_held(
 
 
 def warm_arm_loop() -> None:
-    """Compile the arm's kernels (:func:`~geovs_drake.batch.arm_tree.warm_arm_kernels`)
+    """Compile the arm's kernels (:func:`~geovs_drake.systems.arm_tree.warm_arm_kernels`)
     and the closed loop's right-hand side on both plants (the shipped UR5) into numba's
     on-disk cache (:mod:`geovs_drake.batch.warm`)."""
     from geovs_drake.scenario import Arm, Dynamic, Kinematic, ScenarioConfig

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pydrake.math as pm
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 
+from geovs_drake.geometry.arm_kernels import camera_torque
 from geovs_drake.geometry.joint_barrier import joint_barrier, per_joint
 from geovs_drake.geometry.target_motion import lie_bracket
 from geovs_drake.systems._parameters import STATE_SIZE, param_vector
@@ -19,6 +22,7 @@ from geovs_drake.systems.arm_model import (
     camera_jacobian,
     default_arm_model,
 )
+from geovs_drake.systems.arm_tree import ArmTree, ArmTreeError, CameraTerms, arm_tree
 
 __all__ = [
     "FEEDFORWARD_MU",
@@ -131,7 +135,15 @@ def ArmCamera_(T):
 
         The arm's kinematics and dynamics come from this system's own model of
         the arm (a MultibodyPlant of its scalar type, as Drake's
-        InverseDynamicsController keeps its own). ``camera_state`` depends on
+        InverseDynamicsController keeps its own). For float the camera's state, J_C
+        and tau_g come from the arm's compiled kinematics
+        (:class:`~geovs_drake.systems.arm_tree.CameraTerms`, one kernel call a state,
+        generated from that plant's tree), where the tree is
+        one the kernels take; ``compiled=False``, another scalar type, or a tree they
+        refuse (a branch, a ball joint) use Drake's ``CalcPose``,
+        ``CalcSpatialVelocity``, ``CalcJacobianSpatialVelocity`` and
+        ``CalcGravityGeneralizedForces`` on the private plant, the reference the
+        compiled path is tested against. ``camera_state`` depends on
         ``arm_state`` only: no algebraic loop through the laws. One numeric
         parameter vector: B_q per joint [N m s/rad], then d [N m s/rad].
         """
@@ -142,15 +154,21 @@ def ArmCamera_(T):
             joint_damping=None,
             joint_barrier_width: float | tuple[float, ...] = 0.0,
             null_space_damping: float = 0.0,
+            compiled: bool = True,
             converter=None,
         ):
             LeafSystem_[T].__init__(self, converter)
             model = default_arm_model() if model is None else model
             self._plant = arm_plant(model, T)
             self._context = self._plant.CreateDefaultContext()
-            # The arm state last set in the private context (its bytes) and the
-            # camera_state computed there, or None (float only: _set).
+            # The arm state last seen (its bytes) and the camera_state computed there,
+            # or None (float only: _set).
             self._last: tuple = (None, None)
+            # The compiled kinematics (float), and whether the private context lags the
+            # last state (set there only where Drake's own calls need it).
+            tree = _tree(model) if T is float and compiled else None
+            self._terms = None if tree is None else CameraTerms(tree)  # its own arrays
+            self._context_behind = False
             self._camera = self._plant.GetFrameByName(CAMERA_FRAME)
             self._world = self._plant.world_frame()
             float_plant = arm_plant(model)
@@ -161,7 +179,7 @@ def ArmCamera_(T):
             nq, nv = self._plant.num_positions(), self._plant.num_velocities()
             self._nq = nq
             damping = np.zeros(nv) if joint_damping is None else np.asarray(joint_damping)
-            self._defaults = (model, damping, joint_barrier_width, null_space_damping)
+            self._defaults = (model, damping, joint_barrier_width, null_space_damping, compiled)
             self._redundant = nv > _TWIST
             # The barrier's limits and widths are the model's: fixed, like the model
             # itself (a parameter would let them drift from the plant's). A scalar 0 is
@@ -176,6 +194,10 @@ def ArmCamera_(T):
                     per_joint(joint_barrier_width, nq),
                 )
             )
+            # The plain torque (no barrier, no self-motion's damping) in one compiled call
+            # on the compiled kinematics (a moving target's feed-forward aside).
+            self._plain = self._terms is not None and self._barrier is None and not self._redundant
+            self._tau = np.empty(nv)
             self._params_index = self.DeclareNumericParameter(
                 BasicVector_[T](
                     np.append(np.broadcast_to(damping, (nv,)).astype(float), null_space_damping)
@@ -213,19 +235,33 @@ def ArmCamera_(T):
             Impl._construct(self, *other._defaults, converter=converter)
 
         def _set(self, context) -> np.ndarray:
-            """The arm's state into the private context; for float not again where it
-            holds that state already (``camera_state`` and ``actuation`` read the same
+            """The arm's state, its terms computed there; for float not again where they
+            are at that state already (``camera_state`` and ``actuation`` read the same
             state within a step, and the monitor reads ``camera_state`` at the state the
-            next step starts from: left unset, the plant's kinematics cached in that
-            context, and the camera state kept in ``_last``, serve them all)."""
+            next step starts from). The compiled kinematics fill ``_terms`` (the private
+            context is then set only where Drake's own calls need it:
+            :meth:`_drake_context`); else the state goes into the private context, whose
+            cached kinematics, and the camera state kept in ``_last``, serve them all."""
             x = self.arm_state_input.Eval(context)
             if T is float:
                 key = x.tobytes()  # the exact values: a bytes compare costs 0.1 us
                 if key == self._last[0]:
                     return x
+                if self._terms is not None:
+                    self._terms.at(x)
+                    self._last = (key, self._terms.state)
+                    self._context_behind = True
+                    return x
                 self._last = (key, None)
             self._plant.SetPositionsAndVelocities(self._context, x)
             return x
+
+        def _drake_context(self, x: np.ndarray):
+            """The private plant's context at the arm's state ``x`` (``_set``'s)."""
+            if self._context_behind:
+                self._plant.SetPositionsAndVelocities(self._context, x)
+                self._context_behind = False
+            return self._context
 
         def CalcCameraState(self, context, output) -> None:
             self._set(context)
@@ -280,20 +316,37 @@ def ArmCamera_(T):
             return v_ff, M @ a_r + 0.25 * (coriolis[0] - coriolis[1])
 
         def CalcActuation(self, context, output) -> None:
-            v = self._set(context)[self._nq :]  # the state is (q, v)
-            J_C = self._plant.CalcJacobianSpatialVelocity(
-                self._context,
-                JacobianWrtVariable.kV,
-                self._camera,
-                _ORIGIN,
-                self._world,
-                self._camera,
-            )  # camera_jacobian's, its arguments built once
+            x = self._set(context)
+            if self._plain and not self.feedforward_twist_input.HasValue(context):
+                tau = self._tau
+                camera_torque(
+                    self._terms.J_C,
+                    self.wrench_C_input.Eval(context),
+                    self._terms.tau_g,
+                    param_vector(context, self._params_index, T),  # B_q first
+                    x,
+                    tau,
+                )
+                output.SetFromVector(tau if self._identity else tau[self._actuated])
+                return
+            q, v = x[: self._nq], x[self._nq :]  # the state is (q, v)
+            if self._terms is not None:  # the compiled kinematics, at x
+                J_C, tau = self._terms.J_C, -self._terms.tau_g
+            else:
+                J_C = self._plant.CalcJacobianSpatialVelocity(
+                    self._context,
+                    JacobianWrtVariable.kV,
+                    self._camera,
+                    _ORIGIN,
+                    self._world,
+                    self._camera,
+                )  # camera_jacobian's, its arguments built once
+                tau = -self._plant.CalcGravityGeneralizedForces(self._context)
             F_C = self.wrench_C_input.Eval(context)
             p = param_vector(context, self._params_index, T)
             damping, null_damping = p[:-1], p[-1]
-            tau = -self._plant.CalcGravityGeneralizedForces(self._context)
             if self.feedforward_twist_input.HasValue(context):  # a moving target's
+                self._drake_context(x)
                 v_ff, tau_ff = self._feedforward(J_C, v, self.feedforward_twist_input.Eval(context))
                 v = v - v_ff
                 tau = tau + tau_ff
@@ -305,7 +358,6 @@ def ArmCamera_(T):
             else:
                 lower, upper, width = self._barrier
                 k_p = self.potential_gain_input.Eval(context)[0]
-                q = self._plant.GetPositions(self._context)
                 phi_q, dphi_q = joint_barrier(q, lower, upper, width, min if T is float else pm.min)
                 phi = self.phi_input.Eval(context)[0]
                 tau = tau + (1 - phi_q) * (J_C.T @ F_C) - k_p * (1 - phi) * np.asarray(dphi_q)
@@ -316,6 +368,16 @@ def ArmCamera_(T):
 
 
 ArmCamera = ArmCamera_[None]
+
+
+@functools.lru_cache(maxsize=8)
+def _tree(model: ArmModel) -> ArmTree | None:
+    """``model``'s tree for the compiled kinematics (read once per model, as its plant),
+    or None where the kernels refuse it (Drake's calls then)."""
+    try:
+        return arm_tree(model)
+    except ArmTreeError:
+        return None
 
 
 def null_space_projector(J: np.ndarray, mu: float = NULL_SPACE_MU) -> np.ndarray:

@@ -410,9 +410,9 @@ class _ArmStarts:
     @classmethod
     def of(cls, config: ScenarioConfig, p: LoopParameters) -> _ArmStarts:
         from geovs_drake.batch.arm_ik import PathFollower, StartSolver
-        from geovs_drake.batch.arm_tree import arm_tree
         from geovs_drake.goal.arm import arm_model
         from geovs_drake.loop.resolver import resolve
+        from geovs_drake.systems.arm_tree import arm_tree
 
         resolved = resolve(config)  # once per part, in its worker
         k_p_arm = resolved.config.control.potential_gain

@@ -9,7 +9,7 @@ X_MB (the joint's child frame M to the body), its axis, the body's spatial inert
 (Drake's ``default_spatial_inertia``), the joint's damping, the reflected rotor inertia
 of its actuator (``default_reflected_inertia``), its effort, position and velocity
 limits, and the camera frame's X_BC on its body. All as plain float64 and int64 arrays
-(:class:`ArmTree`), which :mod:`geovs_drake.batch.arm_kernels` takes.
+(:class:`ArmTree`), which :mod:`geovs_drake.geometry.arm_kernels` takes.
 
 It refuses, in one line naming the joint (:class:`ArmTreeError`, an
 :class:`~geovs_drake.systems.arm_model.ArmError`: exit 2 from the CLI), what the
@@ -28,10 +28,17 @@ import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import BodyIndex, SpatialInertia
 
-from geovs_drake.batch import arm_kernels as _k
+from geovs_drake.geometry import arm_kernels as _k
 from geovs_drake.systems.arm_model import CAMERA_FRAME, ArmError, ArmModel, arm_plant
 
-__all__ = ["JOINT_COLUMNS", "ArmTree", "ArmTreeError", "arm_tree", "warm_arm_kernels"]
+__all__ = [
+    "JOINT_COLUMNS",
+    "ArmTree",
+    "ArmTreeError",
+    "CameraTerms",
+    "arm_tree",
+    "warm_arm_kernels",
+]
 
 #: The columns of :attr:`ArmTree.joint`, per joint.
 JOINT_COLUMNS = ("damping", "reflected_inertia", "effort_limit", "lower", "upper", "velocity")
@@ -48,7 +55,7 @@ class ArmTree:
 
     ``parent`` (n, int64; -1: the world); ``index`` (n x 2, int64): the joint's
     position and velocity index in the plant's q and v; ``kind`` (n, int64:
-    :data:`~geovs_drake.batch.arm_kernels.KIND_REVOLUTE` or ``KIND_PRISMATIC``);
+    :data:`~geovs_drake.geometry.arm_kernels.KIND_REVOLUTE` or ``KIND_PRISMATIC``);
     ``frames`` (n x 24): R_PF (9, row-major), p_PF, R_MB (9), p_MB, with P the parent's
     moving body (or W, the base's weld folded in); ``axis`` (n x 3, unit, in F);
     ``inertia`` (n x 13): m, p_BoBcm_B, I_BBo_B (9) of the body and everything welded to
@@ -125,6 +132,28 @@ class ArmTree:
         J = np.empty((6, self.nv))
         _k.camera_jacobian_W(self.camera_body, self.parent, self.index, p_WC, ws, J)
         return J
+
+
+class CameraTerms:
+    """ArmCamera's compiled kinematics (float): :meth:`at` fills the camera's state, J_C
+    expressed in C and tau_g at an arm state in one kernel call
+    (:func:`~geovs_drake.geometry.arm_kernels.camera_terms`), into arrays this object
+    owns and reuses: read them before the next call."""
+
+    def __init__(self, tree: ArmTree) -> None:
+        n = tree.nv
+        self.state = np.empty(13)  # [q_WC, p_WC, w_WC_W, v_WCo_W]
+        self.J_C = np.empty((6, n))
+        self.tau_g = np.empty(n)
+        self._args = (
+            tree.parent, tree.index, tree.kind, tree.frames, tree.axis, tree.inertia,
+            tree.gravity, tree.camera_body, tree.X_BC, tree.workspace(), np.empty((3, 3)),
+            np.empty((6, n)), self.state, self.J_C, self.tau_g,
+        )  # fmt: skip
+
+    def at(self, x: np.ndarray) -> None:
+        """The terms at the arm's state ``x`` = (q, v) (float64, contiguous)."""
+        _k.camera_terms(x, *self._args)
 
 
 def _row(X) -> np.ndarray:
@@ -289,3 +318,4 @@ def warm_arm_kernels() -> None:
     tree.mass_matrix(q)
     tree.inverse_dynamics(q, q, gravity=True)
     tree.camera_jacobian(q)
+    CameraTerms(tree).at(np.zeros(2 * tree.nv))

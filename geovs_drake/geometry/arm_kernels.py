@@ -5,9 +5,9 @@ All spatial quantities are Plücker vectors in the world frame W about W's origi
 a force ``[n_O; f]``, a body's spatial inertia about O as ``(m, h = m p_WBcm,
 I_O)`` (13 numbers). In fixed coordinates a joint's motion subspace S_i, a subtree's
 composite inertia and the recursions need no transform between bodies: sums and cross
-products only. The tree's arrays come from :func:`geovs_drake.batch.arm_tree.arm_tree`
-(its :meth:`~geovs_drake.batch.arm_tree.ArmTree.kernel_args`); the workspace ``ws``
-(n x :data:`WS_COLUMNS`) from :meth:`~geovs_drake.batch.arm_tree.ArmTree.workspace`,
+products only. The tree's arrays come from :func:`geovs_drake.systems.arm_tree.arm_tree`
+(its :meth:`~geovs_drake.systems.arm_tree.ArmTree.kernel_args`); the workspace ``ws``
+(n x :data:`WS_COLUMNS`) from :meth:`~geovs_drake.systems.arm_tree.ArmTree.workspace`,
 so the hot path allocates only its outputs.
 
 * :func:`arm_forward`: X_WB of every body and each joint's S_i in W (into ``ws``);
@@ -18,6 +18,8 @@ so the hot path allocates only its outputs.
 * :func:`camera_pose` and :func:`camera_jacobian_W`: X_WC and J_C (the spatial-velocity
   Jacobian of frame C at Co, expressed in W: Drake's ``CalcJacobianSpatialVelocity``
   with ``JacobianWrtVariable.kV``);
+* :func:`camera_terms`: what the Drake loop's ArmCamera reads at a state, in one pass
+  (the camera's state, J_C expressed in C, tau_g), and :func:`camera_torque` its torque;
 * :func:`cholesky_solve`, :func:`min_singular_value`: the small dense linear algebra
   (numba's ``np.linalg`` needs SciPy's LAPACK, which the package does not require).
 """
@@ -28,6 +30,8 @@ import math
 
 from numba import njit
 
+from geovs_drake.geometry.so3 import rotation_to_quaternion
+
 __all__ = [
     "KIND_PRISMATIC",
     "KIND_REVOLUTE",
@@ -35,6 +39,8 @@ __all__ = [
     "arm_forward",
     "camera_jacobian_W",
     "camera_pose",
+    "camera_terms",
+    "camera_torque",
     "cholesky_solve",
     "inverse_dynamics",
     "mass_matrix",
@@ -304,6 +310,61 @@ def camera_jacobian_W(camera_body, parent, index, p_WC, ws, J):
         J[4, c] = ws[j, _S + 4] + s2 * p_WC[0] - s0 * p_WC[2]
         J[5, c] = ws[j, _S + 5] + s0 * p_WC[1] - s1 * p_WC[0]
         j = parent[j]
+
+
+@njit(**_JIT)
+def camera_terms(
+    x, parent, index, kind, frames, axis, inertia, gravity, camera_body, X_BC, ws, R_WC, J_W,
+    state, J_C, tau_g,
+):  # fmt: skip
+    """ArmCamera's terms at the arm's state ``x`` = (q, v), from one pass of
+    :func:`arm_forward`: ``state`` (13) the camera's [q_WC (w >= 0), p_WC, w_WC_W,
+    v_WCo_W] (Drake's ``CalcPose`` and ``CalcSpatialVelocity`` in W, the quaternion by
+    :func:`~geovs_drake.geometry.so3.rotation_to_quaternion`), ``J_C`` (6 x nv) the
+    spatial-velocity Jacobian at Co expressed in C (``CalcJacobianSpatialVelocity``,
+    kV, expressed in C: blkdiag(R_CW, R_CW) J_W, so that J_C v = (Omega, V), the body
+    twist of the paper's Eqs. (16)-(17)), and ``tau_g`` (nv) the gravity's generalized
+    force (``CalcGravityGeneralizedForces``). ``R_WC`` (3 x 3) and ``J_W`` (6 x nv)
+    are scratch, left holding R_WC and J_C in W."""
+    n = parent.shape[0]
+    arm_forward(x, parent, index, kind, frames, axis, ws)  # reads q = x[0:nq] by index
+    p_WC = state[4:7]
+    camera_pose(camera_body, X_BC, ws, R_WC, p_WC)
+    rotation_to_quaternion(R_WC, state[0:4])
+    camera_jacobian_W(camera_body, parent, index, p_WC, ws, J_W)
+    for r in range(6):
+        s = 0.0
+        for c in range(n):
+            s += J_W[r, c] * x[n + c]
+        state[7 + r] = s
+    for half in (0, 3):  # each 3-row block re-expressed in C: R_CW = R_WC^T
+        for r in range(3):
+            for c in range(n):
+                J_C[half + r, c] = (
+                    R_WC[0, r] * J_W[half, c]
+                    + R_WC[1, r] * J_W[half + 1, c]
+                    + R_WC[2, r] * J_W[half + 2, c]
+                )
+    # Newton-Euler at v = 0 gives -tau_g. tau_g serves as that zero v too: the forward
+    # pass reads v before the backward pass writes tau.
+    tau_g[:] = 0.0
+    inverse_dynamics(tau_g, parent, index, inertia, gravity, ws, tau_g)
+    for c in range(n):
+        tau_g[c] = -tau_g[c]
+
+
+@njit(**_JIT)
+def camera_torque(J_C, F_C, tau_g, damping, x, tau):
+    """ArmCamera's torque tau = J_C^T F_C - tau_g - B_q v (nv) into ``tau``, after
+    :func:`camera_terms` at the arm's state ``x`` = (q, v) (nq = nv); ``damping``'s
+    first nv entries are B_q per joint. The power J_C^T F_C . v is F_C . (Omega, V):
+    the arm takes exactly the power the free rig would (Appendix C's energy)."""
+    n = tau.shape[0]
+    for c in range(n):
+        s = -tau_g[c] - damping[c] * x[n + c]
+        for r in range(6):
+            s += J_C[r, c] * F_C[r]
+        tau[c] = s
 
 
 @njit(**_JIT)
