@@ -9,6 +9,7 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from geovs_drake.cli._options import (
@@ -259,6 +260,25 @@ def _process_start() -> float | None:
     return time.perf_counter() - age
 
 
+def _plots_imported_after_a_part(no_plots: bool) -> Callable[[], None]:
+    """A call for each finished part that starts matplotlib's import (about 0.4 s) once,
+    on a thread of its own, after the first: the next parts integrate on numba's threads
+    with the GIL released meanwhile, and the plots, drawn at the end, find it done. Not
+    before the first part, whose set-up (numba's first load, the starts) holds the GIL
+    and waited for the import (docs/performance.md, The sweep's start-up)."""
+    started = no_plots
+
+    def after_part() -> None:
+        nonlocal started
+        if not started:
+            started = True
+            from geovs_drake.plotting import pyplot
+
+            threading.Thread(target=pyplot, name="import-pyplot", daemon=True).start()
+
+    return after_part
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``sweep``; the exit code."""
     clock = _Clock()
@@ -270,18 +290,14 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     progress = Progress(args.starts, "starts", "geovs-drake sweep")
 
+    import_plots = _plots_imported_after_a_part(args.no_plots)
+
     def on_part(count: int) -> None:
         clock.part()
         progress.update(count)
+        import_plots()
 
     clock.mark("set-up")
-    if not args.no_plots:
-        # matplotlib's import (about 0.4 s) on a thread of its own while the parts
-        # integrate on numba's threads with the GIL released: the plots, drawn at the
-        # end, find it done (docs/performance.md, The sweep's start-up).
-        from geovs_drake.plotting import pyplot
-
-        threading.Thread(target=pyplot, name="import-pyplot", daemon=True).start()
     code = 0
     try:
         result = sweep.run_sweep(
