@@ -9,8 +9,8 @@ import os
 import sys
 import threading
 import time
-from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from geovs_drake.cli._options import (
     EXIT_INTERRUPTED,
@@ -29,6 +29,9 @@ from geovs_drake.cli._options import (
     load_layers,
 )
 from geovs_drake.progress import Progress
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 #: The plots a sweep writes in its folder (:func:`~geovs_drake.analysis.sweep.plot_summary`).
 PLOTS = ("t_converged.png", "starts.png")
