@@ -173,6 +173,7 @@ def test_the_warm_up_compiles_every_kernel_make_test_would_compile_side_by_side(
     warm_arm()
     assert engine._integrate.signatures
     assert arm_kernels.mass_matrix.signatures and arm_rhs.arm_loop_rhs.signatures
+    assert arm_kernels.camera_terms.signatures and arm_kernels.camera_torque.signatures
     from geovs_drake.systems import _quadrotor_kernels as quadrotor
 
     for kernel in (quadrotor.cascade, quadrotor.level_image, quadrotor.level_state):

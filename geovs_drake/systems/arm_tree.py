@@ -318,4 +318,9 @@ def warm_arm_kernels() -> None:
     tree.mass_matrix(q)
     tree.inverse_dynamics(q, q, gravity=True)
     tree.camera_jacobian(q)
-    CameraTerms(tree).at(np.zeros(2 * tree.nv))
+    terms = CameraTerms(tree)
+    x = np.zeros(2 * tree.nv)
+    terms.at(x)
+    damping = np.zeros(tree.nv + 1)
+    damping.flags.writeable = False  # as ArmCamera's parameter view: its own signature
+    _k.camera_torque(terms.J_C, np.zeros(6), terms.tau_g, damping, x, np.empty(tree.nv))
