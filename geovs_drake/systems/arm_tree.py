@@ -138,7 +138,14 @@ class CameraTerms:
     """ArmCamera's compiled kinematics (float): :meth:`at` fills the camera's state, J_C
     expressed in C and tau_g at an arm state in one kernel call
     (:func:`~geovs_drake.geometry.arm_kernels.camera_terms`), into arrays this object
-    owns and reuses: read them before the next call."""
+    owns and reuses: read them before the next call.
+
+    Made, it has called its kernels once (and ArmCamera's torque kernel, with the
+    signatures ArmCamera calls them with): numba's first call in a process loads the
+    compiled code, 0.01 s, or 0.3-0.5 s where it is the process's first numba call on a
+    loaded machine. Paid at a real-time run's first frame instead, that stall put the
+    LCM station behind its clock, and the two-process pinhole run with a frame of
+    latency lost the target in about half of the runs on a loaded machine."""
 
     def __init__(self, tree: ArmTree) -> None:
         n = tree.nv
@@ -151,9 +158,20 @@ class CameraTerms:
             np.empty((6, n)), self.state, self.J_C, self.tau_g,
         )  # fmt: skip
 
+        self._load(n)
+
     def at(self, x: np.ndarray) -> None:
         """The terms at the arm's state ``x`` = (q, v) (float64, contiguous)."""
         _k.camera_terms(x, *self._args)
+
+    def _load(self, n: int) -> None:
+        """Each kernel called once, with the types ArmCamera's calls have (its parameter
+        vector a read-only view)."""
+        x = np.zeros(2 * n)
+        self.at(x)
+        damping = np.zeros(n + 1)
+        damping.flags.writeable = False
+        _k.camera_torque(self.J_C, np.zeros(6), self.tau_g, damping, x, np.empty(n))
 
 
 def _row(X) -> np.ndarray:
@@ -318,9 +336,4 @@ def warm_arm_kernels() -> None:
     tree.mass_matrix(q)
     tree.inverse_dynamics(q, q, gravity=True)
     tree.camera_jacobian(q)
-    terms = CameraTerms(tree)
-    x = np.zeros(2 * tree.nv)
-    terms.at(x)
-    damping = np.zeros(tree.nv + 1)
-    damping.flags.writeable = False  # as ArmCamera's parameter view: its own signature
-    _k.camera_torque(terms.J_C, np.zeros(6), terms.tau_g, damping, x, np.empty(tree.nv))
+    CameraTerms(tree)  # its kernels, called once as ArmCamera calls them
