@@ -174,6 +174,13 @@ def test_the_warm_up_compiles_every_kernel_make_test_would_compile_side_by_side(
     assert engine._integrate.signatures
     assert arm_kernels.mass_matrix.signatures and arm_rhs.arm_loop_rhs.signatures
     assert arm_kernels.camera_terms.signatures and arm_kernels.camera_torque.signatures
+    # The float systems' in-place forms (the Drake loops' camera, NF and force law).
+    for into in (
+        kernels.camera_image_y_into,
+        kernels.navigation_dphi_into,
+        kernels.servo_force_wrench_into,
+    ):
+        assert into.signatures, into.__name__
     from geovs_drake.systems import _quadrotor_kernels as quadrotor
 
     for kernel in (quadrotor.cascade, quadrotor.level_image, quadrotor.level_state):

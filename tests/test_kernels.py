@@ -127,6 +127,34 @@ def test_compiled_kernels_run_the_generated_text(batch):
         np.testing.assert_allclose(k.compiled(*args), k.python(*args), rtol=1e-14, atol=1e-15)
 
 
+def test_in_place_forms_write_the_kernels_outputs_to_the_last_bit(batch):
+    """The float systems' in-place forms (camera y and nu, dphi, F_C) equal the whole
+    kernels' outputs bitwise: the same operations, so a loop's run does not change
+    with the form its systems call; an invisible pose gives its nu <= 0 too."""
+    p_cam, p_nav, p_force = batch["p_cam"], tuple(batch["p_nav"]), batch["p_force"]
+    behind = np.array([0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.5])  # the rig turned away from B
+    poses = [*batch["states"][:50, 0:7], behind]
+    for k, x in enumerate(poses):
+        cam = kernels.camera_image(x, p_cam)
+        y_out = np.full(13, 7.0)
+        nu = kernels.camera_image_y_into(x, p_cam, y_out)
+        assert nu == cam[0] and np.array_equal(y_out, cam[1:14], equal_nan=True)
+        if k == len(poses) - 1:
+            assert not nu > 0
+            continue
+        assert nu > 0
+        y = np.array(cam[1:14])
+        nav = kernels.navigation(y, p_nav)
+        dphi = np.full(7, 7.0)
+        assert kernels.navigation_dphi_into(y, p_nav, dphi) is None
+        assert np.array_equal(dphi, nav[1:8])
+        state = batch["states"][k]
+        force = kernels.servo_force(state, y, dphi, p_force)
+        wrench = np.full(6, 7.0)
+        kernels.servo_force_wrench_into(state, y, dphi, p_force, wrench)
+        assert np.array_equal(wrench, force[0:6])
+
+
 def test_camera_kernel_matches_drakes_pose_algebra_and_the_sources(batch):
     """y from the rig state equals camera_map(X_CB) with X_CB from RigidTransforms,
     and the margins equal SafeDomain.margins on that y."""

@@ -26,6 +26,11 @@ source of every formula it composes:
 * ``pose_error(x, p) -> (|dp|^2, |dR|_F^2)``: the camera's pose error, ``p =
   [R_RC, p_RC, R_WC*, p_WC*]`` (rotations row-major).
 
+Three float-only forms write one port's share of a kernel into an array (a float
+system's output, in place: :class:`~geovs_drake.geometry._codegen.Into`):
+``camera_image_y_into(x, p, out) -> nu`` (y), ``navigation_dphi_into(y, p, out)``
+(dphi) and ``servo_force_wrench_into(x, y, dphi, p, out)`` (F_C).
+
 Where the first argument holds floats (a float tuple or a float64 vector), the
 kernel runs compiled by numba (``cache=True``: compiled once per machine, then
 loaded in about 0.1 s); otherwise, for AutoDiffXd, Expression or float batches
@@ -49,13 +54,16 @@ __all__ = [
     "NUMBA",
     "SERVO_FORCE",
     "camera_image",
+    "camera_image_y_into",
     "for_scalar_type",
     "free_body",
     "kinematic_body",
     "kinematic_velocity",
     "navigation",
+    "navigation_dphi_into",
     "pose_error",
     "servo_force",
+    "servo_force_wrench_into",
     "tracking_force",
 ]
 
@@ -134,3 +142,14 @@ kinematic_velocity = _dispatch("kinematic_velocity")
 free_body = _dispatch("free_body")
 kinematic_body = _dispatch("kinematic_body")
 pose_error = _dispatch("pose_error")
+
+
+def _compiled_into(name: str) -> Callable:
+    """The float form ``name`` (:data:`~geovs_drake.geometry._codegen.INTO`), compiled."""
+    python = getattr(_generated, name)
+    return njit(cache=True, error_model="numpy", nogil=True)(python) if NUMBA else python
+
+
+camera_image_y_into = _compiled_into("camera_image_y_into")
+navigation_dphi_into = _compiled_into("navigation_dphi_into")
+servo_force_wrench_into = _compiled_into("servo_force_wrench_into")

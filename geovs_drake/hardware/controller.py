@@ -107,7 +107,9 @@ class Controller:
     def warm_up(self) -> None:
         """Evaluate the law once on the goal image, in contexts of its own: the NF's and
         the law's kernels are compiled (numba, its cache loaded) here, before the
-        first command, not in it (measured: 0.7 s, beyond any timeout)."""
+        first command, not in it (measured: 0.7 s, beyond any timeout). Every output
+        port of the law: each may call a kernel of its own (the force law's wrench in
+        C, which the arm's command reads, is not its port 0)."""
         y = self.resolved.y_goal.to_vector()
         at_rest = np.zeros(POSE_SIZE + 6)
         at_rest[0] = 1.0  # the identity quaternion
@@ -118,7 +120,8 @@ class Controller:
         for port in (self.law.get_input_port(i) for i in range(self.law.num_input_ports())):
             value = {"image_features": y, "dphi": dphi}.get(port.get_name(), at_rest)
             port.FixValue(context, np.resize(value, port.size()))
-        self.law.get_output_port(0).Eval(context)
+        for i in range(self.law.num_output_ports()):
+            self.law.get_output_port(i).Eval(context)
 
     def image_error(self, root: Context) -> tuple[float, float]:
         """Its own estimate of the image error now: ``|y - y*|`` of the held frame moved

@@ -318,7 +318,8 @@ def ArmCamera_(T):
         def CalcActuation(self, context, output) -> None:
             x = self._set(context)
             if self._plain and not self.feedforward_twist_input.HasValue(context):
-                tau = self._tau
+                # Every joint actuated (the usual arm): written into the port's array.
+                tau = output.get_mutable_value() if self._identity else self._tau
                 camera_torque(
                     self._terms.J_C,
                     self.wrench_C_input.Eval(context),
@@ -327,7 +328,8 @@ def ArmCamera_(T):
                     x,
                     tau,
                 )
-                output.SetFromVector(tau if self._identity else tau[self._actuated])
+                if not self._identity:
+                    output.SetFromVector(tau[self._actuated])
                 return
             q, v = x[: self._nq], x[self._nq :]  # the state is (q, v)
             if self._terms is not None:  # the compiled kinematics, at x

@@ -8,7 +8,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 
-from geovs_drake.geometry.kernels import for_scalar_type, servo_force
+from geovs_drake.geometry.kernels import for_scalar_type, servo_force, servo_force_wrench_into
 from geovs_drake.systems._parameters import (
     STATE_SIZE,
     inputs_and_parameters,
@@ -143,6 +143,15 @@ def ImageJacobianForce_(T):
             )
 
         def CalcWrenchC(self, context, output) -> None:
+            if T is float:  # F_C written into the port's array (geometry.kernels)
+                servo_force_wrench_into(
+                    self.body_state_input.Eval(context),
+                    self.image_features_input.Eval(context),
+                    self.dphi_input.Eval(context),
+                    param_vector(context, self._params_index, T),
+                    output.get_mutable_value(),
+                )
+                return
             output.SetFromVector(self._force(context)[0:6])
 
         def CalcGeneralizedForce(self, context, output) -> None:

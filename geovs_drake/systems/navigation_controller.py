@@ -11,7 +11,7 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_
 
 from geovs_drake.geometry.camera import UNIT_TOL, ImageFeatures, image_violation
 from geovs_drake.geometry.domain import DEFAULT_DOMAIN, SafeDomain
-from geovs_drake.geometry.kernels import for_scalar_type, navigation
+from geovs_drake.geometry.kernels import for_scalar_type, navigation, navigation_dphi_into
 from geovs_drake.geometry.navigation import (
     NavigationFunction,
     NavigationGains,
@@ -221,6 +221,12 @@ def NavigationController_(T):
             return _navigation(y, self.navigation_parameters(context))
 
         def CalcDifferential(self, context, output) -> None:
+            if T is float:  # dphi written into the port's array, where y is surely in I
+                y = self.image_features_input.Eval(context)
+                if _surely_in_image(y):
+                    p = self.navigation_parameters(context)
+                    navigation_dphi_into(y, p, output.get_mutable_value())
+                    return
             out = self._kernel(context)
             output.SetFromVector([math.nan] * 7 if out is None else out[1:8])
 

@@ -10,7 +10,12 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_
 
 from geovs_drake.geometry._ops import namespace
 from geovs_drake.geometry.domain import DEFAULT_DOMAIN, SafeDomain
-from geovs_drake.geometry.kernels import CAMERA_IMAGE, camera_image, for_scalar_type
+from geovs_drake.geometry.kernels import (
+    CAMERA_IMAGE,
+    camera_image,
+    camera_image_y_into,
+    for_scalar_type,
+)
 from geovs_drake.geometry.rigid import cross, quaternion_to_rotation, target_in_camera
 from geovs_drake.systems._parameters import (
     POSE_SIZE,
@@ -193,6 +198,12 @@ def SphericalCamera_(T):
             return _camera_image(x, p)
 
         def CalcImageFeatures(self, context, output) -> None:
+            if T is float:  # y written into the port's array (geometry.kernels)
+                y = output.get_mutable_value()
+                p = param_vector(context, self._params_index, T)
+                if not camera_image_y_into(self.body_pose(context), p, y) > 0:
+                    y[:] = math.nan  # not visible (or NaN): y is undefined
+                return
             out = self._image(context)
             nu = scalar_value(out[CAMERA_IMAGE.nu])
             if nu is not None and not nu > 0:  # not visible (or NaN): y is undefined
