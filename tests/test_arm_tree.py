@@ -332,3 +332,33 @@ def test_arm_cameras_compiled_kinematics_are_drakes(name):
             (state, tau), (state_drake, tau_drake) = outputs
             assert _relative(state, state_drake) < CAMERA_RELATIVE, (barrier, k)
             assert _relative(tau, tau_drake) < CAMERA_RELATIVE, (barrier, k)
+
+
+def test_the_shared_cholesky_pieces_agree_with_numpy():
+    """One Gram matrix and one Cholesky factor serve the batch arm's damped solve, its
+    singular-zone test, its sigma_min, its M^-1 and the kinematic arm's zone test:
+    ``shifted_gram`` is J J^T + shift I; ``cholesky_factor`` gives numpy's factor where A
+    is positive definite and False where it is not (just past sigma_min^2, or NaN), and
+    ``cholesky_solve`` then gives NaN, never a number."""
+    from geovs_drake.geometry import arm_kernels as k
+
+    rng = np.random.default_rng(11)
+    for n in (6, 7):
+        J = rng.normal(size=(6, n))
+        A, L = np.empty((6, 6)), np.zeros((6, 6))
+        k.shifted_gram(J, 0.3, A)
+        np.testing.assert_allclose(A, J @ J.T + 0.3 * np.eye(6), rtol=1e-14, atol=1e-14)
+        assert k.cholesky_factor(A, L)
+        np.testing.assert_allclose(np.tril(L), np.linalg.cholesky(A), rtol=1e-12, atol=1e-13)
+        b, x = rng.normal(size=6), np.empty(6)
+        k.cholesky_solve(A, b, L, x)
+        np.testing.assert_allclose(x, np.linalg.solve(A, b), rtol=1e-10)
+        sigma2 = np.linalg.svd(J, compute_uv=False)[-1] ** 2
+        k.shifted_gram(J, -0.99 * sigma2, A)
+        assert k.cholesky_factor(A, L)
+        k.shifted_gram(J, -1.01 * sigma2, A)
+        assert not k.cholesky_factor(A, L)
+        k.cholesky_solve(A, b, L, x)
+        assert np.all(np.isnan(x))
+        A[2, 2] = np.nan
+        assert not k.cholesky_factor(A, L)

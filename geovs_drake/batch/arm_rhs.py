@@ -31,7 +31,6 @@ which :mod:`.arm_sampled` runs on the camera's clock.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -257,39 +256,8 @@ def _to_world(R_WC, twist_C, out):
 @njit(cache=True, nogil=True, error_model="numpy")
 def _damped_solve(J, lam2, b, A, L, z):
     """z = (J J^T + lam2 I)^-1 b (6), J (6 x n): the damped least squares' system."""
-    for r in range(6):
-        for c in range(6):
-            s = lam2 if r == c else 0.0
-            for k in range(J.shape[1]):
-                s += J[r, k] * J[c, k]
-            A[r, c] = s
+    _k.shifted_gram(J, lam2, A)
     _k.cholesky_solve(A, b, L, z)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _positive_definite(J, shift, A, L):
-    """Whether J J^T - shift I (6 x 6, into ``A``) is positive definite: its Cholesky
-    factor (into ``L``) has positive pivots."""
-    for r in range(6):
-        for c in range(6):
-            s = -shift if r == c else 0.0
-            for k in range(J.shape[1]):
-                s += J[r, k] * J[c, k]
-            A[r, c] = s
-    for j in range(6):
-        s = A[j, j]
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        if not s > 0.0:
-            return False
-        d = math.sqrt(s)
-        L[j, j] = d
-        for i in range(j + 1, 6):
-            t = A[i, j]
-            for k in range(j):
-                t -= L[i, k] * L[j, k]
-            L[i, j] = t / d
-    return True
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -303,10 +271,12 @@ def _kinematic_qdot(x, out, n, nu_W, J, p_arm, q_mid, A, L, vec):
     # sigma_min only where the singular zone may hold: J J^T - m^2 I not positive
     # definite (a Cholesky factor, 0.1 us, against Jacobi's 5 us; the damping is
     # continuous at sigma = m, so the rounding at the zone's edge changes nothing).
-    if m > 0.0 and not _positive_definite(J, m * m, A, L):
-        sigma = _k.min_singular_value(J, A)
-        if sigma < m:  # the singular zone: Chiaverini's damping, m^2 at the singularity
-            lam2 += m * m - sigma * sigma
+    if m > 0.0:
+        _k.shifted_gram(J, -m * m, A)
+        if not _k.cholesky_factor(A, L):
+            sigma = _k.min_singular_value(J, A)
+            if sigma < m:  # the singular zone: Chiaverini's damping, m^2 at the singularity
+                lam2 += m * m - sigma * sigma
     k_n = p_arm[_KIN_NULL]
     b = vec[0]
     for r in range(6):

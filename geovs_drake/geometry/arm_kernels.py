@@ -41,10 +41,12 @@ __all__ = [
     "camera_pose",
     "camera_terms",
     "camera_torque",
+    "cholesky_factor",
     "cholesky_solve",
     "inverse_dynamics",
     "mass_matrix",
     "min_singular_value",
+    "shifted_gram",
 ]
 
 #: Joint kinds in the tree's ``kind`` array.
@@ -368,22 +370,50 @@ def camera_torque(J_C, F_C, tau_g, damping, x, tau):
 
 
 @njit(**_JIT)
-def cholesky_solve(A, b, L, x):
-    """x = A^-1 b for a symmetric positive definite A (n x n) by its Cholesky factor,
-    written into the scratch ``L`` (n x n); NaN where A is not positive definite
-    (the caller's state check stops the start)."""
+def shifted_gram(J, shift, A):
+    """``A = J J^T + shift I`` (m x m) for J (m x n): the damped least squares' matrix
+    (``shift = lambda^2``), the singular zone's test (``-m^2``), the Gram matrix (0)."""
+    rows = J.shape[0]
+    for r in range(rows):
+        for c in range(rows):
+            s = shift if r == c else 0.0
+            for k in range(J.shape[1]):
+                s += J[r, k] * J[c, k]
+            A[r, c] = s
+
+
+@njit(**_JIT)
+def cholesky_factor(A, L):
+    """The lower Cholesky factor of a symmetric A (n x n) into ``L``: True, or False at
+    the first pivot that is not positive (A is not positive definite; NaN included),
+    ``L`` then filled only up to it."""
     n = A.shape[0]
     for j in range(n):
         s = A[j, j]
         for k in range(j):
             s -= L[j, k] * L[j, k]
-        d = math.sqrt(s) if s > 0.0 else math.nan
+        if not s > 0.0:
+            return False
+        d = math.sqrt(s)
         L[j, j] = d
         for i in range(j + 1, n):
-            s = A[i, j]
+            t = A[i, j]
             for k in range(j):
-                s -= L[i, k] * L[j, k]
-            L[i, j] = s / d
+                t -= L[i, k] * L[j, k]
+            L[i, j] = t / d
+    return True
+
+
+@njit(**_JIT)
+def cholesky_solve(A, b, L, x):
+    """x = A^-1 b for a symmetric positive definite A (n x n) by its Cholesky factor,
+    written into the scratch ``L`` (n x n); NaN where A is not positive definite
+    (the caller's state check stops the start)."""
+    n = A.shape[0]
+    if not cholesky_factor(A, L):
+        for i in range(n):
+            x[i] = math.nan
+        return
     for i in range(n):
         s = b[i]
         for k in range(i):
@@ -402,12 +432,7 @@ def min_singular_value(J, G):
     G = J J^T (6 x 6 scratch, overwritten) by cyclic Jacobi rotations (Golub and Van
     Loan, Algorithm 8.5.3), to the symmetric matrix's rounding."""
     m = J.shape[0]
-    for r in range(m):
-        for c in range(m):
-            s = 0.0
-            for k in range(J.shape[1]):
-                s += J[r, k] * J[c, k]
-            G[r, c] = s
+    shifted_gram(J, 0.0, G)
     scale = 0.0
     for r in range(m):
         scale += G[r, r] * G[r, r]

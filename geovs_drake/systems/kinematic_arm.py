@@ -8,6 +8,7 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.math import inv
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 
+from geovs_drake.geometry.arm_kernels import cholesky_factor, shifted_gram
 from geovs_drake.systems._parameters import POSE_SIZE, param_vector
 from geovs_drake.systems._template import template_system
 from geovs_drake.systems.arm_model import (
@@ -37,34 +38,18 @@ _ZONE_SLACK_ABS = 1e-12
 def _clear_of_singular_zone(J: np.ndarray, m2: float) -> bool:
     """True where sigma_min(J)^2 exceeds m2 for sure: J J^T - (m2 + room) I has a Cholesky
     factor (a 6 x 6 one in about 0.3 us, where the SVD takes 8 us); False leaves the
-    verdict to the SVD."""
-    rows, cols = J.shape
+    verdict to the SVD. The batch engine's arm asks the same (``geometry.arm_kernels``'
+    ``shifted_gram`` and ``cholesky_factor``) with no room: its damping is continuous at
+    the zone's edge."""
+    rows = J.shape[0]
+    trace = 0.0  # J J^T's trace: J's squared entries
+    for i in range(rows):
+        for k in range(J.shape[1]):
+            trace += J[i, k] * J[i, k]
     A = np.empty((rows, rows))
-    trace = 0.0
-    for i in range(rows):
-        for j in range(rows):
-            acc = 0.0
-            for k in range(cols):
-                acc += J[i, k] * J[j, k]
-            A[i, j] = acc
-        trace += A[i, i]
-    shift = m2 * (1.0 + _ZONE_SLACK) + _ZONE_SLACK_ABS * trace
-    for i in range(rows):
-        A[i, i] -= shift
-    for j in range(rows):  # Cholesky, in place: a pivot <= 0 is no factor
-        pivot = A[j, j]
-        for k in range(j):
-            pivot -= A[j, k] * A[j, k]
-        if not pivot > 0.0:
-            return False
-        root = np.sqrt(pivot)
-        A[j, j] = root
-        for i in range(j + 1, rows):
-            acc = A[i, j]
-            for k in range(j):
-                acc -= A[i, k] * A[j, k]
-            A[i, j] = acc / root
-    return True
+    L = np.empty((rows, rows))
+    shifted_gram(J, -(m2 * (1.0 + _ZONE_SLACK) + _ZONE_SLACK_ABS * trace), A)
+    return cholesky_factor(A, L)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
