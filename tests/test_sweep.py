@@ -11,6 +11,7 @@ import copy
 import json
 import os
 import re
+import time
 
 import numpy as np
 import pandas as pd
@@ -156,13 +157,13 @@ def test_a_sweep_below_the_cluster_size_runs_here_on_workers_threads(monkeypatch
 
     monkeypatch.setattr(sweep.run, "_connect", no_cluster)
     threads: list[int] = []
-    run_part = sweep.run.run_part
+    compute_part = sweep.run.compute_part
 
     def counting(*args):
         threads.append(numba.get_num_threads())
-        return run_part(*args)
+        return compute_part(*args)
 
-    monkeypatch.setattr(sweep.run, "run_part", counting)
+    monkeypatch.setattr(sweep.run, "compute_part", counting)
     before = numba.get_num_threads()
     config = ScenarioConfig()
     starts = sweep.SampledStarts(6, seed=2, velocity="bounded")
@@ -285,6 +286,42 @@ def test_interrupt_keeps_the_finished_parts_and_resume_finishes_identically(tmp_
             sweep.run_sweep(**settings, workers=1, chunk=6, out=out, resume=True)
     with pytest.raises(sweep.SweepError, match="no sweep in"):
         sweep.run_sweep(config, starts, 1.0, workers=1, out=tmp_path / "none", resume=True)
+
+
+def test_ctrl_c_while_a_part_finishes_keeps_exactly_the_merged_parts(tmp_path, monkeypatch):
+    """In one process a part is finished (its file written) on a thread while the next
+    integrates: Ctrl-C in that integration leaves the folder with exactly the parts the
+    interrupted result counts (the one being finished is removed, not half-kept), and
+    resume completes it to the uninterrupted sweep."""
+    config = ScenarioConfig()
+    starts = sweep.SampledStarts(20, seed=2)
+    whole = sweep.run_sweep(config, starts, 1.0, workers=1, chunk=6, out=tmp_path / "whole")
+    compute_part = sweep.run.compute_part
+    calls: list[int] = []
+
+    def ctrl_c_at_the_third(*args):
+        calls.append(1)
+        if len(calls) == 3:  # part 1 is being finished on the thread: Ctrl-C once written
+            written = tmp_path / "cut" / "results" / "part-00001.parquet"
+            deadline = time.monotonic() + 60
+            while not written.exists() and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert written.exists()
+            raise KeyboardInterrupt
+        return compute_part(*args)
+
+    monkeypatch.setattr(sweep.run, "compute_part", ctrl_c_at_the_third)
+    out = tmp_path / "cut"
+    with pytest.raises(sweep.SweepInterrupted) as info:
+        sweep.run_sweep(config, starts, 1.0, workers=1, chunk=6, out=out)
+    cut = info.value.result
+    files = sorted(p.name for p in (out / "results").iterdir())
+    assert files == ["part-00000.parquet"] and cut.summary.finished == 6
+    assert cut.table["start"].tolist() == list(range(6))
+    monkeypatch.setattr(sweep.run, "compute_part", compute_part)
+    resumed = sweep.run_sweep(config, starts, 1.0, workers=1, chunk=6, out=out, resume=True)
+    assert resumed.resumed_parts == 1
+    pd.testing.assert_frame_equal(resumed.table, whole.table)
 
 
 def test_drake_engine_gives_the_batch_engine_statuses():

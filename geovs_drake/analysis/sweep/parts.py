@@ -49,6 +49,8 @@ __all__ = [
     "read_part_summary",
     "row_fields",
     "PartStarts",
+    "compute_part",
+    "finish_part",
     "prepare_part",
     "run_part",
 ]
@@ -198,6 +200,12 @@ def run_part(
 ) -> tuple[dict, object | None]:
     """Run one part: (its summary as JSON, its pyarrow Table or None when written to
     ``part.results / name``). ``starts``: its :func:`prepare_part`, if made already."""
+    return finish_part(part, name, compute_part(part, starts))
+
+
+def compute_part(part: Part, starts: PartStarts | None = None) -> dict[str, np.ndarray]:
+    """A part's result columns before its ends and summary (:func:`finish_part`): the
+    engine's run of its starts (``starts``: its :func:`prepare_part`, if made already)."""
     if part.single_thread:
         import numba
 
@@ -213,6 +221,17 @@ def run_part(
     columns.update(_pose_columns(X_BC))
     columns.update(zip(_TWIST, np.asarray(twists, float).T, strict=True))
     columns.update(run(config, p, starts, part.duration))
+    return columns
+
+
+def finish_part(
+    part: Part, name: str | None, columns: dict[str, np.ndarray]
+) -> tuple[dict, object | None]:
+    """A computed part (:func:`compute_part`) finished: its runs' ends, its summary, its
+    table, written to ``part.results / name`` (then None in the table's place). It calls
+    no compiled kernel: a sweep in one process finishes a part on a thread while the
+    next one integrates."""
+    config = _worker_config(part.config_yaml)
     columns["end"] = run_ends(columns)
     summary = SweepSummary.of_rows(config, part.duration, columns).to_json()
     table = _table(columns, summary)
