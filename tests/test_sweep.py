@@ -157,13 +157,13 @@ def test_a_sweep_below_the_cluster_size_runs_here_on_workers_threads(monkeypatch
 
     monkeypatch.setattr(sweep.run, "_connect", no_cluster)
     threads: list[int] = []
-    compute_part = sweep.run.compute_part
+    compute_part = sweep.here.compute_part
 
     def counting(*args):
         threads.append(numba.get_num_threads())
         return compute_part(*args)
 
-    monkeypatch.setattr(sweep.run, "compute_part", counting)
+    monkeypatch.setattr(sweep.here, "compute_part", counting)
     before = numba.get_num_threads()
     config = ScenarioConfig()
     starts = sweep.SampledStarts(6, seed=2, velocity="bounded")
@@ -183,14 +183,14 @@ def test_in_process_the_next_parts_starts_are_prepared_while_a_part_runs(monkeyp
     integration), and the rows are those of the parts run start to end one by one."""
     import threading
 
-    prepare = sweep.run.prepare_part
+    prepare = sweep.here.prepare_part
     threads: list[str] = []
 
     def recording(part):
         threads.append(threading.current_thread().name)
         return prepare(part)
 
-    monkeypatch.setattr(sweep.run, "prepare_part", recording)
+    monkeypatch.setattr(sweep.here, "prepare_part", recording)
     config = ScenarioConfig()
     starts = sweep.SampledStarts(6, seed=2, velocity="bounded")
     ahead = sweep.run_sweep(config, starts, 0.5, workers=1, chunk=2)
@@ -296,7 +296,7 @@ def test_ctrl_c_while_a_part_finishes_keeps_exactly_the_merged_parts(tmp_path, m
     config = ScenarioConfig()
     starts = sweep.SampledStarts(20, seed=2)
     whole = sweep.run_sweep(config, starts, 1.0, workers=1, chunk=6, out=tmp_path / "whole")
-    compute_part = sweep.run.compute_part
+    compute_part = sweep.here.compute_part
     calls: list[int] = []
 
     def ctrl_c_at_the_third(*args):
@@ -310,7 +310,7 @@ def test_ctrl_c_while_a_part_finishes_keeps_exactly_the_merged_parts(tmp_path, m
             raise KeyboardInterrupt
         return compute_part(*args)
 
-    monkeypatch.setattr(sweep.run, "compute_part", ctrl_c_at_the_third)
+    monkeypatch.setattr(sweep.here, "compute_part", ctrl_c_at_the_third)
     out = tmp_path / "cut"
     with pytest.raises(sweep.SweepInterrupted) as info:
         sweep.run_sweep(config, starts, 1.0, workers=1, chunk=6, out=out)
@@ -318,7 +318,7 @@ def test_ctrl_c_while_a_part_finishes_keeps_exactly_the_merged_parts(tmp_path, m
     files = sorted(p.name for p in (out / "results").iterdir())
     assert files == ["part-00000.parquet"] and cut.summary.finished == 6
     assert cut.table["start"].tolist() == list(range(6))
-    monkeypatch.setattr(sweep.run, "compute_part", compute_part)
+    monkeypatch.setattr(sweep.here, "compute_part", compute_part)
     resumed = sweep.run_sweep(config, starts, 1.0, workers=1, chunk=6, out=out, resume=True)
     assert resumed.resumed_parts == 1
     pd.testing.assert_frame_equal(resumed.table, whole.table)

@@ -18,6 +18,8 @@ grow with N:
   plots are drawn from the merged summary.
 * :mod:`.run`: :func:`run_sweep`, the client: a bounded window of parts on a
   ``LocalCluster`` or an existing scheduler, and ``resume`` from ``out``.
+* :mod:`.here`: a smaller sweep's parts in this process, on numba's threads, each part
+  finished on a helper thread while the next one integrates.
 
 Why chunks of the batch engine: one :func:`~geovs_drake.batch.run_batch` call
 integrates a part in one compiled loop, so a task costs a few bytes of

@@ -32,7 +32,6 @@ import signal
 import time
 import warnings
 from collections.abc import Callable, Iterator
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,14 +40,12 @@ from pydrake.common.yaml import yaml_dump_typed
 
 from geovs_drake import __version__
 from geovs_drake._optional import require
+from geovs_drake.analysis.sweep.here import run_here
 from geovs_drake.analysis.sweep.parts import (
     HOVER_FIELDS,
     ROW_FIELDS,
     Part,
-    compute_part,
-    finish_part,
     part_name,
-    prepare_part,
     read_part_summary,
     run_part,
 )
@@ -341,49 +338,6 @@ def _connect(scheduler: str | None, workers: int):
         raise
 
 
-def _in_process(todo: list[tuple[Part, str]], threads: int) -> Iterator[tuple[dict, object]]:
-    """The parts run here one after the other, each on ``threads`` numba threads (at
-    most numba's pool; restored afterwards). While a part integrates (the GIL released),
-    a thread finishes the one before (:func:`~.parts.finish_part`: its ends, summary and
-    file, 20-30 ms a part of 1000 free-body starts) and prepares the next part's starts
-    (:func:`~.parts.prepare_part`: on the arm its IK, about half of its sweep's CPU).
-    Neither calls a parallel kernel: never two launches into numba's pool at once.
-    Stopped (Ctrl-C, an ``on_part`` that raises), the folder holds the parts yielded."""
-    import numba
-
-    before = numba.get_num_threads()
-    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
-    ahead = ThreadPoolExecutor(max_workers=1, thread_name_prefix="next-part")
-    finishing = None  # (the future of a part being finished, the part, its file's name)
-    try:
-        following = ahead.submit(prepare_part, todo[0][0]) if todo else None
-        for i, (part, name) in enumerate(todo):
-            starts = following.result()
-            if i + 1 < len(todo):
-                following = ahead.submit(prepare_part, todo[i + 1][0])
-            columns = compute_part(part, starts)
-            if finishing is not None:
-                done, finishing = finishing, None
-                yield done[0].result()
-            finishing = (ahead.submit(finish_part, part, name, columns), part, name)
-        if finishing is not None:
-            done, finishing = finishing, None
-            yield done[0].result()
-    finally:
-        ahead.shutdown(wait=False, cancel_futures=True)
-        numba.set_num_threads(before)
-        if finishing is not None:  # stopped before it was yielded: not kept
-            _drop_unyielded(*finishing)
-
-
-def _drop_unyielded(future, part: Part, name: str) -> None:
-    """A part finished on the thread but never yielded (stopped while the next one
-    integrated): its file, once written, is removed (a resume runs it again)."""
-    if future.cancel() or future.exception() is not None or part.results is None:
-        return
-    (Path(part.results) / name).unlink(missing_ok=True)
-
-
 def _on_dask(client, todo: list[tuple[Part, str]]) -> Iterator[tuple[dict, object]]:
     """The parts' results as they finish, with at most a window of parts in flight."""
     distributed = require("distributed", "sweep", "run_sweep on Dask", package="dask[distributed]")
@@ -522,7 +476,7 @@ def _run_parts(
             client, cluster = _connect(scheduler, workers)
         if out is not None and not resume:
             _start_folder(out, manifest)
-        results = _on_dask(client, todo) if client is not None else _in_process(todo, workers)
+        results = _on_dask(client, todo) if client is not None else run_here(todo, workers)
         for data, table in results:
             summary.merge(SweepSummary.from_json(data))
             if table is not None:
