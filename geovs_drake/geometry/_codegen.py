@@ -311,7 +311,16 @@ def _body(
     return lines, reduced
 
 
-def _generate_kernel(kernel: Kernel, args: list, exprs: list, printer) -> str:
+def _built(kernel: Kernel) -> tuple[list, list]:
+    """The kernel's argument symbols and its expressions on them."""
+    args = _symbols(kernel)
+    return args, kernel.build(*args)
+
+
+def _generate_kernel(kernel: Kernel, printer, built: tuple[list, list] | None = None) -> str:
+    """The kernel's generated function (``built``: its :func:`_built`, if made already;
+    the batch engine's generator calls it with the kernel alone)."""
+    args, exprs = _built(kernel) if built is None else built
     doc = " ".join(kernel.doc.split())
     lines = [f"\n\ndef {kernel.name}({', '.join(n for n, _ in kernel.args)}):\n"]
     lines.append(f'    """{doc}"""\n')
@@ -341,14 +350,13 @@ def _generate_into(into: Into, kernel: Kernel, args: list, exprs: list, printer)
 def generate() -> str:
     """The source text of the generated module."""
     printer = _printer()
-    built = {}
+    built = {kernel.name: _built(kernel) for kernel in KERNELS}
     text = [HEADER]
     for kernel in KERNELS:
-        args = _symbols(kernel)
-        built[kernel.name] = (kernel, args, kernel.build(*args))
-        text.append(_generate_kernel(*built[kernel.name], printer))
+        text.append(_generate_kernel(kernel, printer, built[kernel.name]))
+    by_name = {kernel.name: kernel for kernel in KERNELS}
     for into in INTO:
-        text.append(_generate_into(into, *built[into.kernel], printer))
+        text.append(_generate_into(into, by_name[into.kernel], *built[into.kernel], printer))
     return "".join(text)
 
 
