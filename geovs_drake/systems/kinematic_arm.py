@@ -42,14 +42,15 @@ def _clear_of_singular_zone(J: np.ndarray, m2: float) -> bool:
     ``shifted_gram`` and ``cholesky_factor``) with no room: its damping is continuous at
     the zone's edge."""
     rows = J.shape[0]
-    trace = 0.0  # J J^T's trace: J's squared entries
-    for i in range(rows):
-        for k in range(J.shape[1]):
-            trace += J[i, k] * J[i, k]
     A = np.empty((rows, rows))
-    L = np.empty((rows, rows))
-    shifted_gram(J, -(m2 * (1.0 + _ZONE_SLACK) + _ZONE_SLACK_ABS * trace), A)
-    return cholesky_factor(A, L)
+    shifted_gram(J, 0.0, A)  # J J^T once: its trace sets the room, then the shift
+    trace = 0.0
+    for i in range(rows):
+        trace += A[i, i]
+    shift = m2 * (1.0 + _ZONE_SLACK) + _ZONE_SLACK_ABS * trace
+    for i in range(rows):
+        A[i, i] -= shift
+    return cholesky_factor(A, np.empty((rows, rows)))
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
