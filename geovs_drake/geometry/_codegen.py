@@ -283,15 +283,13 @@ def _symbols(kernel: Kernel) -> list:
 
 
 def _body(
-    kernel: Kernel, args: list, exprs: list, printer, keep: range | None = None
+    kernel: Kernel, args: list, exprs: list, cse: tuple, printer, keep: list | None = None
 ) -> tuple[list[str], list]:
     """The lines that unpack the arguments and compute the common subexpressions of
-    ``exprs``, and the reduced expressions; with ``keep``, only those outputs' and
-    the subexpressions they need: the same operations as the whole kernel's for
-    them, so the same rounding."""
-    import sympy as sp
-
-    temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("t"), optimizations=None)
+    ``exprs`` (``cse``: sympy's ``(temps, reduced)`` of them), and the reduced
+    expressions; with ``keep``, only those outputs' and the subexpressions they need:
+    the same operations as the whole kernel's for them, so the same rounding."""
+    temps, reduced = cse
     if keep is not None:
         reduced = [reduced[i] for i in keep]
         needed = set().union(*(e.free_symbols for e in reduced))
@@ -311,20 +309,24 @@ def _body(
     return lines, reduced
 
 
-def _built(kernel: Kernel) -> tuple[list, list]:
-    """The kernel's argument symbols and its expressions on them."""
+def _built(kernel: Kernel) -> tuple[list, list, tuple]:
+    """The kernel's argument symbols, its expressions on them and their common
+    subexpressions (sympy's ``cse``: once a kernel, for it and its in-place forms)."""
+    import sympy as sp
+
     args = _symbols(kernel)
-    return args, kernel.build(*args)
+    exprs = kernel.build(*args)
+    return args, exprs, sp.cse(exprs, symbols=sp.numbered_symbols("t"), optimizations=None)
 
 
-def _generate_kernel(kernel: Kernel, printer, built: tuple[list, list] | None = None) -> str:
+def _generate_kernel(kernel: Kernel, printer, built: tuple | None = None) -> str:
     """The kernel's generated function (``built``: its :func:`_built`, if made already;
     the batch engine's generator calls it with the kernel alone)."""
-    args, exprs = _built(kernel) if built is None else built
+    args, exprs, cse = _built(kernel) if built is None else built
     doc = " ".join(kernel.doc.split())
     lines = [f"\n\ndef {kernel.name}({', '.join(n for n, _ in kernel.args)}):\n"]
     lines.append(f'    """{doc}"""\n')
-    body, reduced = _body(kernel, args, exprs, printer)
+    body, reduced = _body(kernel, args, exprs, cse, printer)
     lines += body
     lines.append("    return (\n")
     for expr in reduced:
@@ -333,12 +335,13 @@ def _generate_kernel(kernel: Kernel, printer, built: tuple[list, list] | None = 
     return "".join(lines)
 
 
-def _generate_into(into: Into, kernel: Kernel, args: list, exprs: list, printer) -> str:
+def _generate_into(into: Into, kernel: Kernel, built: tuple, printer) -> str:
+    args, exprs, cse = built
     writes = range(*into.writes.indices(len(exprs)))
     keep = range(0) if into.returns is None else range(into.returns, into.returns + 1)
     lines = [f"\n\ndef {into.name}({', '.join(n for n, _ in kernel.args)}, out):\n"]
     lines.append(f'    """{kernel.name}\'s {into.doc} Floats only (numba)."""\n')
-    body, reduced = _body(kernel, args, exprs, printer, keep=[*writes, *keep])
+    body, reduced = _body(kernel, args, exprs, cse, printer, keep=[*writes, *keep])
     lines += body
     for i, expr in enumerate(reduced[: len(writes)]):
         lines.append(f"    out[{i}] = {printer.doprint(expr)}\n")
@@ -356,7 +359,7 @@ def generate() -> str:
         text.append(_generate_kernel(kernel, printer, built[kernel.name]))
     by_name = {kernel.name: kernel for kernel in KERNELS}
     for into in INTO:
-        text.append(_generate_into(into, by_name[into.kernel], *built[into.kernel], printer))
+        text.append(_generate_into(into, by_name[into.kernel], built[into.kernel], printer))
     return "".join(text)
 
 
